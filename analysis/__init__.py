@@ -1,0 +1,1 @@
+"""Analysis: repeated-measures statistics on tidy tables and the MNE ERP pipeline."""

@@ -1,0 +1,5 @@
+import sys
+
+from appeal.cli import main
+
+sys.exit(main())

@@ -1,0 +1,47 @@
+"""The ``appeal`` command and its groups; commands attach to these from their own modules."""
+
+from __future__ import annotations
+
+import click
+
+from appeal import __version__
+from appeal.logs import set_log_level
+from appeal.progress import set_quiet
+
+CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
+
+
+@click.group(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal demo --out demo_out                      # the whole pipeline on built-in assets
+  appeal validate protocols/*.yaml protocols/grids/*.yaml
+  appeal stimuli grid protocols/grids/exp2_stylisation.yaml --out stimuli/exp2
+  appeal run protocols/exp2_stylisation.yaml --participant 01 --out data
+  appeal analyze ratings protocols/analysis/exp2_ratings.yaml --out results/exp2
+
+Every command has --help with examples. -v/--verbose and -q/--quiet may stand anywhere.
+Exit status: 0 success, 2 bad input (one line per problem on stderr), 1 internal error.""")
+@click.version_option(__version__, "--version", prog_name="appeal")
+@click.option("-v", "--verbose", is_flag=True, help="Log debugging detail (and tracebacks of internal errors).")
+@click.option("-q", "--quiet", is_flag=True, help="Only warnings and errors; no progress bars.")
+def cli(verbose: bool, quiet: bool) -> None:
+    """Appeal Lab: stylised face stimuli, PsychoPy experiments and their analysis.
+
+    \b
+    The three parts, each a group of commands:
+      stimuli   build face stimuli (3D correspondence, grids, morph-space PCA models)
+      run       present a protocol to a participant (PsychoPy) and record the data
+      analyze   statistics on ratings and EEG (rm-ANOVA, post-hocs, ERP windows)
+    """
+    set_log_level(True if verbose else (False if quiet else None))
+    set_quiet(quiet)
+
+
+@cli.group(context_settings=CONTEXT)
+def stimuli() -> None:
+    """Make stimuli: correspondence, texture transfer, morphs, rendered grids, 2D face models."""
+
+
+@cli.group(context_settings=CONTEXT)
+def analyze() -> None:
+    """Analyse recorded data: rating statistics and ERP pipelines."""

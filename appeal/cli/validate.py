@@ -1,0 +1,36 @@
+"""``appeal validate``: check study files without running anything."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from appeal.cli.groups import CONTEXT, cli
+from appeal.cli.kinds import load_any_study_file
+from appeal.errors import AppealInputError
+
+
+@cli.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal validate protocols/exp2_stylisation.yaml
+  appeal validate protocols/*.yaml protocols/grids/*.yaml protocols/analysis/*.yaml""")
+@click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
+def validate(files: tuple[Path, ...]) -> None:
+    """Check study files (grids, protocols, analyses) and report every problem.
+
+    Each FILE is YAML with a `kind:` key (grid, protocol, ratings or erp). Problems are
+    printed one per line as `FILE: dotted.path: message`; relative paths inside a file
+    resolve against the file's folder, and named input files and folders must exist.
+    Exits 2 if any file has a problem.
+    """
+    problems: list[str] = []
+    for f in files:
+        try:
+            kind, _ = load_any_study_file(f)
+        except AppealInputError as exc:
+            problems.extend(exc.lines)
+        else:
+            click.echo(f"{f}: ok ({kind})")
+    if problems:
+        raise AppealInputError(problems)

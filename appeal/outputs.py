@@ -1,0 +1,140 @@
+"""Output folders: refuse to clobber, log to ``DIR/log.txt``, record ``DIR/provenance.json``.
+
+Every command that produces files runs inside :func:`output_run`::
+
+    with output_run(out, force=force, resume=resume, seed=seed, inputs=[grid_file]) as run:
+        ...  # write into run.out
+"""
+
+from __future__ import annotations
+
+import contextlib
+import shutil
+import sys
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from appeal.errors import AppealInputError
+from appeal.logs import add_log_file, logger, remove_log_file
+from appeal.provenance import now_iso, provenance_record, write_provenance
+
+__all__ = ["OutputRun", "prepare_out_dir", "output_run"]
+
+
+def prepare_out_dir(out: str | Path, *, force: bool = False, resume: bool = False) -> Path:
+    """Create ``out`` or check that it may be written into.
+
+    Parameters
+    ----------
+    out : str | Path
+        The output folder.
+    force : bool
+        Allow a non-empty folder. A folder an earlier ``appeal`` run made (it holds
+        ``provenance.json``) is emptied first; any other folder is written into as is.
+    resume : bool
+        Allow a non-empty folder and keep what is there (the command continues).
+
+    Returns
+    -------
+    Path
+        The folder, resolved.
+
+    Raises
+    ------
+    AppealInputError
+        If ``out`` is a file, or a non-empty folder and neither ``force`` nor ``resume``.
+    """
+    out = Path(out).expanduser()
+    if out.exists() and not out.is_dir():
+        raise AppealInputError(f"{out}: --out must be a folder, but a file of that name exists")
+    if out.is_dir() and any(out.iterdir()):
+        if resume:
+            return out.resolve()
+        if not force:
+            raise AppealInputError(
+                f"{out}: output folder is not empty (use --force to overwrite or --resume to continue)"
+            )
+        if (out / "provenance.json").is_file():
+            for child in out.iterdir():
+                shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise AppealInputError(f"{out}: cannot create output folder ({exc.strerror})") from None
+    return out.resolve()
+
+
+@dataclass
+class OutputRun:
+    """A running command's output folder and what will go into its provenance record."""
+
+    out: Path
+    seed: int | None
+    inputs: list[Path]
+    argv: list[str]
+    started: str
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def path(self, *parts: str, mkdir: bool = True) -> Path:
+        """A path inside the output folder (its parent folder is created)."""
+        p = self.out.joinpath(*parts)
+        if mkdir:
+            p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
+    def add_inputs(self, paths: Iterable[str | Path]) -> None:
+        """Record further input files (hashed into the provenance at the end)."""
+        self.inputs.extend(Path(p) for p in paths)
+
+
+@contextlib.contextmanager
+def output_run(
+    out: str | Path,
+    *,
+    force: bool = False,
+    resume: bool = False,
+    seed: int | None = None,
+    inputs: Iterable[str | Path] = (),
+    argv: list[str] | None = None,
+) -> Iterator[OutputRun]:
+    """Prepare ``out``, log into ``out/log.txt`` and write ``out/provenance.json`` at the end.
+
+    The provenance is written whether the body succeeds or raises; its ``status`` says
+    which (``"ok"`` or ``"failed: <error>"``).
+
+    Parameters
+    ----------
+    out : str | Path
+        Output folder (see :func:`prepare_out_dir` for ``force`` and ``resume``).
+    force, resume : bool
+        See :func:`prepare_out_dir`.
+    seed : int | None
+        The seed of all randomness in the run.
+    inputs : iterable of path-like
+        Input files to hash into the record.
+    argv : list of str | None
+        The command line (default ``sys.argv``).
+
+    Yields
+    ------
+    OutputRun
+        The run; write files under ``run.out``.
+    """
+    folder = prepare_out_dir(out, force=force, resume=resume)
+    run = OutputRun(out=folder, seed=seed, inputs=[Path(p) for p in inputs],
+                    argv=list(sys.argv if argv is None else argv), started=now_iso())
+    handler = add_log_file(folder / "log.txt")
+    logger.info("writing to %s (seed %s)", folder, seed)
+    status = "ok"
+    try:
+        yield run
+    except BaseException as exc:
+        status = f"failed: {type(exc).__name__}: {exc}".splitlines()[0]
+        raise
+    finally:
+        record = provenance_record(argv=run.argv, inputs=run.inputs, seed=run.seed, started=run.started,
+                                   ended=now_iso(), extra={"status": status, **run.extra})
+        write_provenance(folder, record)
+        remove_log_file(handler)

@@ -1,0 +1,1 @@
+"""Experiment runtime: protocols parsed into trial lists and presented with PsychoPy."""
