@@ -1,2 +1,13 @@
 """Stimulus engine: 3D face correspondence, texture transfer, morphing, rendered grids, and
 2D morph-space PCA face models."""
+
+# --- mesh I/O, correspondence, texture transfer, morphing (issue 4) ---
+from stimulus_engine.mesh_io import (  # noqa: E402
+    ict_regions,
+    load_mesh,
+    load_parts,
+    mesh_uv_layout,
+    save_mesh,
+    select_region,
+    texture_image,
+)

@@ -1,0 +1,661 @@
+"""Mesh input/output on trimesh: OBJ (also ``.obj.gz``), PLY and GLB, with UVs and textures.
+
+Every loader keeps the file's vertex order (``process=False`` semantics): vertex ``i`` of the
+returned :class:`trimesh.Trimesh` is the ``i``-th ``v`` line of an OBJ file, so vertex indices
+from a model's documentation (e.g. the ICT face kit's landmark list) stay valid. Polygons are
+fan-triangulated (a quad ``a b c d`` becomes ``a b c`` and ``a c d``), which keeps orientation.
+
+UVs: OBJ files store texture coordinates per face corner, so one vertex on a UV seam can have
+several UVs. ``mesh.visual.uv`` holds one UV per vertex (that of the first corner using the
+vertex); the exact per-corner layout is kept in ``mesh.metadata["face_uv"]`` (faces × 3 indices)
+and ``mesh.metadata["uv_coords"]`` (K × 2), which :mod:`stimulus_engine.texture_transfer`
+uses so that seams are handled exactly.
+
+Bad files raise :class:`appeal.errors.AppealInputError` with a one-line message naming the file.
+"""
+
+from __future__ import annotations
+
+import gzip
+import io
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from appeal.atomic import atomic_write_bytes, atomic_write_text
+from appeal.errors import AppealInputError
+from appeal.logs import logger
+
+__all__ = [
+    "MESH_SUFFIXES",
+    "ICT_GEOMETRY_RANGES",
+    "load_mesh",
+    "load_parts",
+    "save_mesh",
+    "select_region",
+    "ict_regions",
+    "mesh_uv_layout",
+    "texture_image",
+]
+
+#: File name endings :func:`load_mesh` reads.
+MESH_SUFFIXES = (".obj", ".obj.gz", ".ply", ".glb", ".gltf", ".off", ".stl")
+
+#: Vertex index ranges (inclusive) of the ICT Face Model topology, from the tables in the
+#: ICT-FaceKit README ("Face Model Topology" and "Face Area Details"). Same for every ICT mesh
+#: (neutral, identities, expressions), so they select regions by vertex set.
+ICT_GEOMETRY_RANGES: dict[str, tuple[int, int]] = {
+    "face": (0, 9408),
+    "narrow_face": (0, 6705),
+    "head_and_neck": (9409, 11247),
+    "mouth_socket": (11248, 13293),
+    "eye_socket_left": (13294, 13677),
+    "eye_socket_right": (13678, 14061),
+    "gums_and_tongue": (14062, 17038),
+    "teeth": (17039, 21450),
+    "eyeball_left": (21451, 23020),
+    "eyeball_right": (23021, 24590),
+    "lacrimal_fluid_left": (24591, 24794),
+    "lacrimal_fluid_right": (24795, 24998),
+    "eye_blend_left": (24999, 25022),
+    "eye_blend_right": (25023, 25046),
+    "eye_occlusion_left": (25047, 25198),
+    "eye_occlusion_right": (25199, 25350),
+    "eyelashes_left": (25351, 26034),
+    "eyelashes_right": (26035, 26718),
+}
+
+
+def _suffix(path: Path) -> str:
+    name = path.name.lower()
+    for s in (".obj.gz",):
+        if name.endswith(s):
+            return s
+    return path.suffix.lower()
+
+
+def _check_exists(path: Path) -> None:
+    if not path.exists():
+        raise AppealInputError(f"{path}: mesh file not found")
+    if path.is_dir():
+        raise AppealInputError(f"{path}: expected a mesh file, got a folder")
+    if path.stat().st_size == 0:
+        raise AppealInputError(f"{path}: mesh file is empty")
+    suffix = _suffix(path)
+    if suffix not in MESH_SUFFIXES:
+        raise AppealInputError(
+            f"{path}: unsupported mesh format '{suffix or path.name}' (expected one of "
+            f"{', '.join(MESH_SUFFIXES)})"
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# OBJ
+# --------------------------------------------------------------------------------------------
+
+
+class _ObjData:
+    """Raw OBJ content: positions, corner UV indices, per-face part labels and materials."""
+
+    def __init__(self) -> None:
+        self.vertices: np.ndarray = np.zeros((0, 3))
+        self.uv_coords: np.ndarray | None = None
+        self.faces: np.ndarray = np.zeros((0, 3), dtype=np.int64)
+        self.face_uv: np.ndarray | None = None
+        self.face_group: np.ndarray = np.zeros(0, dtype=np.int64)
+        self.face_material: np.ndarray = np.zeros(0, dtype=np.int64)
+        self.groups: list[str] = []
+        self.materials: list[str] = []
+        self.mtllibs: list[str] = []
+
+
+def _read_text(path: Path) -> str:
+    try:
+        if _suffix(path) == ".obj.gz":
+            with gzip.open(path, "rb") as fh:
+                raw = fh.read()
+        else:
+            raw = path.read_bytes()
+    except (OSError, EOFError) as exc:
+        raise AppealInputError(f"{path}: cannot read mesh file ({exc})") from None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _parse_obj(path: Path) -> _ObjData:
+    text = _read_text(path)
+    v: list[str] = []
+    vt: list[str] = []
+    corners_v: list[int] = []
+    corners_t: list[int] = []
+    poly_sizes: list[int] = []
+    poly_group: list[int] = []
+    poly_mat: list[int] = []
+    groups: dict[str, int] = {}
+    materials: dict[str, int] = {}
+    mtllibs: list[str] = []
+    cur_group = -1
+    cur_mat = -1
+    any_missing_t = False
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        if not line or line[0] == "#":
+            continue
+        head, _, rest = line.partition(" ")
+        if head == "v":
+            v.append(rest)
+        elif head == "vt":
+            vt.append(rest)
+        elif head == "f":
+            items = rest.split()
+            if len(items) < 3:
+                raise AppealInputError(
+                    f"{path}: line {lineno}: face needs at least 3 vertices (got '{line.strip()}')"
+                )
+            for it in items:
+                parts = it.split("/")
+                try:
+                    vi = int(parts[0])
+                    ti = int(parts[1]) if len(parts) > 1 and parts[1] else 0
+                except ValueError:
+                    raise AppealInputError(
+                        f"{path}: line {lineno}: face entries must be integer indices "
+                        f"(got '{it}')"
+                    ) from None
+                # OBJ indices are 1-based; negative ones count back from the current end.
+                vi = vi - 1 if vi > 0 else len(v) + vi
+                if ti == 0:
+                    any_missing_t = True
+                    ti = -1
+                else:
+                    ti = ti - 1 if ti > 0 else len(vt) + ti
+                corners_v.append(vi)
+                corners_t.append(ti)
+            poly_sizes.append(len(items))
+            poly_group.append(cur_group)
+            poly_mat.append(cur_mat)
+        elif head in ("g", "o"):
+            name = rest.strip() or f"group{len(groups)}"
+            cur_group = groups.setdefault(name, len(groups))
+        elif head == "usemtl":
+            name = rest.strip()
+            cur_mat = materials.setdefault(name, len(materials))
+        elif head == "mtllib":
+            mtllibs.append(rest.strip())
+    data = _ObjData()
+    if not v:
+        raise AppealInputError(f"{path}: no vertices ('v' lines) found; expected an OBJ mesh")
+    if not poly_sizes:
+        raise AppealInputError(f"{path}: no faces ('f' lines) found; expected a polygon mesh")
+    try:
+        verts = np.loadtxt(io.StringIO("\n".join(v)), dtype=np.float64, ndmin=2, usecols=(0, 1, 2))
+    except ValueError as exc:
+        raise AppealInputError(f"{path}: vertex lines must hold 3 numbers ({exc})") from None
+    if not np.all(np.isfinite(verts)):
+        raise AppealInputError(f"{path}: vertex coordinates must be finite numbers (found NaN/inf)")
+    cv = np.asarray(corners_v, dtype=np.int64)
+    ct = np.asarray(corners_t, dtype=np.int64)
+    bad = (cv < 0) | (cv >= len(verts))
+    if bad.any():
+        raise AppealInputError(
+            f"{path}: face refers to vertex {int(cv[bad][0]) + 1}, but the file has "
+            f"{len(verts)} vertices"
+        )
+    sizes = np.asarray(poly_sizes, dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    # Fan triangulation: polygon (p0 .. pk-1) -> (p0, pj, pj+1), j = 1 .. k-2.
+    n_tri = sizes - 2
+    poly_of_tri = np.repeat(np.arange(len(sizes)), n_tri)
+    j = np.arange(n_tri.sum()) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri) + 1
+    base = starts[poly_of_tri]
+    corner_idx = np.stack([base, base + j, base + j + 1], axis=1)
+    data.vertices = verts
+    data.faces = cv[corner_idx]
+    if vt and not any_missing_t:
+        uvs = np.loadtxt(io.StringIO("\n".join(vt)), dtype=np.float64, ndmin=2, usecols=(0, 1))
+        if ((ct < 0) | (ct >= len(uvs))).any():
+            raise AppealInputError(
+                f"{path}: face refers to a texture coordinate beyond the {len(uvs)} 'vt' lines"
+            )
+        data.uv_coords = uvs
+        data.face_uv = ct[corner_idx]
+    elif vt:
+        logger.warning("%s: some faces have no texture coordinates; UVs ignored", path)
+    data.face_group = np.asarray(poly_group, dtype=np.int64)[poly_of_tri]
+    data.face_material = np.asarray(poly_mat, dtype=np.int64)[poly_of_tri]
+    data.groups = list(groups)
+    data.materials = list(materials)
+    data.mtllibs = mtllibs
+    return data
+
+
+def _parse_mtl(obj_path: Path, mtllibs: list[str]) -> dict[str, dict[str, str]]:
+    """Material name -> {key: value} from the OBJ's mtllib files (missing libs are logged)."""
+    out: dict[str, dict[str, str]] = {}
+    for lib in mtllibs:
+        mpath = (obj_path.parent / lib).resolve()
+        if not mpath.exists():
+            logger.warning("%s: material library '%s' not found; materials ignored", obj_path, lib)
+            continue
+        current: dict[str, str] | None = None
+        for line in mpath.read_text(errors="replace").splitlines():
+            line = line.strip()
+            if not line or line.startswith("#"):
+                continue
+            key, _, val = line.partition(" ")
+            if key == "newmtl":
+                current = out.setdefault(val.strip(), {"_mtl": str(mpath)})
+            elif current is not None:
+                current[key] = val.strip()
+    return out
+
+
+def _texture_for(obj_path: Path, mats: dict[str, dict[str, str]], names: list[str]):
+    """First ``map_Kd`` image among the used materials: (image or None, path or None, missing)."""
+    from PIL import Image
+
+    for name in names or list(mats):
+        m = mats.get(name)
+        if not m or "map_Kd" not in m:
+            continue
+        rel = m["map_Kd"].split()[-1]
+        tpath = (Path(m["_mtl"]).parent / rel).resolve()
+        if not tpath.exists():
+            return None, tpath, True
+        try:
+            img = Image.open(tpath)
+            img.load()
+        except OSError as exc:
+            raise AppealInputError(f"{tpath}: map_Kd: cannot read texture image ({exc})") from None
+        return img, tpath, False
+    return None, None, False
+
+
+def _per_vertex_uv(n_vertices: int, faces: np.ndarray, face_uv: np.ndarray, uv: np.ndarray):
+    out = np.zeros((n_vertices, 2))
+    # The first corner using each vertex wins (reverse assignment so earliest writes last).
+    fv = faces.ravel()[::-1]
+    ft = face_uv.ravel()[::-1]
+    out[fv] = uv[ft]
+    return out
+
+
+def _build_trimesh(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    uv_coords: np.ndarray | None,
+    face_uv: np.ndarray | None,
+    image,
+    metadata: dict,
+) -> trimesh.Trimesh:
+    visual = None
+    if uv_coords is not None and face_uv is not None:
+        uv = _per_vertex_uv(len(vertices), faces, face_uv, uv_coords)
+        material = trimesh.visual.material.SimpleMaterial(image=image) if image is not None else None
+        visual = trimesh.visual.TextureVisuals(uv=uv, material=material)
+    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, visual=visual, process=False)
+    mesh.metadata.update(metadata)
+    if uv_coords is not None and face_uv is not None:
+        mesh.metadata["uv_coords"] = uv_coords
+        mesh.metadata["face_uv"] = face_uv
+    return mesh
+
+
+def _load_obj(path: Path) -> tuple[trimesh.Trimesh, _ObjData]:
+    data = _parse_obj(path)
+    image, tex_path, missing = None, None, False
+    if data.mtllibs:
+        mats = _parse_mtl(path, data.mtllibs)
+        image, tex_path, missing = _texture_for(path, mats, data.materials)
+    meta: dict = {"source_path": str(path)}
+    if tex_path is not None:
+        meta["texture_path"] = str(tex_path)
+        if missing:
+            meta["texture_missing"] = True
+            logger.warning("%s: map_Kd: texture file %s not found", path, tex_path)
+    mesh = _build_trimesh(data.vertices, data.faces, data.uv_coords, data.face_uv, image, meta)
+    return mesh, data
+
+
+# --------------------------------------------------------------------------------------------
+# Other formats through trimesh
+# --------------------------------------------------------------------------------------------
+
+
+def _load_trimesh_any(path: Path):
+    try:
+        return trimesh.load(str(path), process=False, maintain_order=True)
+    except AppealInputError:
+        raise
+    except Exception as exc:  # trimesh raises many types for malformed files
+        raise AppealInputError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
+
+
+def _from_trimesh(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trimesh:
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    verts = np.asarray(mesh.vertices, dtype=np.float64)
+    uv = getattr(mesh.visual, "uv", None)
+    image = None
+    if uv is not None:
+        image = texture_image(mesh)
+        uv = np.asarray(uv, dtype=np.float64)
+    meta = {"source_path": str(path)}
+    if uv is not None and len(uv) == len(verts):
+        return _build_trimesh(verts, faces, uv, faces.copy(), image, meta)
+    out = trimesh.Trimesh(vertices=verts, faces=faces, process=False)
+    if getattr(mesh.visual, "kind", None) == "vertex":
+        out.visual.vertex_colors = mesh.visual.vertex_colors
+    out.metadata.update(meta)
+    return out
+
+
+def _scene_parts(scene: trimesh.Scene, path: Path) -> dict[str, trimesh.Trimesh]:
+    parts: dict[str, trimesh.Trimesh] = {}
+    for node in scene.graph.nodes_geometry:
+        transform, geom_name = scene.graph[node]
+        geom = scene.geometry[geom_name]
+        if not isinstance(geom, trimesh.Trimesh):
+            continue
+        m = _from_trimesh(geom, path)
+        if not np.allclose(transform, np.eye(4)):
+            m.vertices = trimesh.transform_points(m.vertices, transform)
+        name = str(node) if node not in parts else f"{node}_{len(parts)}"
+        parts[name] = m
+    return parts
+
+
+def _validate(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trimesh:
+    if len(mesh.vertices) == 0 or len(mesh.faces) == 0:
+        raise AppealInputError(f"{path}: mesh has no triangles (expected a surface mesh)")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise AppealInputError(f"{path}: vertex coordinates must be finite numbers (found NaN/inf)")
+    return mesh
+
+
+# --------------------------------------------------------------------------------------------
+# Public API
+# --------------------------------------------------------------------------------------------
+
+
+def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
+    """Load a triangle mesh, keeping the file's vertex order.
+
+    Parameters
+    ----------
+    path : path-like
+        ``.obj``, ``.obj.gz``, ``.ply``, ``.glb``/``.gltf`` (also ``.off``, ``.stl``).
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Vertices in file order; polygons fan-triangulated; ``visual.uv`` and the texture image
+        (``visual.material.image``) when the file has them. ``metadata`` holds
+        ``source_path``, ``texture_path`` (when one is referenced), ``texture_missing`` (when
+        the referenced image does not exist), and for OBJ files the exact per-corner UV layout
+        ``uv_coords``/``face_uv``. Multi-part GLB scenes are concatenated (use
+        :func:`load_parts` to keep them apart).
+
+    Raises
+    ------
+    AppealInputError
+        Missing, empty, unsupported or malformed files (one line naming the file).
+    """
+    path = Path(path)
+    _check_exists(path)
+    if _suffix(path) in (".obj", ".obj.gz"):
+        mesh, _ = _load_obj(path)
+        return _validate(mesh, path)
+    loaded = _load_trimesh_any(path)
+    if isinstance(loaded, trimesh.Scene):
+        parts = _scene_parts(loaded, path)
+        if not parts:
+            raise AppealInputError(f"{path}: scene holds no triangle meshes")
+        if len(parts) == 1:
+            return _validate(next(iter(parts.values())), path)
+        mesh = trimesh.util.concatenate(list(parts.values()))
+        mesh.metadata["source_path"] = str(path)
+        return _validate(mesh, path)
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise AppealInputError(f"{path}: expected a triangle mesh (got {type(loaded).__name__})")
+    return _validate(_from_trimesh(loaded, path), path)
+
+
+def load_parts(path: str | os.PathLike) -> dict[str, trimesh.Trimesh]:
+    """Load a multi-part head as named parts (e.g. skin, eyes, teeth).
+
+    OBJ files are split by their ``g``/``o`` groups, or by ``usemtl`` materials when they have
+    no groups (the ICT face kit names its parts by material: ``M_Face``, ``M_Teeth``, ...).
+    GLB/GLTF scenes are split by node. A file without parts gives ``{"mesh": whole}``.
+
+    Parameters
+    ----------
+    path : path-like
+        A mesh file (see :func:`load_mesh`).
+
+    Returns
+    -------
+    dict of str to trimesh.Trimesh
+        Each part keeps only its own vertices, in their original relative order;
+        ``part.metadata["vertex_ids"]`` maps them to the whole file's vertex indices.
+    """
+    path = Path(path)
+    _check_exists(path)
+    if _suffix(path) in (".obj", ".obj.gz"):
+        mesh, data = _load_obj(path)
+        _validate(mesh, path)
+        if data.groups and (data.face_group >= 0).any():
+            labels, names = data.face_group, data.groups
+        elif data.materials and (data.face_material >= 0).any():
+            labels, names = data.face_material, data.materials
+        else:
+            return {"mesh": mesh}
+        parts: dict[str, trimesh.Trimesh] = {}
+        for k in np.unique(labels):
+            name = names[k] if k >= 0 else "default"
+            face_ids = np.flatnonzero(labels == k)
+            used = np.unique(mesh.faces[face_ids])
+            sub, _ = select_region(mesh, used, faces=face_ids)
+            parts[name] = sub
+        return parts
+    loaded = _load_trimesh_any(path)
+    if isinstance(loaded, trimesh.Scene):
+        parts = _scene_parts(loaded, path)
+        if not parts:
+            raise AppealInputError(f"{path}: scene holds no triangle meshes")
+        return parts
+    return {"mesh": load_mesh(path)}
+
+
+def mesh_uv_layout(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray] | None:
+    """The exact UV layout: ``(uv_coords (K, 2), face_uv (F, 3))``, or None without UVs.
+
+    Uses the per-corner layout of OBJ files when present, else the per-vertex
+    ``mesh.visual.uv`` with the mesh's own faces.
+    """
+    if "uv_coords" in mesh.metadata and "face_uv" in mesh.metadata:
+        fuv = np.asarray(mesh.metadata["face_uv"])
+        if len(fuv) == len(mesh.faces):
+            return np.asarray(mesh.metadata["uv_coords"], dtype=np.float64), fuv
+    uv = getattr(mesh.visual, "uv", None)
+    if uv is None or len(uv) != len(mesh.vertices):
+        return None
+    return np.asarray(uv, dtype=np.float64), np.asarray(mesh.faces)
+
+
+def texture_image(mesh: trimesh.Trimesh):
+    """The mesh's texture image (PIL), or None.
+
+    trimesh gives every :class:`~trimesh.visual.TextureVisuals` without a material a 2x2
+    one-colour placeholder (``trimesh.visual.material.empty_material``); that is not a texture
+    and is reported as None.
+    """
+    mat = getattr(mesh.visual, "material", None)
+    if mat is None:
+        return None
+    img = getattr(mat, "image", None)
+    if img is None:
+        img = getattr(mat, "baseColorTexture", None)
+    if img is None or (img.size[0] <= 2 and img.size[1] <= 2):
+        return None
+    return img
+
+
+def select_region(
+    mesh: trimesh.Trimesh, vertex_ids, faces: np.ndarray | None = None
+) -> tuple[trimesh.Trimesh, np.ndarray]:
+    """The sub-mesh spanned by a vertex set (e.g. an ICT region), UVs and texture kept.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The whole mesh.
+    vertex_ids : array-like of int
+        Vertex indices of the region (any order; duplicates ignored).
+    faces : array of int, optional
+        Face indices to keep; by default every face whose three vertices are in the set.
+
+    Returns
+    -------
+    sub : trimesh.Trimesh
+        The region, vertices in increasing original index; ``sub.metadata["vertex_ids"]``
+        holds those original indices.
+    vertex_ids : ndarray of int
+        The same original indices (``sub.vertices == mesh.vertices[vertex_ids]``).
+    """
+    ids = np.unique(np.asarray(vertex_ids, dtype=np.int64).ravel())
+    n = len(mesh.vertices)
+    if ids.size == 0:
+        raise AppealInputError("region: vertex set is empty (expected vertex indices)")
+    if ids[0] < 0 or ids[-1] >= n:
+        bad = ids[(ids < 0) | (ids >= n)][0]
+        raise AppealInputError(
+            f"region: vertex index {int(bad)} is out of range (mesh has {n} vertices)"
+        )
+    remap = np.full(n, -1, dtype=np.int64)
+    remap[ids] = np.arange(len(ids))
+    if faces is None:
+        keep = np.all(remap[mesh.faces] >= 0, axis=1)
+        face_ids = np.flatnonzero(keep)
+    else:
+        face_ids = np.asarray(faces, dtype=np.int64)
+    if face_ids.size == 0:
+        raise AppealInputError("region: no triangle has all its vertices in the vertex set")
+    new_faces = remap[mesh.faces[face_ids]]
+    layout = mesh_uv_layout(mesh)
+    uv_coords = face_uv = None
+    image = None
+    if layout is not None:
+        uv_coords, fuv = layout
+        face_uv = fuv[face_ids]
+        image = texture_image(mesh)
+    meta = {k: v for k, v in mesh.metadata.items() if k not in ("uv_coords", "face_uv")}
+    meta["vertex_ids"] = ids
+    sub = _build_trimesh(mesh.vertices[ids], new_faces, uv_coords, face_uv, image, meta)
+    return sub, ids
+
+
+def ict_regions(vertex_indices_json: str | os.PathLike | None = None) -> dict[str, np.ndarray]:
+    """Named vertex sets of the ICT Face Model.
+
+    The README's geometry ranges (:data:`ICT_GEOMETRY_RANGES`: ``face``, ``narrow_face``,
+    ``teeth``, ...) plus, when ``vertex_indices.json`` is given, its lists: ``fitting``
+    (``idx_to_fitting_verts``), ``rigid``, ``lap_rigid`` and ``landmarks`` (the 68 Multi-PIE
+    landmark vertices, in iBUG order).
+    """
+    out = {k: np.arange(a, b + 1) for k, (a, b) in ICT_GEOMETRY_RANGES.items()}
+    if vertex_indices_json is None:
+        return out
+    p = Path(vertex_indices_json)
+    if not p.exists():
+        raise AppealInputError(f"{p}: ICT vertex_indices.json not found")
+    try:
+        d = json.loads(p.read_text())
+    except json.JSONDecodeError as exc:
+        raise AppealInputError(f"{p}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    keys = {
+        "fitting": "idx_to_fitting_verts",
+        "rigid": "idx_to_rigid_verts",
+        "lap_rigid": "idx_to_lap_rigid_verts",
+        "landmarks": "idx_to_landmark_verts",
+    }
+    for name, key in keys.items():
+        if key not in d:
+            raise AppealInputError(f"{p}: {key}: missing (expected a list of vertex indices)")
+        arr = np.asarray(d[key], dtype=np.int64)
+        out[name] = arr if name == "landmarks" else np.unique(arr)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------------------------
+
+
+def _obj_text(mesh: trimesh.Trimesh, mtl_name: str | None) -> str:
+    buf = io.StringIO()
+    buf.write("# written by Appeal Lab (stimulus_engine.mesh_io)\n")
+    if mtl_name:
+        buf.write(f"mtllib {mtl_name}\nusemtl material_0\n")
+    np.savetxt(buf, np.asarray(mesh.vertices), fmt="v %.8g %.8g %.8g")
+    layout = mesh_uv_layout(mesh)
+    faces1 = np.asarray(mesh.faces, dtype=np.int64) + 1
+    if layout is not None:
+        uv, fuv = layout
+        np.savetxt(buf, uv, fmt="vt %.8g %.8g")
+        fuv1 = np.asarray(fuv, dtype=np.int64) + 1
+        inter = np.stack([faces1, fuv1], axis=2).reshape(len(faces1), 6)
+        np.savetxt(buf, inter, fmt="f %d/%d %d/%d %d/%d")
+    else:
+        np.savetxt(buf, faces1, fmt="f %d %d %d")
+    return buf.getvalue()
+
+
+def save_mesh(mesh: trimesh.Trimesh, path: str | os.PathLike) -> Path:
+    """Write a mesh (vertex order kept), atomically.
+
+    ``.obj`` / ``.obj.gz`` are written by this module with the exact UV layout; a texture
+    image is written beside an ``.obj`` as ``<stem>.png`` with a ``<stem>.mtl``. ``.ply``,
+    ``.glb`` and ``.stl``/``.off`` go through trimesh's exporters.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    path = Path(path)
+    suffix = _suffix(path)
+    if suffix not in MESH_SUFFIXES or suffix == ".gltf":
+        raise AppealInputError(
+            f"{path}: cannot write mesh format '{suffix}' (expected .obj, .obj.gz, .ply, .glb, "
+            ".off or .stl)"
+        )
+    if not path.parent.exists():
+        raise AppealInputError(f"{path}: output folder {path.parent} does not exist")
+    if suffix in (".obj", ".obj.gz"):
+        image = texture_image(mesh)
+        mtl_name = None
+        if image is not None and suffix == ".obj":
+            stem = path.name[: -len(suffix)]
+            mtl_name = f"{stem}.mtl"
+            png = io.BytesIO()
+            image.save(png, format="PNG")
+            atomic_write_bytes(path.parent / f"{stem}.png", png.getvalue())
+            atomic_write_text(
+                path.parent / mtl_name,
+                f"newmtl material_0\nKd 1 1 1\nKa 0 0 0\nKs 0 0 0\nmap_Kd {stem}.png\n",
+            )
+        text = _obj_text(mesh, mtl_name)
+        if suffix == ".obj.gz":
+            atomic_write_bytes(path, gzip.compress(text.encode("utf-8"), mtime=0))
+        else:
+            atomic_write_text(path, text)
+        return path
+    data = trimesh.exchange.export.export_mesh(mesh, file_obj=None, file_type=suffix[1:])
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    atomic_write_bytes(path, data)
+    return path
