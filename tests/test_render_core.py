@@ -1,0 +1,119 @@
+"""The renderer core: determinism, background, framing, lighting presets, contact sheets."""
+
+from __future__ import annotations
+
+import hashlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from stimulus_engine.render import (
+    LIGHTING_PRESETS,
+    RenderPart,
+    contact_sheet,
+    face_camera,
+    fit_camera,
+    lighting_preset,
+    render_mesh,
+    save_png,
+)
+
+
+def _sphere(centre=(0.0, 0.0, 0.0), radius=1.0, color=(200, 150, 120, 255)) -> trimesh.Trimesh:
+    m = trimesh.creation.icosphere(subdivisions=3, radius=radius)
+    m.apply_translation(centre)
+    m.visual.vertex_colors = np.tile(np.array(color, np.uint8), (len(m.vertices), 1))
+    return m
+
+
+def test_same_inputs_give_identical_pixels_and_lighting_matters():
+    m = [_sphere(), _sphere((1.2, 0.5, 0.4), 0.5)]
+    a = render_mesh(m, width=160, height=120, lighting="direct_hard")
+    b = render_mesh(m, width=160, height=120, lighting="direct_hard")
+    assert a.shape == (120, 160, 3) and a.dtype == np.uint8
+    assert a.tobytes() == b.tobytes()
+    c = render_mesh(m, width=160, height=120, lighting="gi_soft")
+    assert np.abs(a.astype(int) - c.astype(int)).max() > 20
+
+
+_CHILD = """
+import hashlib, numpy as np, trimesh
+from stimulus_engine.render import render_mesh
+m = trimesh.creation.icosphere(subdivisions=3)
+m.visual.vertex_colors = np.tile(np.array([200, 150, 120, 255], np.uint8), (len(m.vertices), 1))
+print(hashlib.sha256(render_mesh(m, width=96, height=72, lighting='direct_soft').tobytes()).hexdigest())
+"""
+
+
+def test_renders_are_identical_across_processes():
+    m = _sphere()
+    here = hashlib.sha256(render_mesh(m, width=96, height=72, lighting="direct_soft").tobytes()).hexdigest()
+    out = subprocess.run([sys.executable, "-c", _CHILD], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == here
+
+
+def test_background_is_fifty_percent_grey():
+    img = render_mesh(_sphere(), width=64, height=48)
+    assert tuple(img[0, 0]) == (128, 128, 128)
+    assert tuple(img[-1, -1]) == (128, 128, 128)
+
+
+def test_face_camera_puts_the_eye_point_at_the_requested_row_and_size():
+    # a small sphere at the "eye midpoint": it must appear centred at (W/2, eye_row * H)
+    eye = np.array([3.0, 5.0, -2.0])
+    W, H = 200, 150
+    cam = face_camera(eye, face_length=10.0, eye_row=0.3, face_fraction=0.5)
+    img = render_mesh(_sphere(eye, 0.4, (255, 255, 255, 255)), width=W, height=H, camera=cam, lighting="flat")
+    ys, xs = np.nonzero(np.abs(img.astype(int) - 128).sum(axis=2) > 30)
+    assert abs(xs.mean() - (W - 1) / 2) < 1.0
+    assert abs(ys.mean() - 0.3 * (H - 1)) < 1.0
+    # a sphere of diameter 10 * 0.5 / 5 = 1/5 of face length would cover 0.5/10*0.8 of H ...
+    # simpler: a sphere of radius 0.4 spans 2*0.4/10*0.5*H pixels vertically (same depth as the eyes)
+    assert abs((ys.max() - ys.min() + 1) - 0.8 / 10 * 0.5 * H) <= 2
+
+
+def test_fit_camera_sees_the_whole_mesh():
+    m = _sphere((10, -4, 3), 2.0)
+    cam = fit_camera(m.vertices, 4 / 3)
+    img = render_mesh(m, width=80, height=60, camera=cam)
+    fg = np.abs(img.astype(int) - 128).sum(axis=2) > 10
+    assert fg.any() and not fg[0].any() and not fg[-1].any() and not fg[:, 0].any() and not fg[:, -1].any()
+
+
+def test_all_presets_render_and_unknown_preset_is_rejected():
+    m = RenderPart(_sphere(), smooth=False)
+    for name in LIGHTING_PRESETS:
+        img = render_mesh(m, width=48, height=36, lighting=name)
+        assert img.std() > 1
+    with pytest.raises(ValueError, match="unknown lighting preset 'sunny'.*direct_hard"):
+        lighting_preset("sunny")
+    with pytest.raises(ValueError, match="empty"):
+        render_mesh([])
+
+
+def test_shadows_darken_the_occluded_side():
+    # a sphere above a floor; the key light comes from upper left so its shadow lies lower right
+    floor = trimesh.creation.box(extents=(8, 0.2, 8))
+    floor.apply_translation((0, -1.3, 0))
+    floor.visual.vertex_colors = np.tile(np.array([220, 220, 220, 255], np.uint8), (len(floor.vertices), 1))
+    scene = [_sphere(), floor]
+    cam = fit_camera(np.vstack([floor.vertices, _sphere().vertices]), 4 / 3, view_dir=(0, 0.6, 1))
+    with_s = render_mesh(scene, width=160, height=120, camera=cam, lighting="direct_hard")
+    without = render_mesh(scene, width=160, height=120, camera=cam, lighting="direct_hard", shadows=False)
+    darker = (without.astype(int) - with_s.astype(int)).sum(axis=2)
+    assert (darker > 30).sum() > 50
+
+
+def test_contact_sheet_layout_and_png(tmp_path):
+    ims = [np.full((30, 40, 3), v, np.uint8) for v in (0, 80, 160, 240, 255)]
+    sheet = contact_sheet(ims + [None], ncols=3, thumb_width=40, row_labels=["a", "b"],
+                          col_labels=["x", "y", "z"], labels=list("123456"), title="t")
+    assert sheet.ndim == 3 and sheet.shape[1] > 3 * 40 and sheet.shape[0] > 2 * 30
+    p = save_png(sheet, tmp_path / "s.png")
+    q = save_png(sheet, tmp_path / "t.png")
+    assert p.read_bytes() == q.read_bytes()
+    with pytest.raises(ValueError, match="no images"):
+        contact_sheet([None], ncols=1)
