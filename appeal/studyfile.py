@@ -308,12 +308,8 @@ def load_study_file(path: str | Path, model: type[M], *, check_paths: bool = Tru
     Returns
     -------
     StudyModel
-        The validated model.
-
-    Raises
-    ------
-    StudyFileError
-        With one ``FILE: dotted.path: message`` line per problem.
+        The validated model; a :class:`StudyFileError` with one
+        ``FILE: dotted.path: message`` line per problem otherwise (as :func:`validate_data`).
     """
     path = Path(path)
     data = load_yaml(path)
