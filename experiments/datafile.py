@@ -1,0 +1,156 @@
+"""Session data that cannot be lost: a BIDS-style ``_beh.tsv`` written row by row (flush + fsync).
+
+Each completed trial is one line, appended, flushed and fsync'ed before the next trial
+starts, so a crash (even SIGKILL) loses at most the trial in progress. :func:`read_completed`
+reads the rows back for ``--resume`` (a torn last line is cut off). The JSON sidecar and the
+demographics file are written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from appeal.atomic import atomic_write_text
+from appeal.errors import AppealInputError
+
+__all__ = ["session_stem", "TsvWriter", "read_completed", "write_sidecar", "write_demographics", "NA"]
+
+#: How missing values are written (BIDS convention; pandas reads it as NaN).
+NA = "n/a"
+
+
+def session_stem(participant: str, session: int, task: str) -> str:
+    """``sub-<id>_ses-<n>_task-<task>`` (the BIDS entity prefix of every session file)."""
+    return f"sub-{participant}_ses-{session}_task-{task}"
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return NA
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    if isinstance(value, float):
+        if math.isnan(value):
+            return NA
+        return f"{value:.6f}".rstrip("0").rstrip(".") if abs(value) < 1e9 else repr(value)
+    text = str(value)
+    if "\t" in text or "\n" in text:
+        text = text.replace("\t", " ").replace("\n", " ")
+    return text
+
+
+class TsvWriter:
+    """Append rows to a tab-separated file, each made durable (flush + fsync) before returning.
+
+    Parameters
+    ----------
+    path : str | Path
+        The file; created with a header line when new or empty.
+    columns : sequence of str
+        Column order. Rows are mappings; missing keys are written as ``n/a``.
+    fsync : bool
+        ``os.fsync`` after every row (default). Without it rows survive a crash of the
+        process but not of the machine.
+    """
+
+    def __init__(self, path: str | Path, columns: Sequence[str], *, fsync: bool = True):
+        self.path = Path(path)
+        self.columns = list(columns)
+        self.fsync = fsync
+        new = not self.path.exists() or self.path.stat().st_size == 0
+        self._fh = open(self.path, "a", encoding="utf-8", newline="\n")  # noqa: SIM115 - kept open for the session
+        if new:
+            self._write_line("\t".join(self.columns))
+
+    def _write_line(self, line: str) -> None:
+        self._fh.write(line + "\n")
+        self._fh.flush()
+        if self.fsync:
+            os.fsync(self._fh.fileno())
+
+    def write(self, row: Mapping[str, Any]) -> None:
+        """Append one row and make it durable."""
+        self._write_line("\t".join(_fmt(row.get(c)) for c in self.columns))
+
+    def write_many(self, rows: Sequence[Mapping[str, Any]]) -> None:
+        """Append several rows with one flush (and fsync)."""
+        if rows:
+            self._write_line("\n".join("\t".join(_fmt(r.get(c)) for c in self.columns) for r in rows))
+
+    def close(self) -> None:
+        """Close the file (rows are already on disk)."""
+        if not self._fh.closed:
+            self._fh.close()
+
+    def __enter__(self) -> TsvWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def read_completed(path: str | Path, columns: Sequence[str] | None = None) -> list[dict[str, str]]:
+    """The complete rows of a session TSV (a torn last line from a crash is removed from the file).
+
+    Parameters
+    ----------
+    path : str | Path
+        The ``_beh.tsv``.
+    columns : sequence of str, optional
+        The expected header; a different one is an error (the protocol changed).
+
+    Returns
+    -------
+    list of dict
+        One dict of strings per complete row.
+    """
+    path = Path(path)
+    if not path.exists():
+        return []
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):
+        cut = data.rfind(b"\n") + 1
+        with open(path, "r+b") as fh:
+            fh.truncate(cut)
+            fh.flush()
+            os.fsync(fh.fileno())
+        data = data[:cut]
+    lines = data.decode("utf-8").splitlines()
+    if not lines:
+        return []
+    header = lines[0].split("\t")
+    if columns is not None and header != list(columns):
+        raise AppealInputError(f"{path}: header differs from what this protocol writes "
+                               f"(the protocol changed since the session started?); expected {len(columns)} columns "
+                               f"{', '.join(columns[:6])}..., found {', '.join(header[:6])}...")
+    rows = []
+    for n, line in enumerate(lines[1:], start=2):
+        parts = line.split("\t")
+        if len(parts) != len(header):
+            raise AppealInputError(f"{path}:{n}: expected {len(header)} tab-separated values, found {len(parts)}")
+        rows.append(dict(zip(header, parts)))
+    return rows
+
+
+def write_sidecar(path: str | Path, record: Mapping[str, Any]) -> Path:
+    """Write the session's JSON sidecar atomically."""
+    return atomic_write_text(path, json.dumps(record, indent=2, default=str) + "\n")
+
+
+def write_demographics(path: str | Path, participant: str, answers: Mapping[str, Any]) -> Path:
+    """Write (or update) the participant's row in a demographics TSV kept apart from the ratings."""
+    path = Path(path)
+    rows: dict[str, dict[str, str]] = {}
+    cols = ["participant_id", *answers]
+    if path.exists():
+        for r in read_completed(path):
+            rows[r["participant_id"]] = r
+            cols += [c for c in r if c not in cols]
+    rows[participant] = {"participant_id": participant, **{k: _fmt(v) for k, v in answers.items()}}
+    text = "\t".join(cols) + "\n" + "".join("\t".join(r.get(c, NA) for c in cols) + "\n" for r in rows.values())
+    return atomic_write_text(path, text)

@@ -1,0 +1,357 @@
+"""The runner protocol (``kind: protocol``): a validated description of one study session.
+
+A protocol names its stimuli (a grid ``manifest.csv`` or a folder of images plus a factor
+table), the screen and timing (seconds, converted to frames from the refresh rate), the
+trial ordering constraints, instruction pages, anchor/practice trials, end-of-session items,
+breaks, the responses (Likert scales, classification with an intensity follow-up, or none)
+and the EEG trigger codes. ``appeal validate`` checks it with :class:`Protocol`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from appeal.studyfile import InputFile, OutputPath, StudyModel
+
+__all__ = [
+    "Protocol", "StimulusSource", "Selection", "ScreenSpec", "TimingSpec", "OrderSpec", "BreakSpec",
+    "LikertSpec", "ClassificationSpec", "ChoiceSpec", "ExtraTrialsSpec", "TriggerSpec",
+    "DemographicItem",
+]
+
+Name = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)]
+Level = str | int | float | bool
+Seconds = Annotated[float, Field(ge=0, le=3600)]
+
+
+def level_key(value: Any) -> str:
+    """The string form a factor level is compared by (``0``, ``0.0`` and ``'0'`` are equal)."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    text = str(value).strip()
+    try:
+        num = float(text)
+    except ValueError:
+        return text
+    return str(int(num)) if num.is_integer() else text
+
+
+class Selection(StudyModel):
+    """Which stimuli a part of the session uses: factor levels to keep, factors that must match."""
+
+    where: dict[Name, Level | list[Level]] = Field(default_factory=dict,
+                                                   description="factor -> level or list of levels to keep")
+    match: list[Name] = Field(default_factory=list,
+                              description="factors whose levels must be equal (e.g. [shape, material] = baseline)")
+
+    @field_validator("match")
+    @classmethod
+    def _match_two(cls, v: list[str]) -> list[str]:
+        if len(v) == 1:
+            raise ValueError("expected at least two factors whose levels must match (got one)")
+        return v
+
+
+class StimulusSource(StudyModel):
+    """Where the images come from.
+
+    Exactly one of ``manifest`` (a grid ``manifest.csv``: ``file`` + one column per factor) or
+    ``folder`` + ``table`` (any images plus a CSV with a ``file`` column and factor columns).
+    Paths are resolved against the protocol's folder; they are checked when the session
+    starts (the stimuli may not be rendered yet when the protocol is validated).
+    """
+
+    manifest: OutputPath | None = None
+    folder: OutputPath | None = None
+    table: OutputPath | None = None
+    grid: OutputPath | None = Field(None, description="grid file that renders these stimuli (shown in errors)")
+    factors: list[Name] = Field(min_length=1, description="the factor columns, in analysis order")
+    select: Selection = Field(default_factory=Selection)
+
+    @model_validator(mode="after")
+    def _one_source(self) -> StimulusSource:
+        if (self.manifest is None) == (self.folder is None):
+            raise ValueError("expected exactly one of 'manifest' (a grid manifest.csv) or 'folder' (+ 'table')")
+        if self.folder is not None and self.table is None:
+            raise ValueError("'folder' needs 'table': a CSV with a 'file' column and one column per factor")
+        if self.manifest is not None and self.table is not None:
+            raise ValueError("'table' goes with 'folder', not with 'manifest'")
+        if len(set(self.factors)) != len(self.factors):
+            raise ValueError(f"factors must be unique (got {self.factors})")
+        return self
+
+
+class ScreenSpec(StudyModel):
+    """The display: background, stimulus size, refresh rate, window size."""
+
+    background: float = Field(0.5, ge=0, le=1, description="grey level 0 (black) .. 1 (white); 0.5 = 50% grey")
+    stimulus_height: float = Field(0.8, gt=0, le=1, description="image height as a fraction of the screen height")
+    response_stimulus_height: float = Field(0.45, gt=0, le=1)
+    refresh_hz: float | None = Field(None, gt=20, le=500,
+                                     description="nominal refresh; default: measured (falls back to 60)")
+    window_size: tuple[Annotated[int, Field(ge=64)], Annotated[int, Field(ge=64)]] = (1280, 1024)
+    text_color: float = Field(1.0, ge=0, le=1)
+
+
+class TimingSpec(StudyModel):
+    """Durations in seconds (converted to whole frames at the refresh rate)."""
+
+    stimulus_s: Seconds = Field(gt=0)
+    fixation_s: Seconds | tuple[Seconds, Seconds] | None = Field(
+        None, description="fixed, or [min, max] drawn uniformly per trial (in whole frames)")
+    fixation_position: Literal["before", "after"] = Field(
+        "before", description="fixation before each stimulus, or after it (ERP: face, then jittered cross)")
+    iti_s: Seconds = 0.0
+    response_deadline_s: Seconds | None = Field(None, gt=0)
+    stimulus_visible_during_response: bool = True
+
+    @field_validator("fixation_s")
+    @classmethod
+    def _range(cls, v: Any) -> Any:
+        if isinstance(v, tuple) and v[0] > v[1]:
+            raise ValueError(f"expected [min, max] with min <= max (got {list(v)})")
+        return v
+
+
+class OrderSpec(StudyModel):
+    """Trial order: repetitions, randomisation and constraints."""
+
+    repetitions: int = Field(1, ge=1, le=1000)
+    order: Literal["random", "blocked", "fixed"] = "random"
+    shuffle: Literal["whole", "per_repetition"] = Field(
+        "whole", description="whole: one random order of all trials; per_repetition: a new order per pass")
+    block_by: list[Name] = Field(default_factory=list, description="factors defining blocks (order: blocked)")
+    block_order: Literal["random", "fixed"] = "random"
+    no_immediate_repeat: bool = False
+    max_run: dict[Name, Annotated[int, Field(ge=1)]] = Field(
+        default_factory=dict, description="factor -> most consecutive trials with the same level")
+
+    @model_validator(mode="after")
+    def _blocked(self) -> OrderSpec:
+        if self.order == "blocked" and not self.block_by:
+            raise ValueError("order 'blocked' needs block_by: the factor(s) whose levels form the blocks")
+        if self.order != "blocked" and self.block_by:
+            raise ValueError(f"block_by is only used with order: blocked (got order: {self.order})")
+        return self
+
+
+class BreakSpec(StudyModel):
+    """A pause every N main trials."""
+
+    every: int = Field(ge=1)
+    text: str = "Pause. Press SPACE to continue."
+    min_s: Seconds = 0.0
+
+
+class LikertSpec(StudyModel):
+    """A rating scale 1..points with labelled ends."""
+
+    type: Literal["likert"] = "likert"
+    name: Name
+    points: int = Field(7, ge=2, le=11)
+    low: str = Field(min_length=1)
+    high: str = Field(min_length=1)
+    description: str = ""
+    keys: bool = Field(True, description="number keys 1..points answer too (points <= 9)")
+
+
+class ChoiceSpec(StudyModel):
+    """One option of a classification."""
+
+    label: str = Field(min_length=1)
+    value: Level
+    key: str | None = Field(None, min_length=1)
+
+
+class ClassificationSpec(StudyModel):
+    """Choose one of several options (keys or mouse), optionally followed by an intensity scale."""
+
+    type: Literal["classification"] = "classification"
+    name: Name
+    prompt: str = ""
+    choices: list[ChoiceSpec] = Field(min_length=2)
+    factor: Name | None = Field(None, description="the stimulus factor the correct answer is read from")
+    intensity: LikertSpec | None = None
+    skip_intensity_for: list[Level] = Field(default_factory=list,
+                                            description="choices after which no intensity is asked")
+    skip_value: int | None = Field(None, description="intensity recorded when skipped (thesis: the lowest value)")
+
+    @model_validator(mode="after")
+    def _check(self) -> ClassificationSpec:
+        values = [level_key(c.value) for c in self.choices]
+        if len(set(values)) != len(values):
+            raise ValueError(f"choice values must be unique (got {values})")
+        keys = [c.key for c in self.choices if c.key is not None]
+        if len(set(keys)) != len(keys):
+            raise ValueError(f"choice keys must be unique (got {keys})")
+        unknown = [s for s in self.skip_intensity_for if level_key(s) not in values]
+        if unknown:
+            raise ValueError(f"skip_intensity_for names no choice value (got {unknown}; choices: {values})")
+        if self.skip_intensity_for and self.intensity is None:
+            raise ValueError("skip_intensity_for needs an intensity scale")
+        if self.skip_value is not None and self.intensity is not None and not 1 <= self.skip_value <= self.intensity.points:
+            raise ValueError(f"skip_value must lie on the intensity scale 1..{self.intensity.points} (got {self.skip_value})")
+        return self
+
+
+Response = Annotated[LikertSpec | ClassificationSpec, Field(discriminator="type")]
+
+
+class ExtraTrialsSpec(StudyModel):
+    """Anchor, practice or end-of-session trials (selected from the stimuli or listed files)."""
+
+    select: Selection | None = None
+    files: list[OutputPath] = Field(default_factory=list, description="extra images (relative to the protocol)")
+    factors: dict[Name, Level] = Field(default_factory=dict, description="factor levels recorded for 'files'")
+    n: int | None = Field(None, ge=1, description="take this many (randomly) of the selection")
+    respond: bool = True
+    title: str = ""
+    stimulus_s: Seconds | None = Field(None, gt=0)
+    order: Literal["random", "fixed"] = "fixed"
+    if_missing: Literal["error", "skip"] = Field(
+        "error", description="what to do when the selection matches no stimulus")
+
+    @model_validator(mode="after")
+    def _some(self) -> ExtraTrialsSpec:
+        if self.select is None and not self.files:
+            raise ValueError("expected 'select' (stimuli from the set) or 'files' (extra images)")
+        return self
+
+
+class TriggerSpec(StudyModel):
+    """EEG triggers sent on the stimulus onset flip and reset after ``pulse_ms``."""
+
+    backend: Literal["parallel", "serial", "lsl", "file"] = "file"
+    address: str | None = Field(None, description="parallel: port address (0x0378); serial: device (/dev/ttyUSB0)")
+    baudrate: int = Field(115200, gt=0)
+    stream_name: str = "AppealLabMarkers"
+    pulse_ms: float = Field(10.0, gt=0, le=1000)
+    codes: list[dict[Name, Level]] = Field(min_length=1, description="list of {code: 1-255, factor: level, ...}")
+
+    @field_validator("codes")
+    @classmethod
+    def _codes(cls, v: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        seen: dict[int, int] = {}
+        conditions: dict[tuple, int] = {}
+        for i, entry in enumerate(v):
+            code = entry.get("code")
+            if code is None:
+                raise ValueError(f"codes[{i}]: expected a 'code' key (got {sorted(entry)})")
+            if isinstance(code, bool) or not isinstance(code, int) or not 1 <= code <= 255:
+                raise ValueError(f"codes[{i}]: code must be an integer 1-255 (got {code!r})")
+            if code in seen:
+                raise ValueError(f"codes[{i}]: code {code} is used twice (also codes[{seen[code]}])")
+            seen[code] = i
+            cond = tuple(sorted((k, level_key(x)) for k, x in entry.items() if k != "code"))
+            if not cond:
+                raise ValueError(f"codes[{i}]: code {code} names no factor level")
+            if cond in conditions:
+                raise ValueError(f"codes[{i}]: condition {dict(cond)} already has a code (codes[{conditions[cond]}])")
+            conditions[cond] = i
+        return v
+
+    @model_validator(mode="after")
+    def _addr(self) -> TriggerSpec:
+        if self.backend in ("parallel", "serial") and not self.address:
+            raise ValueError(f"backend '{self.backend}' needs 'address' (e.g. 0x0378 or /dev/ttyUSB0)")
+        return self
+
+
+class DemographicItem(StudyModel):
+    """One question of the participant-information dialog (stored apart from the ratings)."""
+
+    name: Name
+    label: str = ""
+    type: Literal["int", "text", "choice"] = "text"
+    choices: list[str] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _choices(self) -> DemographicItem:
+        if self.type == "choice" and len(self.choices) < 2:
+            raise ValueError("type 'choice' needs at least two choices")
+        return self
+
+
+class Instructions(StudyModel):
+    """Instruction pages shown before the first trial (Markdown-ish text, any language)."""
+
+    pages: list[str] = Field(default_factory=list)
+    files: list[InputFile] = Field(default_factory=list, description="Markdown files, one page each")
+    continue_text: str = "Press SPACE to continue."
+    end_text: str = "Thank you! The session is complete."
+
+
+class Protocol(StudyModel):
+    """A runner protocol: stimuli, screen, timing, order, responses, triggers (``kind: protocol``)."""
+
+    kind: Literal["protocol"]
+    name: Name
+    title: str = ""
+    task: Annotated[str, Field(pattern=r"^[A-Za-z0-9]+$")] = Field(description="BIDS task label (letters and digits)")
+    stimuli: StimulusSource
+    screen: ScreenSpec = Field(default_factory=ScreenSpec)
+    timing: TimingSpec
+    order: OrderSpec = Field(default_factory=OrderSpec)
+    instructions: Instructions = Field(default_factory=Instructions)
+    anchors: ExtraTrialsSpec | None = None
+    practice: ExtraTrialsSpec | None = None
+    end_of_session: ExtraTrialsSpec | None = None
+    breaks: BreakSpec | None = None
+    responses: list[Response] = Field(default_factory=list, description="empty = passive viewing")
+    triggers: TriggerSpec | None = None
+    demographics: list[DemographicItem] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _cross(self) -> Protocol:
+        factors = set(self.stimuli.factors)
+        problems = []
+
+        def check(where: str, names: Any) -> None:
+            for n in names:
+                if n not in factors:
+                    problems.append(f"{where}: unknown factor '{n}' (stimuli.factors: {', '.join(self.stimuli.factors)})")
+
+        check("order.block_by", self.order.block_by)
+        check("order.max_run", self.order.max_run)
+        check("stimuli.select", [*self.stimuli.select.where, *self.stimuli.select.match])
+        for part in ("anchors", "practice", "end_of_session"):
+            spec = getattr(self, part)
+            if spec is not None and spec.select is not None:
+                check(f"{part}.select", [*spec.select.where, *spec.select.match])
+        names: list[str] = []
+        for r in self.responses:
+            names.append(r.name)
+            if isinstance(r, ClassificationSpec):
+                if r.factor is not None:
+                    check(f"responses.{r.name}.factor", [r.factor])
+                if r.intensity is not None:
+                    names.append(r.intensity.name)
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            problems.append(f"responses: names must be unique (repeated: {', '.join(dup)})")
+        if self.triggers is not None:
+            for i, entry in enumerate(self.triggers.codes):
+                check(f"triggers.codes[{i}]", [k for k in entry if k != "code"])
+        if problems:
+            raise ValueError("; ".join(problems))
+        return self
+
+    @property
+    def response_names(self) -> list[str]:
+        """Every response column stem (``response_<name>``), follow-up scales included."""
+        out = []
+        for r in self.responses:
+            out.append(r.name)
+            if isinstance(r, ClassificationSpec) and r.intensity is not None:
+                out.append(r.intensity.name)
+        return out
+
+
+def protocol_base_dir(path: str | Path) -> Path:
+    """The folder relative paths of a protocol file resolve against."""
+    return Path(path).resolve().parent

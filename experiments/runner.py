@@ -1,0 +1,217 @@
+"""Walk a trial list on a :class:`~experiments.display.Presenter`: fixation, stimulus (trigger on
+the onset flip), responses, ITI — one durable TSV row per completed trial."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from experiments.datafile import TsvWriter
+from experiments.display import PhaseTiming, Presenter
+from experiments.protocol_schema import ClassificationSpec, LikertSpec, Protocol, level_key
+from experiments.screens import markdown_to_text, save_back_buffer
+from experiments.triggers import TriggerSender
+from experiments.trials import Trial
+
+__all__ = ["beh_columns", "SessionRunner", "FLIP_COLUMNS"]
+
+FLIP_COLUMNS = ["trial", "screen", "frame", "time_s"]
+
+
+def beh_columns(protocol: Protocol) -> list[str]:
+    """The ``_beh.tsv`` columns a protocol produces, in order."""
+    cols = ["participant_id", "session", "trial", "phase", "block", "repetition", "stimulus", *protocol.stimuli.factors]
+    if protocol.timing.fixation_s is not None:
+        cols += ["fixation_frames", "fixation_onset_s"]
+    cols += ["onset_frame", "onset_s", "offset_s", "duration_frames", "shown_frames", "shown_s", "dropped_frames"]
+    for r in protocol.responses:
+        cols += [f"response_{r.name}", f"rt_{r.name}"]
+        if isinstance(r, ClassificationSpec):
+            if r.factor is not None:
+                cols.append(f"correct_{r.name}")
+            if r.intensity is not None:
+                cols += [f"response_{r.intensity.name}", f"rt_{r.intensity.name}"]
+    cols += ["trigger", "trigger_s", "trigger_flip_ms"]
+    return cols
+
+
+class SessionRunner:
+    """Presents trials and writes each completed one.
+
+    Parameters
+    ----------
+    protocol : Protocol
+        The protocol.
+    presenter : Presenter
+        Frames and clock.
+    screens : experiments.screens.Screens or None
+        Drawing (None: window-less virtual mode).
+    responder : HumanResponder or ModelResponder
+        Who answers.
+    writer : TsvWriter
+        The ``_beh.tsv``.
+    flips : TsvWriter or None
+        The flip log (every flip of every screen).
+    sender : TriggerSender or None
+        EEG triggers.
+    ids : dict
+        ``participant_id`` and ``session`` written on every row.
+    screenshot_dir : Path or None
+        Save the first frame of every kind of screen as PNG here.
+    """
+
+    def __init__(self, protocol: Protocol, presenter: Presenter, screens: Any, responder: Any, writer: TsvWriter,
+                 flips: TsvWriter | None, sender: TriggerSender | None, ids: dict[str, Any],
+                 screenshot_dir: Path | None = None):
+        self.protocol = protocol
+        self.p = presenter
+        self.screens = screens
+        self.responder = responder
+        self.writer = writer
+        self.flips = flips
+        self.sender = sender
+        self.ids = ids
+        self.screenshot_dir = screenshot_dir
+        self.shots: dict[str, Path] = {}
+        self._flip_rows: list[dict[str, Any]] = []
+        self._trial = 0
+        pulse = protocol.triggers.pulse_ms if protocol.triggers is not None else 10.0
+        self.pulse_frames = max(1, math.ceil(pulse / 1000 * presenter.hz - 1e-9))
+
+    # ------------------------------------------------------------------ screens
+    def show(self, kind: str, draw: Callable[[], None] | None, n_frames: int, *,
+             until: Callable[[int], bool] | None = None, on_onset: Callable[[], None] | None = None) -> PhaseTiming:
+        """Show one screen; log its flips; save its first frame if it is the first of its kind."""
+        shot = None
+        if self.screenshot_dir is not None and kind not in self.shots and self.screens is not None and draw is not None:
+            path = self.screenshot_dir / f"{kind}.png"
+
+            def shot() -> None:
+                self.shots[kind] = save_back_buffer(self.screens.win, path)
+        timing = self.p.show(draw if self.screens is not None else None, n_frames, on_onset=on_onset, until=until,
+                             screenshot=shot)
+        for i, t in enumerate(timing.flips):
+            frame = timing.onset_frame + (i if not self.p.virtual else 0)
+            self._flip_rows.append({"trial": self._trial, "screen": kind, "frame": frame, "time_s": t})
+        return timing
+
+    def page(self, kind: str, text: str, *, title: str = "", min_s: float = 0.0) -> None:
+        """An instruction/break page the participant continues from (Space)."""
+        hint = self.protocol.instructions.continue_text
+        draw = None if self.screens is None else (lambda: self.screens.draw_text(markdown_to_text(text), title=title, hint=hint))
+        self.responder.wait_continue(kind, self.show, draw, min_frames=max(1, round(min_s * self.p.hz)))
+        self._flush_flips()
+
+    def _flush_flips(self) -> None:
+        if self.flips is not None and self._flip_rows:
+            self.flips.write_many(self._flip_rows)
+        self._flip_rows = []
+
+    # ------------------------------------------------------------------ responses
+    def _ask(self, trial: Trial, row: dict[str, Any]) -> None:
+        sc = self.screens
+        visible = self.protocol.timing.stimulus_visible_during_response
+
+        def likert_draw(spec: LikertSpec) -> Callable[[int | None], None] | None:
+            return None if sc is None else (lambda m: sc.draw_likert(spec, with_stimulus=visible, marker=m))
+
+        for spec in self.protocol.responses:
+            if isinstance(spec, LikertSpec):
+                v, rt = self.responder.likert(spec, trial.factors, self.show, likert_draw(spec))
+                row[f"response_{spec.name}"], row[f"rt_{spec.name}"] = v, rt
+                continue
+            draw = None if sc is None else (lambda c, s=spec: sc.draw_classification(s, with_stimulus=visible, chosen=c))
+            v, rt = self.responder.classify(spec, trial.factors, self.show, draw)
+            row[f"response_{spec.name}"], row[f"rt_{spec.name}"] = v, rt
+            if spec.factor is not None:
+                truth = trial.factors.get(spec.factor)
+                row[f"correct_{spec.name}"] = None if v is None else int(v == truth)
+            if spec.intensity is not None:
+                skip = v is None or v in {level_key(s) for s in spec.skip_intensity_for}
+                if skip:
+                    iv, irt = (spec.skip_value if v is not None else None), None
+                else:
+                    iv, irt = self.responder.likert(spec.intensity, trial.factors, self.show, likert_draw(spec.intensity))
+                row[f"response_{spec.intensity.name}"], row[f"rt_{spec.intensity.name}"] = iv, irt
+
+    # ------------------------------------------------------------------ trials
+    def run_trial(self, trial: Trial, *, lead_in: bool = False) -> dict[str, Any]:
+        """Present one trial and return its row (not yet written)."""
+        self._trial = trial.trial
+        sc = self.screens
+        row: dict[str, Any] = {**self.ids, **trial.as_dict(), "duration_frames": trial.stimulus_frames}
+        if trial.break_before and self.protocol.breaks is not None:
+            self.page("break", self.protocol.breaks.text, min_s=self.protocol.breaks.min_s)
+            lead_in = True
+        if sc is not None:
+            sc.load(trial.path)
+        fix_after = self.protocol.timing.fixation_position == "after"
+        draw_fix = None if sc is None else sc.draw_fixation
+        if trial.fixation_frames and (not fix_after or lead_in):
+            fix = self.show("fixation", draw_fix, trial.fixation_frames)
+            if not fix_after:
+                row["fixation_onset_s"] = fix.onset_s
+        on_onset = None
+        if trial.trigger is not None and self.sender is not None:
+            code = trial.trigger
+            on_onset = lambda: self.sender.send(code)  # noqa: E731 - runs on the onset flip
+            self.p.at_frame(self.p.frame + self.pulse_frames, self.sender.reset)
+            n_sent = len(self.sender.sent)
+        title = trial.title
+
+        def draw_stim() -> None:
+            sc.draw_stimulus()
+            if title:
+                sc.title.text = title
+                sc.title.draw()
+
+        stim = self.show("stimulus" if trial.phase == "main" else trial.phase, None if sc is None else draw_stim,
+                         trial.stimulus_frames, on_onset=on_onset)
+        row.update(onset_frame=stim.onset_frame, onset_s=stim.onset_s, shown_frames=stim.frames)
+        if on_onset is not None:
+            sent = self.sender.sent[n_sent:]
+            if len(sent) != 1:
+                raise RuntimeError(f"trial {trial.trial}: {len(sent)} triggers sent on the onset flip (expected 1)")
+            row["trigger_s"] = sent[0][1]
+            row["trigger_flip_ms"] = (sent[0][1] - stim.onset_s) * 1000
+        else:
+            row["trigger"] = None
+        after: PhaseTiming | None = None
+        if trial.fixation_frames and fix_after:
+            after = self.show("fixation", draw_fix, trial.fixation_frames)
+            row["fixation_onset_s"] = after.onset_s
+        if trial.respond:
+            n_flips = len(self._flip_rows)
+            self._ask(trial, row)
+            if after is None and len(self._flip_rows) > n_flips:
+                after = PhaseTiming(0, self._flip_rows[n_flips]["time_s"], 0)
+        if trial.iti_frames or after is None:
+            iti = self.show("blank", None, max(trial.iti_frames, 1))
+            after = after or iti
+        row["offset_s"] = after.onset_s
+        row["shown_s"] = after.onset_s - stim.onset_s
+        period = 1.0 / self.p.hz
+        edges = [*stim.flips, after.onset_s] if not self.p.virtual else []
+        row["dropped_frames"] = sum(1 for a, b in zip(edges, edges[1:]) if b - a > 1.5 * period)
+        return row
+
+    def run(self, trials: Sequence[Trial], start: int = 0, *, progress: Callable[[Any], Any] = iter) -> int:
+        """Present ``trials[start:]``, writing each row durably; returns the number completed."""
+        pr = self.protocol
+        if start == 0:
+            for i, text in enumerate([*pr.instructions.pages, *(f.read_text(encoding="utf-8") for f in pr.instructions.files)]):
+                self.page(f"instructions{'' if i == 0 else i + 1}", text)
+        else:
+            self.page("resume", f"The session continues at trial {start + 1} of {len(trials)}.")
+        done = start
+        lead_in = True
+        for trial in progress(trials[start:]):
+            row = self.run_trial(trial, lead_in=lead_in)
+            lead_in = False
+            self.writer.write(row)
+            self._flush_flips()
+            done += 1
+        self.page("end", pr.instructions.end_text)
+        return done

@@ -1,0 +1,182 @@
+"""What is drawn: stimulus, fixation cross, text pages, Likert scales, classification buttons.
+
+PsychoPy is imported here (and in :mod:`experiments.responders`) only; a window-less
+simulated session never imports it.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+from experiments.protocol_schema import ChoiceSpec, ClassificationSpec, LikertSpec, Protocol
+
+__all__ = ["Screens", "markdown_to_text", "open_window"]
+
+
+def markdown_to_text(md: str) -> str:
+    """Instruction Markdown as plain text for the screen (headings, emphasis and bullets kept readable)."""
+    lines: list[str] = []
+    for raw in md.strip().splitlines():
+        line = re.sub(r"^#{1,6}\s*", "", raw)
+        line = re.sub(r"\*\*(.+?)\*\*|__(.+?)__", lambda m: m.group(1) or m.group(2), line)
+        line = re.sub(r"(?<!\*)\*(?!\*)(.+?)\*|_(.+?)_", lambda m: m.group(1) or m.group(2), line)
+        bullet = re.match(r"^\s*[-*+]\s+", line)
+        line = re.sub(r"^\s*[-*+]\s+", "\u2022 ", line).strip()
+        heading = raw.lstrip().startswith("#")
+        # soft-wrapped lines of one paragraph are joined (the screen wraps them)
+        if line and lines and lines[-1] and not bullet and not heading and not lines[-1].startswith("\x00"):
+            lines[-1] += " " + line
+        else:
+            lines.append(("\x00" if heading else "") + line)
+    lines = [ln.removeprefix("\x00") for ln in lines]
+    return "\n".join(lines)
+
+
+def open_window(size: tuple[int, int], *, fullscreen: bool, background: float) -> Any:
+    """A PsychoPy window in height units with a grey-level background (0..1)."""
+    from psychopy import logging as ps_logging
+    from psychopy import visual
+
+    ps_logging.console.setLevel(ps_logging.ERROR)
+    grey = background * 2 - 1
+    return visual.Window(size=list(size), fullscr=fullscreen, units="height", color=[grey] * 3, colorSpace="rgb",
+                         allowGUI=not fullscreen, checkTiming=False, winType="pyglet")
+
+
+class Screens:
+    """Stimuli and response screens of one protocol, built once and reused every trial."""
+
+    def __init__(self, win: Any, protocol: Protocol):
+        from psychopy import visual
+
+        self.win = win
+        self.visual = visual
+        self.protocol = protocol
+        fg = protocol.screen.text_color * 2 - 1
+        self.fg = [fg] * 3
+        self.text = visual.TextStim(win, "", height=0.035, wrapWidth=1.1, color=self.fg)
+        self.title = visual.TextStim(win, "", height=0.04, pos=(0, 0.45), color=self.fg)
+        self.hint = visual.TextStim(win, "", height=0.025, pos=(0, -0.45), color=self.fg)
+        self.fixation = visual.ShapeStim(win, vertices="cross", size=0.05, lineColor=self.fg, fillColor=self.fg)
+        self._image: Any = None
+        self._image_path: str | None = None
+        self._aspect = 1.0
+        self._likert: dict[str, tuple[Any, Any, Any, Any]] = {}
+        self._choices: dict[str, list[tuple[Any, Any, ChoiceSpec]]] = {}
+
+    # ------------------------------------------------------------------ stimulus
+    def load(self, path: str) -> None:
+        """Load the image of a trial (kept until the next one)."""
+        if path == self._image_path:
+            return
+        from PIL import Image
+
+        with Image.open(path) as im:
+            w, h = im.size
+        self._aspect = w / h
+        if self._image is None:
+            self._image = self.visual.ImageStim(self.win, image=path, units="height", interpolate=True)
+        else:
+            self._image.image = path
+        self._image_path = path
+
+    def draw_stimulus(self, height: float | None = None, y: float = 0.0) -> None:
+        """Draw the loaded image ``height`` (fraction of the screen height) tall at ``y``."""
+        h = height or self.protocol.screen.stimulus_height
+        self._image.size = (h * self._aspect, h)
+        self._image.pos = (0, y)
+        self._image.draw()
+
+    def draw_fixation(self) -> None:
+        """Draw the fixation cross."""
+        self.fixation.draw()
+
+    def draw_text(self, text: str, *, title: str = "", hint: str = "") -> None:
+        """Draw a text page (instructions, breaks)."""
+        self.text.text = text
+        self.text.pos = (0, 0.05)
+        self.text.draw()
+        if title:
+            self.title.text = title
+            self.title.draw()
+        if hint:
+            self.hint.text = hint
+            self.hint.draw()
+
+    def _thumb(self, with_stimulus: bool) -> None:
+        if with_stimulus and self._image is not None:
+            h = self.protocol.screen.response_stimulus_height
+            self.draw_stimulus(h, y=0.5 - 0.03 - h / 2)
+
+    # ------------------------------------------------------------------ Likert
+    def likert(self, spec: LikertSpec) -> Any:
+        """The (cached) Slider of a Likert scale."""
+        if spec.name not in self._likert:
+            v = self.visual
+            ticks = list(range(1, spec.points + 1))
+            slider = v.Slider(self.win, ticks=ticks, labels=[str(t) for t in ticks], granularity=1, style="rating",
+                              size=(0.9, 0.04), pos=(0, -0.27), labelHeight=0.03, color=self.fg, fillColor="red",
+                              borderColor=self.fg, font="Open Sans")
+            low = v.TextStim(self.win, spec.low, height=0.028, pos=(-0.45, -0.35), anchorHoriz="left", color=self.fg,
+                             wrapWidth=0.45)
+            high = v.TextStim(self.win, spec.high, height=0.028, pos=(0.45, -0.35), anchorHoriz="right",
+                              color=self.fg, wrapWidth=0.45)
+            desc = v.TextStim(self.win, spec.description, height=0.026, pos=(0, -0.16), wrapWidth=1.15, color=self.fg)
+            self._likert[spec.name] = (slider, low, high, desc)
+        return self._likert[spec.name][0]
+
+    def draw_likert(self, spec: LikertSpec, *, with_stimulus: bool, marker: int | None = None) -> None:
+        """Draw a Likert screen; ``marker`` shows a chosen value (simulated answers)."""
+        slider = self.likert(spec)
+        _, low, high, desc = self._likert[spec.name]
+        self._thumb(with_stimulus)
+        if marker is not None:
+            slider.markerPos = marker
+        for stim in (desc, slider, low, high):
+            stim.draw()
+        if spec.keys and spec.points <= 9:
+            self.hint.text = f"Click on the scale or press 1-{spec.points}"
+            self.hint.draw()
+
+    # ------------------------------------------------------------------ classification
+    def choices(self, spec: ClassificationSpec) -> list[tuple[Any, Any, ChoiceSpec]]:
+        """The (cached) buttons of a classification: (box, label, choice)."""
+        if spec.name not in self._choices:
+            n = len(spec.choices)
+            width = min(0.24, 1.2 / n - 0.02)
+            buttons = []
+            for i, c in enumerate(spec.choices):
+                x = (i - (n - 1) / 2) * (width + 0.02)
+                box = self.visual.Rect(self.win, width=width, height=0.08, pos=(x, -0.3), lineColor=self.fg,
+                                       fillColor=None, lineWidth=2)
+                label = f"[{c.key}] {c.label}" if c.key else c.label
+                text = self.visual.TextStim(self.win, label, height=0.028, pos=(x, -0.3), color=self.fg,
+                                            wrapWidth=width)
+                buttons.append((box, text, c))
+            self._choices[spec.name] = buttons
+        return self._choices[spec.name]
+
+    def draw_classification(self, spec: ClassificationSpec, *, with_stimulus: bool, chosen: str | None = None) -> None:
+        """Draw the choice buttons (``chosen``: the value to highlight)."""
+        from experiments.protocol_schema import level_key
+
+        self._thumb(with_stimulus)
+        if spec.prompt:
+            self.text.text = spec.prompt
+            self.text.pos = (0, -0.17)
+            self.text.draw()
+        for box, text, c in self.choices(spec):
+            box.fillColor = [0.2, 0.6, 0.2] if chosen is not None and level_key(c.value) == chosen else None
+            box.draw()
+            text.draw()
+
+
+def save_back_buffer(win: Any, path: Path) -> Path:
+    """Save the frame in the back buffer (drawn, not yet flipped) as a PNG."""
+    img = win.getMovieFrame(buffer="back")
+    win.movieFrames = []
+    path.parent.mkdir(parents=True, exist_ok=True)
+    img.save(path)
+    return path

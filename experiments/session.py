@@ -1,0 +1,345 @@
+"""One session end to end: protocol -> trial list -> window (or none) -> durable data -> report."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from appeal.errors import AppealInputError
+from appeal.logs import logger
+from appeal.outputs import output_run
+from appeal.progress import progress
+from appeal.provenance import file_sha256, now_iso, package_versions
+from appeal.studyfile import load_study_file
+from experiments.datafile import TsvWriter, read_completed, session_stem, write_demographics, write_sidecar
+from experiments.display import NoWindow, Presenter
+from experiments.protocol_schema import Protocol
+from experiments.runner import FLIP_COLUMNS, SessionRunner, beh_columns
+from experiments.simulate import SimulatedParticipant, load_participant_model
+from experiments.stimuli import load_stimuli, select_stimuli
+from experiments.triggers import TriggerSender, open_backend
+from experiments.trials import Trial, build_trials
+
+__all__ = ["SessionResult", "run_session", "default_seed", "session_paths", "load_protocol"]
+
+#: Refresh rates outside this range mean the display has no vsync (e.g. a virtual screen).
+PLAUSIBLE_HZ = (20.0, 250.0)
+SIM_WINDOW = (640, 512)
+
+
+@dataclass
+class SessionResult:
+    """What a session produced."""
+
+    out: Path
+    beh: Path
+    sidecar: Path
+    n_trials: int
+    completed: int
+    status: str
+    timing_mode: str
+    refresh_hz: float
+    report: Path | None = None
+    screenshots: dict[str, Path] = field(default_factory=dict)
+
+
+def default_seed(protocol_name: str, participant: str, session: int) -> int:
+    """A seed unique to protocol x participant x session (each participant gets their own order)."""
+    digest = hashlib.sha256(f"{protocol_name}|{participant}|{session}".encode()).hexdigest()
+    return int(digest[:8], 16) % (2 ** 31)
+
+
+def session_paths(out: Path, participant: str, session: int, task: str) -> dict[str, Path]:
+    """Every file of a session folder."""
+    stem = session_stem(participant, session, task)
+    return {"beh": out / f"{stem}_beh.tsv", "sidecar": out / f"{stem}_beh.json", "flips": out / f"{stem}_flips.tsv",
+            "triggers": out / f"{stem}_triggers.tsv", "demographics": out / "participants.tsv",
+            "report": out / "report"}
+
+
+def load_protocol(path: str | Path) -> Protocol:
+    """Load and validate a protocol file (one-line errors)."""
+    return load_study_file(path, Protocol)
+
+
+def _open_window(protocol: Protocol, *, fullscreen: bool, size: tuple[int, int]) -> Any:
+    try:
+        from experiments.screens import open_window
+
+        return open_window(size, fullscreen=fullscreen, background=protocol.screen.background)
+    except Exception as exc:  # noqa: BLE001 - pyglet raises its own display errors
+        if "display" in str(exc).lower() or type(exc).__name__ == "NoSuchDisplayException":
+            raise AppealInputError("no display to open a window on: run under a desktop session or "
+                                   "'xvfb-run -a appeal run ...' (simulated sessions may use --no-window)") from None
+        raise
+
+
+def _measure_refresh(win: Any) -> float | None:
+    rate = win.getActualFrameRate(nIdentical=10, nMaxFrames=120, nWarmUpFrames=10, threshold=1)
+    return float(rate) if rate else None
+
+
+def _check_resume(rows: list[dict[str, str]], trials: list[Trial], beh: Path) -> None:
+    if len(rows) > len(trials):
+        raise AppealInputError(f"{beh}: {len(rows)} rows but the session has only {len(trials)} trials")
+    for row, t in zip(rows, trials):
+        if row["trial"] != str(t.trial) or row["stimulus"] != t.stimulus:
+            raise AppealInputError(f"{beh}: trial {row['trial']} ({row['stimulus']}) does not match the session's "
+                                   f"order (expected trial {t.trial}: {t.stimulus}); was the seed or stimulus set changed?")
+
+
+def run_session(
+    protocol_file: str | Path,
+    participant: str,
+    *,
+    session: int = 1,
+    out: str | Path | None = None,
+    stimuli: str | Path | None = None,
+    simulate: str | Path | None = None,
+    windowed: bool = False,
+    resume: bool = False,
+    force: bool = False,
+    seed: int | None = None,
+    realtime: bool = False,
+    window: bool = True,
+    screenshot_dir: str | Path | None = None,
+    refresh_hz: float | None = None,
+    report: bool = True,
+    argv: list[str] | None = None,
+) -> SessionResult:
+    """Run (or resume) one session of a protocol.
+
+    Parameters
+    ----------
+    protocol_file : str | Path
+        The ``kind: protocol`` YAML.
+    participant : str
+        BIDS participant label (letters and digits).
+    session : int
+        Session number.
+    out : str | Path | None
+        The session folder (default ``data/sub-<id>/ses-<n>``).
+    stimuli : str | Path | None
+        Replace the protocol's stimulus source (manifest/factor-table CSV or a folder holding one).
+    simulate : str | Path | None
+        ``"default"`` or a participant-model YAML: answers come from a simulated participant
+        and time is virtual (fast) unless ``realtime``.
+    windowed : bool
+        A window instead of full screen (always windowed when simulating).
+    resume : bool
+        Continue a crashed/aborted session in the same folder at the next trial.
+    force : bool
+        Replace an existing session folder.
+    seed : int | None
+        Seed of orders and jitter (default: derived from protocol, participant and session).
+    realtime : bool
+        Simulated sessions: flip every frame, paced to the refresh rate.
+    window : bool
+        False: simulated sessions run without any window (virtual clock only).
+    screenshot_dir : str | Path | None
+        Save the first frame of each kind of screen as PNG.
+    refresh_hz : float | None
+        Override the refresh rate (default: protocol's, else measured, else 60).
+    report : bool
+        Write the session report at the end.
+    argv : list of str | None
+        Command line for the provenance record.
+
+    Returns
+    -------
+    SessionResult
+        Paths, counts, status.
+    """
+    import re
+
+    if not re.fullmatch(r"[A-Za-z0-9]+", str(participant)):
+        raise AppealInputError(f"--participant: expected letters and digits only (a BIDS label), got {participant!r}")
+    if session < 1:
+        raise AppealInputError(f"--session: expected a number >= 1, got {session}")
+    if simulate is None and (realtime or not window):
+        raise AppealInputError("--realtime and --no-window only apply to simulated sessions (--simulate MODEL)")
+    protocol_file = Path(protocol_file)
+    protocol = load_protocol(protocol_file)
+    model = load_participant_model(simulate) if simulate is not None else None
+    full = load_stimuli(protocol.stimuli, override=stimuli, protocol_file=protocol_file, apply_select=False)
+    main = select_stimuli(full, protocol.stimuli.select)
+    if not len(main):
+        raise AppealInputError(f"{protocol_file}: stimuli.select: selects none of the {len(full)} images in {full.source}")
+    out = Path(out) if out is not None else Path("data") / f"sub-{participant}" / f"ses-{session}"
+    paths = session_paths(out, participant, session, protocol.task)
+    protocol_hash = file_sha256(protocol_file)
+    previous: dict[str, Any] = {}
+    if resume and paths["sidecar"].is_file():
+        previous = json.loads(paths["sidecar"].read_text())
+        if previous.get("ProtocolSHA256") != protocol_hash:
+            raise AppealInputError(f"{protocol_file}: changed since the session started (sha256 differs from "
+                                   f"{paths['sidecar']}); resume with the original protocol")
+        if seed is not None and seed != previous.get("Seed"):
+            raise AppealInputError(f"--seed: the session started with seed {previous.get('Seed')}, got {seed}")
+        seed = int(previous["Seed"])
+    elif resume and out.is_dir() and any(out.iterdir()):
+        raise AppealInputError(f"{out}: --resume: no session sidecar {paths['sidecar'].name} here to resume from")
+    if seed is None:
+        seed = default_seed(protocol.name, participant, session)
+    if model is not None:
+        mode = "realtime" if realtime else "virtual"
+    else:
+        mode = "live"
+    with output_run(out, force=force, resume=resume, seed=seed, inputs=[protocol_file, full.source], argv=argv) as run:
+        out = run.out
+        paths = session_paths(out, participant, session, protocol.task)
+        win = None
+        if window:
+            size = SIM_WINDOW if model is not None else protocol.screen.window_size
+            win = _open_window(protocol, fullscreen=not windowed and model is None, size=size)
+        measured = None
+        pace = mode == "realtime"
+        if previous:
+            hz = float(previous["RefreshRate"])
+        elif refresh_hz is not None:
+            hz = float(refresh_hz)
+        elif protocol.screen.refresh_hz is not None:
+            hz = float(protocol.screen.refresh_hz)
+        elif mode == "live" and win is not None:
+            measured = _measure_refresh(win)
+            if measured is None or not PLAUSIBLE_HZ[0] <= measured <= PLAUSIBLE_HZ[1]:
+                logger.warning("measured refresh %s Hz is implausible (no vsync?): using 60 Hz, paced in software",
+                               measured)
+                hz, pace = 60.0, True
+            else:
+                hz = round(measured, 2)
+        else:
+            hz = 60.0
+        trials = build_trials(protocol, main, seed=seed, refresh_hz=hz, source=str(protocol_file), full_set=full)
+        columns = beh_columns(protocol)
+        done_rows = read_completed(paths["beh"], columns) if resume else []
+        _check_resume(done_rows, trials, paths["beh"])
+        start = len(done_rows)
+        sidecar = {
+            "TaskName": protocol.task, "Protocol": str(protocol_file.resolve()), "ProtocolName": protocol.name,
+            "ProtocolSHA256": protocol_hash, "Stimuli": str(full.source), "StimuliSHA256": file_sha256(full.source),
+            "participant_id": participant, "Session": session, "Seed": seed, "RefreshRate": hz,
+            "RefreshRateMeasured": measured, "TimingMode": mode, "SoftwarePacing": pace,
+            "Simulated": str(simulate) if simulate is not None else None,
+            "Screen": {"size": list(win.size) if win is not None else None,
+                       "fullscreen": bool(getattr(win, "_isFullScr", False)) if win is not None else False,
+                       "background": protocol.screen.background},
+            "Triggers": protocol.triggers.model_dump() if protocol.triggers is not None else None,
+            "SoftwareVersions": package_versions(), "Platform": platform.platform(),
+            "NumberOfTrials": len(trials), "Started": previous.get("Started", now_iso()),
+            "Resumed": [*previous.get("Resumed", []), *([now_iso()] if start else [])],
+            "Status": "running", "Columns": _column_descriptions(protocol, columns),
+        }
+        write_sidecar(paths["sidecar"], sidecar)
+        status, completed, shots = "running", start, {}
+        if start >= len(trials):
+            logger.info("session already complete (%d trials)", len(trials))
+            status = "complete"
+        else:
+            status, completed, shots = _present(protocol, trials, start, columns, paths, win, hz, mode, pace, model,
+                                                 seed, participant, session, previous, screenshot_dir, full)
+        sidecar.update(Status=status, CompletedTrials=completed, Ended=now_iso())
+        write_sidecar(paths["sidecar"], sidecar)
+        run.extra.update(status_session=status, completed_trials=completed, n_trials=len(trials))
+        rep = None
+        if report and completed:
+            from experiments.report import write_session_report
+
+            rep = write_session_report(paths, hz)
+    return SessionResult(out=out, beh=paths["beh"], sidecar=paths["sidecar"], n_trials=len(trials), completed=completed,
+                         status=status, timing_mode=mode, refresh_hz=hz, report=rep, screenshots=shots)
+
+
+def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[str], paths: dict[str, Path],
+             win: Any, hz: float, mode: str, pace: bool, model: Any, seed: int, participant: str, session: int,
+             previous: dict[str, Any], screenshot_dir: str | Path | None, full: Any) -> tuple[str, int, dict]:
+    from experiments.responders import HumanResponder, ModelResponder, SessionAborted
+
+    display = win if win is not None else NoWindow()
+    presenter = Presenter(display, hz, mode=mode, pace=pace)
+    screens = None
+    if win is not None:
+        from experiments.screens import Screens
+
+        screens = Screens(win, protocol)
+    deadline = protocol.timing.response_deadline_s
+    if model is not None:
+        levels = {f: full.levels(f) for f in protocol.stimuli.factors}
+        sim = SimulatedParticipant(model, levels, int(np.random.SeedSequence([seed, 1]).generate_state(1)[0]))
+        responder: Any = ModelResponder(sim, presenter, deadline)
+        answers = sim.demographics(protocol.demographics)
+    else:
+        responder = HumanResponder(win, screens, presenter, deadline)
+        answers = _ask_demographics(protocol) if protocol.demographics and not previous else {}
+    if answers:
+        write_demographics(paths["demographics"], participant, answers)
+    sender = None
+    if protocol.triggers is not None:
+        backend = open_backend(protocol.triggers, log_path=paths["triggers"], clock=presenter.clock,
+                               simulate=model is not None)
+        sender = TriggerSender(backend, presenter.clock)
+    writer = TsvWriter(paths["beh"], columns)
+    flips = TsvWriter(paths["flips"], FLIP_COLUMNS, fsync=False)
+    runner = SessionRunner(protocol, presenter, screens, responder, writer, flips, sender,
+                           {"participant_id": participant, "session": session},
+                           screenshot_dir=Path(screenshot_dir) if screenshot_dir is not None else None)
+    status, completed = "crashed", start
+    try:
+        completed = runner.run(trials, start, progress=lambda it: progress(
+            it, total=len(trials) - start, desc=f"sub-{participant} {protocol.name}"))
+        status = "complete"
+    except SessionAborted:
+        completed = len(read_completed(paths["beh"]))
+        status = "aborted"
+        logger.warning("session aborted after %d of %d trials; continue with --resume", completed, len(trials))
+    finally:
+        writer.close()
+        flips.close()
+        if sender is not None:
+            sender.close()
+        if win is not None:
+            win.close()
+    return status, completed, dict(runner.shots)
+
+
+def _ask_demographics(protocol: Protocol) -> dict[str, Any]:
+    """The participant-information dialog (PsychoPy's); skipped with a warning where no GUI toolkit exists."""
+    try:
+        from psychopy import gui
+    except Exception as exc:  # noqa: BLE001 - missing Qt/wx
+        logger.warning("no dialog toolkit (%s): demographics not asked", exc)
+        return {}
+    info = {i.label or i.name: (i.choices if i.type == "choice" else "") for i in protocol.demographics}
+    dlg = gui.DlgFromDict(info, title=protocol.title or protocol.name)
+    if not dlg.OK:
+        raise AppealInputError("participant dialog cancelled")
+    return {i.name: info[i.label or i.name] for i in protocol.demographics}
+
+
+def _column_descriptions(protocol: Protocol, columns: list[str]) -> dict[str, dict[str, str]]:
+    desc = {
+        "participant_id": "BIDS participant label", "session": "session number",
+        "trial": "trial number in presentation order (1-based)", "phase": "anchor, practice, main or end",
+        "block": "block label", "repetition": "repetition of this stimulus (1-based)",
+        "stimulus": "image file as named in the stimulus table",
+        "fixation_frames": "fixation cross duration in frames", "fixation_onset_s": "fixation onset flip time",
+        "onset_frame": "frame index of the stimulus onset flip", "onset_s": "stimulus onset flip time (s)",
+        "offset_s": "time of the first flip after the stimulus (s)", "duration_frames": "intended stimulus frames",
+        "shown_frames": "flips the stimulus was drawn for", "shown_s": "offset_s - onset_s",
+        "dropped_frames": "flip intervals longer than 1.5 frames while the stimulus was up",
+        "trigger": "EEG trigger code sent on the onset flip", "trigger_s": "time the trigger was sent (s)",
+        "trigger_flip_ms": "trigger_s - onset_s in ms",
+    }
+    for f in protocol.stimuli.factors:
+        desc[f] = f"factor '{f}' level"
+    for name in protocol.response_names:
+        desc[f"response_{name}"] = f"answer on '{name}'"
+        desc[f"rt_{name}"] = f"response time on '{name}' (s from screen onset)"
+        desc[f"correct_{name}"] = f"1 if '{name}' matched the stimulus's level"
+    return {c: {"Description": desc.get(c, c)} for c in columns}

@@ -1,0 +1,175 @@
+"""Simulated participants: ratings = f(factor levels) + noise, classification from a confusion
+matrix, log-normal response times — seeded, so whole studies run headless and reproducibly.
+
+A model is ``default`` (built in, thesis-like: realism rises with stylisation level, appeal is
+an inverted U) or a YAML file::
+
+    kind: participant_model
+    participant_sd: 0.5            # random intercept per participant
+    rt: {median_s: 1.4, sigma: 0.35, min_s: 0.25}
+    ratings:
+      realism:
+        intercept: 4.0
+        noise_sd: 0.8
+        slopes: {shape: [1.2, 0.0]}           # linear, quadratic in level rank scaled to [-1, 1]
+        effects: {character: {c1: 0.2, c2: -0.2}}   # per-level offsets
+    classification:
+      expression:
+        p_correct: 0.85                          # where no confusion row is given
+        confusion: {neutral: {neutral: 0.6, surprise: 0.3, sad: 0.1}}
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from appeal.errors import AppealInputError
+from appeal.studyfile import StudyModel, load_study_file
+from experiments.protocol_schema import ChoiceSpec, LikertSpec, level_key
+
+__all__ = ["ParticipantModel", "SimulatedParticipant", "load_participant_model", "DEFAULT_MODEL"]
+
+
+class ScaleModel(StudyModel):
+    """How one rating scale depends on the factors."""
+
+    intercept: float | None = Field(None, description="default: the scale's midpoint")
+    noise_sd: float = Field(0.8, ge=0)
+    slopes: dict[str, tuple[float, float]] = Field(default_factory=dict)
+    effects: dict[str, dict[str, float]] = Field(default_factory=dict)
+
+
+class ClassModel(StudyModel):
+    """How one classification is answered."""
+
+    p_correct: float = Field(0.85, ge=0, le=1)
+    confusion: dict[str, dict[str, float]] = Field(default_factory=dict)
+
+
+class RtModel(StudyModel):
+    """Log-normal response times."""
+
+    median_s: float = Field(1.4, gt=0)
+    sigma: float = Field(0.35, ge=0)
+    min_s: float = Field(0.2, ge=0)
+
+
+class ParticipantModel(StudyModel):
+    """A simulated participant (``--simulate FILE.yaml``)."""
+
+    kind: Literal["participant_model"] = "participant_model"
+    participant_sd: float = Field(0.5, ge=0)
+    rt: RtModel = Field(default_factory=RtModel)
+    ratings: dict[str, ScaleModel] = Field(default_factory=dict)
+    classification: dict[str, ClassModel] = Field(default_factory=dict)
+
+
+_APPEAL_LIKE = {"shape": (0.2, -0.9), "material": (-0.4, -0.5), "stylisation": (-0.2, -1.0)}
+DEFAULT_MODEL = ParticipantModel(
+    ratings={
+        "realism": ScaleModel(noise_sd=0.7, slopes={"shape": (1.3, 0.0), "material": (0.8, 0.0),
+                                                    "stylisation": (2.0, 0.0), "lighting": (0.15, 0.0)}),
+        "appeal": ScaleModel(slopes=_APPEAL_LIKE),
+        "reassurance": ScaleModel(slopes=_APPEAL_LIKE),
+        "attractiveness": ScaleModel(slopes=_APPEAL_LIKE),
+        "familiarity": ScaleModel(noise_sd=1.0, slopes={"material": (0.3, 0.0)}),
+        "intensity": ScaleModel(intercept=4.5, slopes={"shape": (-0.9, 0.0), "stylisation": (-0.8, 0.0)}),
+    },
+    classification={"expression": ClassModel(confusion={
+        "neutral": {"neutral": 0.6, "surprise": 0.2, "sad": 0.2},
+    })},
+)
+
+
+def load_participant_model(spec: str | Path) -> ParticipantModel:
+    """``default`` or a YAML file -> :class:`ParticipantModel` (one-line errors for bad files)."""
+    if str(spec) == "default":
+        return DEFAULT_MODEL
+    path = Path(spec)
+    if not path.is_file():
+        raise AppealInputError(f"{path}: --simulate: expected 'default' or a participant-model YAML file (file not found)")
+    return load_study_file(path, ParticipantModel)
+
+
+class SimulatedParticipant:
+    """Answers the runner's questions from a :class:`ParticipantModel`.
+
+    Parameters
+    ----------
+    model : ParticipantModel
+        The model.
+    levels : mapping of str to list of str
+        Every factor's levels in natural order (ranks for the slopes).
+    seed : int
+        The participant's randomness (ratings noise, choices, RTs).
+    """
+
+    def __init__(self, model: ParticipantModel, levels: Mapping[str, Sequence[str]], seed: int):
+        self.model = model
+        self.levels = {f: [str(v) for v in vs] for f, vs in levels.items()}
+        self.rng = np.random.default_rng(seed)
+        self.offset = float(self.rng.normal(0.0, model.participant_sd))
+
+    def _x(self, factor: str, level: str) -> float:
+        levels = self.levels.get(factor, [])
+        if level not in levels or len(levels) < 2:
+            return 0.0
+        return -1.0 + 2.0 * levels.index(level) / (len(levels) - 1)
+
+    def expected_rating(self, scale: LikertSpec, factors: Mapping[str, str]) -> float:
+        """The noise-free rating of ``scale`` for a stimulus with ``factors``."""
+        sm = self.model.ratings.get(scale.name, ScaleModel())
+        mid = (1 + scale.points) / 2
+        value = (sm.intercept if sm.intercept is not None else mid) + self.offset
+        for factor, level in factors.items():
+            if factor in sm.effects and level in sm.effects[factor]:
+                value += sm.effects[factor][level]
+            elif factor in sm.slopes:
+                lin, quad = sm.slopes[factor]
+                x = self._x(factor, level)
+                value += lin * x * (scale.points - 1) / 4 + quad * (x * x - 0.5) * (scale.points - 1) / 4
+        return value
+
+    def rate(self, scale: LikertSpec, factors: Mapping[str, str]) -> int:
+        """A rating 1..points."""
+        sm = self.model.ratings.get(scale.name, ScaleModel())
+        value = self.expected_rating(scale, factors) + self.rng.normal(0.0, sm.noise_sd)
+        return int(np.clip(np.rint(value), 1, scale.points))
+
+    def classify(self, name: str, choices: Sequence[ChoiceSpec], true_level: str | None) -> str:
+        """The chosen value (as a level string) for a stimulus whose correct answer is ``true_level``."""
+        values = [level_key(c.value) for c in choices]
+        cm = self.model.classification.get(name, ClassModel())
+        row = cm.confusion.get(true_level or "", None)
+        if row:
+            p = np.array([row.get(v, 0.0) for v in values], dtype=float)
+        elif true_level in values:
+            rest = (1 - cm.p_correct) / (len(values) - 1)
+            p = np.array([cm.p_correct if v == true_level else rest for v in values])
+        else:
+            p = np.ones(len(values))
+        if p.sum() <= 0:
+            p = np.ones(len(values))
+        return values[int(self.rng.choice(len(values), p=p / p.sum()))]
+
+    def rt(self) -> float:
+        """A log-normal response time in seconds."""
+        m = self.model.rt
+        return max(m.min_s, float(m.median_s * np.exp(self.rng.normal(0.0, m.sigma))))
+
+    def demographics(self, items: Sequence[Any]) -> dict[str, Any]:
+        """Plausible answers to the demographic questions (age 19-30, a random choice)."""
+        out: dict[str, Any] = {}
+        for item in items:
+            if item.type == "int":
+                out[item.name] = int(self.rng.integers(19, 31))
+            elif item.type == "choice":
+                out[item.name] = item.choices[int(self.rng.integers(len(item.choices)))]
+            else:
+                out[item.name] = "simulated"
+        return out

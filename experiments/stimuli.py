@@ -1,0 +1,180 @@
+"""Stimulus sets: a grid ``manifest.csv`` or a folder of images plus a factor table."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from appeal.errors import AppealInputError
+from experiments.protocol_schema import Selection, StimulusSource, level_key
+
+__all__ = ["StimulusSet", "load_stimuli", "select_stimuli", "IMAGE_SUFFIXES"]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".gif")
+
+
+@dataclass(frozen=True)
+class StimulusSet:
+    """Images with their factor levels.
+
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        One row per image: ``stimulus`` (the file as written in the table), ``path``
+        (absolute) and one string column per factor (levels compared as text).
+    factors : list of str
+        The factor columns, in protocol order.
+    source : Path
+        The manifest or factor table the set came from.
+    """
+
+    table: pd.DataFrame
+    factors: list[str]
+    source: Path
+
+    def __len__(self) -> int:
+        return len(self.table)
+
+    def levels(self, factor: str) -> list[str]:
+        """The levels of ``factor`` in natural order (numbers numerically)."""
+        return sort_levels(self.table[factor].unique())
+
+
+def sort_levels(levels: Sequence[Any]) -> list[str]:
+    """Sort level strings naturally: numeric ones by value, then the rest alphabetically."""
+    def key(v: str) -> tuple:
+        try:
+            return (0, float(v), "")
+        except ValueError:
+            m = re.match(r"^(\D*)(\d+)$", v)
+            return (1, float(m.group(2)), m.group(1)) if m else (2, 0.0, v)
+    return sorted((str(v) for v in levels), key=key)
+
+
+def _read_table(path: Path, what: str) -> pd.DataFrame:
+    if not path.is_file():
+        raise AppealInputError(f"{path}: {what} not found")
+    sep = "\t" if path.suffix.lower() == ".tsv" else ","
+    try:
+        df = pd.read_csv(path, sep=sep, dtype=str, keep_default_na=False)
+    except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
+        raise AppealInputError(f"{path}: cannot read {what} as a table ({str(exc).splitlines()[0]})") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    return df
+
+
+def load_stimuli(source: StimulusSource, *, override: str | Path | None = None, protocol_file: str | Path = "protocol",
+                 apply_select: bool = True) -> StimulusSet:
+    """Load the stimulus table a protocol names (or ``override``, as given by ``--stimuli``).
+
+    Parameters
+    ----------
+    source : StimulusSource
+        The protocol's ``stimuli`` section (factors, selection, paths).
+    override : str | Path | None
+        A manifest/factor-table CSV (images relative to it) or a folder holding
+        ``manifest.csv`` (or ``factors.csv``); replaces the protocol's source.
+    protocol_file : str | Path
+        Named in error messages.
+    apply_select : bool
+        Apply ``source.select`` (False: the whole table, for anchors/end items).
+
+    Returns
+    -------
+    StimulusSet
+        The selected images, every file checked to exist.
+
+    Raises
+    ------
+    AppealInputError
+        Missing files or columns, empty selections (one line per problem).
+    """
+    if override is not None:
+        override = Path(override).expanduser().resolve()
+        if override.is_dir():
+            cands = [override / n for n in ("manifest.csv", "factors.csv", "manifest.tsv", "factors.tsv")]
+            found = [c for c in cands if c.is_file()]
+            if not found:
+                raise AppealInputError(f"{override}: --stimuli folder has no manifest.csv or factors.csv "
+                                       "(a table with a 'file' column and one column per factor)")
+            table_path, image_root = found[0], override
+        else:
+            table_path, image_root = override, override.parent
+        what = "--stimuli table"
+    elif source.manifest is not None:
+        table_path, image_root = Path(source.manifest), Path(source.manifest).parent
+        what = "stimulus manifest"
+        if not table_path.is_file():
+            hint = (f" (render it first: appeal stimuli grid {source.grid} --out {table_path.parent})"
+                    if source.grid is not None else "")
+            raise AppealInputError(f"{protocol_file}: stimuli.manifest: file not found: {table_path}{hint}")
+    else:
+        table_path, image_root = Path(source.table), Path(source.folder)
+        what = "factor table"
+        if not image_root.is_dir():
+            raise AppealInputError(f"{protocol_file}: stimuli.folder: folder not found: {image_root}")
+    df = _read_table(table_path, what)
+    problems = []
+    if "file" not in df.columns:
+        problems.append(f"{table_path}: file: column missing (expected a 'file' column naming each image)")
+    missing = [f for f in source.factors if f not in df.columns]
+    if missing:
+        problems.append(f"{table_path}: {', '.join(missing)}: factor column(s) missing "
+                        f"(columns: {', '.join(df.columns)})")
+    if problems:
+        raise AppealInputError(problems)
+    if df.empty:
+        raise AppealInputError(f"{table_path}: no rows (expected one row per image)")
+    out = pd.DataFrame({"stimulus": df["file"].astype(str)})
+    out["path"] = [str((image_root / f).resolve()) for f in out["stimulus"]]
+    for f in source.factors:
+        out[f] = [level_key(v) for v in df[f]]
+    absent = [p for p in out["path"] if not Path(p).is_file()]
+    if absent:
+        more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
+        raise AppealInputError(f"{table_path}: file: {len(absent)} image(s) not found: {', '.join(absent[:3])}{more}")
+    bad = [p for p in out["path"] if Path(p).suffix.lower() not in IMAGE_SUFFIXES]
+    if bad:
+        raise AppealInputError(f"{table_path}: file: not an image ({', '.join(IMAGE_SUFFIXES)}): {bad[0]}")
+    dup = out["stimulus"][out["stimulus"].duplicated()].tolist()
+    if dup:
+        raise AppealInputError(f"{table_path}: file: listed twice: {dup[0]}")
+    sset = StimulusSet(out.reset_index(drop=True), list(source.factors), table_path)
+    if not apply_select:
+        return sset
+    selected = select_stimuli(sset, source.select)
+    if not len(selected):
+        raise AppealInputError(f"{protocol_file}: stimuli.select: selects none of the {len(sset)} images in {table_path}")
+    return selected
+
+
+def _where_mask(table: pd.DataFrame, where: Mapping[str, Any]) -> pd.Series:
+    mask = pd.Series(True, index=table.index)
+    for factor, levels in where.items():
+        wanted = {level_key(v) for v in (levels if isinstance(levels, list) else [levels])}
+        mask &= table[factor].isin(wanted)
+    return mask
+
+
+def _match_key(level: str) -> str:
+    """Levels compared by ``match``: their trailing number when they have one (s2 ~ m2 ~ 2)."""
+    m = re.search(r"(\d+(?:\.\d+)?)$", level)
+    return level_key(m.group(1)) if m else level
+
+
+def select_stimuli(sset: StimulusSet, selection: Selection | None) -> StimulusSet:
+    """The subset of ``sset`` a :class:`Selection` keeps (``where`` levels, ``match``-ing factors)."""
+    if selection is None:
+        return sset
+    table = sset.table
+    mask = _where_mask(table, selection.where)
+    if selection.match:
+        first = table[selection.match[0]].map(_match_key)
+        for other in selection.match[1:]:
+            mask &= table[other].map(_match_key) == first
+    return StimulusSet(table[mask].reset_index(drop=True), sset.factors, sset.source)
