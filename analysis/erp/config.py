@@ -1,0 +1,192 @@
+"""Reading an ERP config: the validated model, its event map, its recordings and subjects."""
+
+from __future__ import annotations
+
+import glob
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from appeal.errors import AppealInputError, StudyFileError
+from appeal.studyfile import load_study_file, load_yaml
+
+from analysis.erp_schema import ErpConfig, ProtocolEvents
+
+__all__ = ["EventMap", "load_erp_config", "read_protocol_codes", "event_map", "find_recordings", "subject_id"]
+
+#: File types the pipeline reads (MNE readers).
+RECORDING_SUFFIXES = (".bdf", ".edf", ".fif", ".vhdr", ".set", ".fif.gz")
+
+
+def load_erp_config(path: str | Path) -> ErpConfig:
+    """Load and validate an ERP config file (``kind: erp``).
+
+    Raises
+    ------
+    StudyFileError
+        One ``FILE: field: message`` line per problem.
+    """
+    return load_study_file(path, ErpConfig)
+
+
+def _level(value):
+    """Levels as written: ints stay ints ("0" from YAML keys too), others become str."""
+    if isinstance(value, bool):
+        return str(value)
+    if isinstance(value, (int, float)):
+        return int(value) if float(value).is_integer() else float(value)
+    return str(value)
+
+
+def read_protocol_codes(path: str | Path) -> dict[int, dict[str, object]]:
+    """The ``triggers.codes`` section of a runner protocol: code -> factor levels.
+
+    The section is a list of mappings ``{code: 11, character: c1, stylisation: 0, emotion: angry}``.
+    Only this section is read; the rest of the protocol is not interpreted here.
+
+    Raises
+    ------
+    StudyFileError
+        When the section is missing or an entry is not a mapping with an integer ``code``.
+    """
+    path = Path(path)
+    doc = load_yaml(path)
+    codes = ((doc or {}).get("triggers") or {}).get("codes") if isinstance(doc, dict) else None
+    if not isinstance(codes, list) or not codes:
+        raise StudyFileError(f"{path}: triggers.codes: expected a list of {{code: INT, <factor>: <level>, ...}} "
+                             f"mappings (got {type(codes).__name__ if codes is not None else 'nothing'})")
+    out: dict[int, dict[str, object]] = {}
+    for i, entry in enumerate(codes):
+        where = f"{path}: triggers.codes[{i}]"
+        if not isinstance(entry, dict) or "code" not in entry:
+            raise StudyFileError(f"{where}: expected a mapping with a 'code' key (got {entry!r})")
+        try:
+            code = int(entry["code"])
+        except (TypeError, ValueError):
+            raise StudyFileError(f"{where}.code: expected an integer (got {entry['code']!r})") from None
+        levels = {str(k): _level(v) for k, v in entry.items() if k != "code"}
+        if not levels:
+            raise StudyFileError(f"{where}: code {code} names no factor levels")
+        if code in out:
+            raise StudyFileError(f"{where}.code: code {code} appears twice")
+        out[code] = levels
+    return out
+
+
+@dataclass(frozen=True)
+class EventMap:
+    """Trigger codes and the condition cells they belong to.
+
+    Attributes
+    ----------
+    codes : dict
+        code -> {factor: level} over the analysed ``factors``.
+    factors : list of str
+        The condition factors (columns of ``amplitudes.csv``).
+    levels : dict
+        factor -> ordered levels (the order of contrasts and figures).
+    ignore : tuple of int
+        Codes present in recordings that are not events of interest.
+    """
+
+    codes: dict[int, dict[str, object]]
+    factors: list[str]
+    levels: dict[str, list]
+    ignore: tuple[int, ...] = ()
+    unknown: str = "error"
+    cells: list[tuple] = field(default_factory=list)
+
+    def cell_of(self, code: int) -> tuple:
+        """The cell (tuple of levels in ``factors`` order) of a code."""
+        return tuple(self.codes[code][f] for f in self.factors)
+
+    def cell_name(self, cell: tuple) -> str:
+        """A readable name: ``stylisation=0/emotion=angry``."""
+        return "/".join(f"{f}={v}" for f, v in zip(self.factors, cell))
+
+
+def _sort_levels(values: list) -> list:
+    if all(isinstance(v, (int, float)) for v in values):
+        return sorted(values)
+    return values
+
+
+def event_map(cfg: ErpConfig, source: str | Path = "config") -> EventMap:
+    """Resolve the config's ``events`` (inline or from a protocol) into an :class:`EventMap`.
+
+    Raises
+    ------
+    StudyFileError
+        When ``factors`` or ``levels`` name factors/levels the event map does not have.
+    """
+    if isinstance(cfg.events, ProtocolEvents):
+        raw = read_protocol_codes(cfg.events.protocol)
+    else:
+        raw = {int(k): {str(f): _level(v) for f, v in d.items()} for k, d in cfg.events.items()}
+    all_factors: list[str] = []
+    for levels in raw.values():
+        for f in levels:
+            if f not in all_factors:
+                all_factors.append(f)
+    factors = list(cfg.factors) if cfg.factors else all_factors
+    problems = []
+    for f in factors:
+        missing = [c for c, d in raw.items() if f not in d]
+        if missing:
+            problems.append(f"{source}: factors: factor {f!r} is not given for codes {missing[:5]} "
+                            f"(factors in the event map: {', '.join(all_factors)})")
+    if problems:
+        raise StudyFileError(problems)
+    codes = {c: {f: d[f] for f in factors} for c, d in raw.items()}
+    levels: dict[str, list] = {}
+    for f in factors:
+        seen = list(dict.fromkeys(d[f] for d in codes.values()))
+        if f in cfg.levels:
+            given = [_level(v) for v in cfg.levels[f]]
+            extra = [v for v in seen if v not in given]
+            if extra or len(given) != len(set(given)):
+                raise StudyFileError(f"{source}: levels.{f}: expected each of {seen} exactly once (got {given})")
+            levels[f] = [v for v in given if v in seen]
+        else:
+            levels[f] = _sort_levels(seen)
+    for f in cfg.levels:
+        if f not in factors:
+            raise StudyFileError(f"{source}: levels.{f}: not a factor (expected one of: {', '.join(factors)})")
+    import itertools
+
+    present = {tuple(d[f] for f in factors) for d in codes.values()}
+    cells = [c for c in itertools.product(*(levels[f] for f in factors)) if c in present]
+    return EventMap(codes=codes, factors=factors, levels=levels, ignore=tuple(cfg.ignore_codes),
+                    unknown=cfg.unknown_codes, cells=cells)
+
+
+def find_recordings(cfg: ErpConfig, source: str | Path = "config") -> list[Path]:
+    """The recording files: expand globs, or walk a BIDS root for ``*_eeg.*`` files.
+
+    Raises
+    ------
+    AppealInputError
+        When nothing matches.
+    """
+    patterns = cfg.recordings if isinstance(cfg.recordings, list) else [cfg.recordings]
+    files: list[Path] = []
+    for pat in patterns:
+        p = Path(pat)
+        if p.is_dir():
+            found = [f for f in sorted(p.rglob("*_eeg.*")) if "".join(f.suffixes[-2:]).lower().endswith(RECORDING_SUFFIXES)]
+            found = [f for f in found if f.suffix.lower() != ".fdt"]
+        else:
+            found = [Path(f) for f in sorted(glob.glob(str(p)))]
+        files.extend(f for f in found if f not in files)
+    if not files:
+        raise AppealInputError(f"{source}: recordings: no files match {', '.join(str(p) for p in patterns)} "
+                               f"(expected a glob of BDF/EDF/FIF/BrainVision/EEGLAB files or a BIDS root)")
+    return files
+
+
+def subject_id(path: Path, pattern: str) -> str:
+    """Subject id from a file name: the first group of ``pattern``, else the file's stem."""
+    m = re.search(pattern, path.name)
+    if m:
+        return m.group(1) if m.groups() else m.group(0)
+    return path.name.split(".")[0]

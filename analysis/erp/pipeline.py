@@ -1,0 +1,253 @@
+"""The ERP pipeline: one subject from file to measures, and the whole study in parallel.
+
+:func:`process_subject` runs in a worker process (one recording at a time, so memory stays
+bounded by one subject); :func:`run_erp` maps it over the recordings with
+:func:`appeal.parallel.parallel_map`, reports failing subjects and carries on with the rest.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from appeal.errors import AppealInputError
+from appeal.logs import logger
+from appeal.parallel import parallel_map
+
+from analysis.erp.config import EventMap, event_map, find_recordings, subject_id
+from analysis.erp_schema import ErpConfig
+
+__all__ = ["SubjectResult", "ErpResult", "process_subject", "preprocess", "run_erp", "resolve_components"]
+
+
+@dataclass
+class SubjectResult:
+    """What one subject gives back: QC numbers, measures, cell averages and source maps."""
+
+    subject: str
+    path: str
+    qc: dict
+    amplitudes: pd.DataFrame
+    evokeds: dict  # cell -> ndarray (n_channels, n_times), volts
+    n_trials: dict  # cell -> int
+    info: object  # mne.Info of the EEG channels
+    times: np.ndarray
+    source_maps: dict = field(default_factory=dict)  # (component, level) -> ndarray (n_vox,)
+
+
+@dataclass
+class ErpResult:
+    """All subjects: tables ready for statistics and figures."""
+
+    subjects: list[SubjectResult]
+    failures: list  # appeal.parallel.ItemFailure
+    emap: EventMap
+    head: object = None
+
+    @property
+    def amplitudes(self) -> pd.DataFrame:
+        """``amplitudes.csv``: subject, factor columns, component, cluster, measures, n_trials."""
+        if not self.subjects:
+            return pd.DataFrame()
+        return pd.concat([s.amplitudes.assign(subject=s.subject) for s in self.subjects], ignore_index=True)[
+            ["subject", *self.subjects[0].amplitudes.columns]]
+
+    @property
+    def qc(self) -> pd.DataFrame:
+        """One row per subject: channels interpolated, trials rejected, trials per cell."""
+        return pd.DataFrame([{"subject": s.subject, **s.qc} for s in self.subjects])
+
+
+def resolve_components(cfg: ErpConfig, ch_names: list[str], source: str = "config") -> dict:
+    """Components with their clusters as channel indices into ``ch_names``."""
+    from analysis.erp.channels import resolve_cluster
+
+    montage = None if cfg.montage == "none" else cfg.montage
+    out = {}
+    for name, comp in cfg.components.items():
+        clusters = {}
+        for cname, chans in comp.clusters.items():
+            labels = resolve_cluster(chans, ch_names, montage, where=f"{source}: components.{name}.clusters.{cname}")
+            clusters[cname] = [ch_names.index(c) for c in labels]
+        out[name] = {"window_s": tuple(comp.window_s), "polarity": comp.polarity, "clusters": clusters}
+    return out
+
+
+def preprocess(path: str | Path, cfg: ErpConfig, emap: EventMap, seed: int = 0):
+    """Read and preprocess one recording; returns ``(epochs, qc)``.
+
+    Steps (each one MNE call): read, channel types + montage, events from the Status channel
+    (or annotations), filters, reference, EOG correction, bad channels (detected on the
+    eye-corrected data, spherical-spline interpolation, then referenced again), optional
+    resampling, epochs with baseline, rejection.
+    """
+    from analysis.erp import io, preprocessing as pp
+
+    path = Path(path)
+    raw = io.read_recording(path)
+    events = io.find_trigger_events(raw, path, cfg.stim_channel, cfg.trigger_mask)
+    events = io.select_events(events, emap.codes, emap.ignore, emap.unknown, path)
+    pp.setup_channels(raw, cfg.montage, cfg.eog, path)
+    f = cfg.filter
+    pp.filter_raw(raw, f.highpass_hz, f.lowpass_hz, highpass_causal=f.highpass_causal, method=f.method,
+                  notch_hz=f.notch_hz)
+    pp.set_reference(raw, cfg.reference)
+    eog_info = pp.correct_eog(raw, cfg.eog_method, seed) if cfg.eog else {"eog_method": "none"}
+    b = cfg.bad_channels
+    bads = pp.fix_bad_channels(raw, detect=b.detect, z_threshold=b.z_threshold, flat_uV=b.flat_uV, mark=b.mark,
+                               interpolate=b.interpolate, path=path)
+    if bads:
+        pp.set_reference(raw, cfg.reference)  # the interpolated channels join the reference
+    if cfg.resample_hz:
+        raw, events = raw.resample(cfg.resample_hz, events=events, verbose="error")
+    event_id = {f"code{c}": int(c) for c in sorted(set(events[:, 2].tolist()))}
+    ep = cfg.epochs
+    epochs = pp.make_epochs(raw, events, event_id, ep.tmin_s, ep.tmax_s, ep.baseline_s,
+                            cfg.reject.peak_to_peak_uV)
+    del raw
+    n_events = len(events)
+    if cfg.reject.absolute_uV:
+        pp.reject_absolute(epochs, cfg.reject.absolute_uV)
+    n_eeg = len(epochs.ch_names)
+    qc = {"file": str(path), "n_channels": n_eeg, "bad_channels": " ".join(bads),
+          "pct_channels_interpolated": 100.0 * len(bads) / max(n_eeg, 1) if b.interpolate else 0.0,
+          "n_events": n_events, "n_epochs": len(epochs),
+          "pct_trials_rejected": 100.0 * (n_events - len(epochs)) / max(n_events, 1), **eog_info}
+    if len(epochs) == 0:
+        raise AppealInputError(f"{path}: reject: every epoch was rejected ({n_events} events); "
+                               "check the threshold and the recording")
+    return epochs, qc
+
+
+def _cell_names(emap: EventMap, epochs) -> dict[tuple, list[str]]:
+    out: dict[tuple, list[str]] = {}
+    for name, code in epochs.event_id.items():
+        out.setdefault(emap.cell_of(code), []).append(name)
+    return out
+
+
+def process_subject(path: str | Path, cfg: ErpConfig, emap: EventMap, head=None, subject: str | None = None,
+                    seed: int = 0) -> SubjectResult:
+    """One subject: preprocess, average per cell, measure, and (with a head model) source maps."""
+    from analysis.erp.measures import measure_cells
+
+    import mne
+
+    path = Path(path)
+    subject = subject or subject_id(path, cfg.subject_pattern)
+    mne.set_log_level("ERROR")
+    epochs, qc = preprocess(path, cfg, emap, seed)
+    comps = resolve_components(cfg, epochs.ch_names, source=str(path))
+    cells = _cell_names(emap, epochs)
+    evokeds, n_trials = {}, {}
+    for cell in emap.cells:
+        names = [n for n in cells.get(cell, []) if len(epochs[n])]
+        n = sum(len(epochs[x]) for x in names)
+        n_trials[cell] = n
+        if n:
+            evokeds[cell] = epochs[names].average().data
+    qc["trials_per_cell_mean"] = float(np.mean(list(n_trials.values())))
+    qc["trials_per_cell_min"] = int(min(n_trials.values()))
+    amps = measure_cells(evokeds, n_trials, epochs.times, emap.factors, comps)
+    maps = {}
+    if head is not None:
+        from analysis.erp.source import subject_source_maps
+
+        src = cfg.source
+        factor = src.factor or emap.factors[0]
+        fi = emap.factors.index(factor)
+        groups: dict = {}
+        for cell, names in cells.items():
+            groups.setdefault(cell[fi], []).extend(names)
+        comp_names = src.components or list(cfg.components)
+        windows = {c: tuple(cfg.components[c].window_s) for c in comp_names}
+        maps = subject_source_maps(epochs, head, groups, windows, src.method, src.snr)
+    return SubjectResult(subject=subject, path=str(path), qc=qc, amplitudes=amps,
+                         evokeds={k: v.astype(np.float32) for k, v in evokeds.items()}, n_trials=n_trials,
+                         info=epochs.info, times=epochs.times.copy(), source_maps=maps)
+
+
+def _head_info(cfg: ErpConfig, first: Path):
+    """EEG info with positions, for the shared head model."""
+    import mne
+
+    from analysis.erp.channels import make_montage
+    from analysis.erp.io import read_recording
+    from analysis.erp.preprocessing import setup_channels
+
+    if cfg.montage != "none":
+        mont = make_montage(cfg.montage)
+        info = mne.create_info(mont.ch_names, 1000.0, "eeg")
+        info.set_montage(mont, verbose="error")
+        return info
+    raw = read_recording(first)
+    setup_channels(raw, "none", cfg.eog, first)
+    return raw.pick("eeg").info
+
+
+def run_erp(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: int | None = None,
+            scheduler: str | None = None, seed: int = 0) -> ErpResult:
+    """Run the scalp (and source) pipeline over every recording of ``cfg``.
+
+    Parameters
+    ----------
+    cfg : ErpConfig
+        The validated config.
+    source : str | Path
+        The config file (for messages).
+    n_jobs : int | None
+        Local worker processes (default ``cfg.n_jobs``, else all cores).
+    scheduler : str | None
+        Dask scheduler address.
+    seed : int
+        Seed of ICA and permutations.
+
+    Returns
+    -------
+    ErpResult
+        Successful subjects and the failures (each with a one-line reason).
+
+    Raises
+    ------
+    AppealInputError
+        When the config is inconsistent, or no subject succeeds.
+    """
+    from analysis.erp.source import template_head
+
+    emap = event_map(cfg, source)
+    files = find_recordings(cfg, source)
+    subjects = [subject_id(f, cfg.subject_pattern) for f in files]
+    dup = sorted({s for s in subjects if subjects.count(s) > 1})
+    if dup:
+        raise AppealInputError(f"{source}: subject_pattern: several recordings give subject ids {dup} "
+                               "(expected one recording per subject; adjust subject_pattern)")
+    for comp in cfg.source.components or []:
+        if comp not in cfg.components:
+            raise AppealInputError(f"{source}: source.components: {comp!r} is not a component "
+                                   f"(expected one of: {', '.join(cfg.components)})")
+    if cfg.source.factor and cfg.source.factor not in emap.factors:
+        raise AppealInputError(f"{source}: source.factor: {cfg.source.factor!r} is not a factor "
+                               f"(expected one of: {', '.join(emap.factors)})")
+    head = None
+    if cfg.source.enabled:
+        s = cfg.source
+        head = template_head(_head_info(cfg, files[0]), s.spacing_mm, bem=s.bem, trans=s.trans,
+                             subjects_dir=s.subjects_dir, subject=s.subject)
+    func = functools.partial(_process_item, cfg=cfg, emap=emap, head=head, seed=seed)
+    items = list(zip(files, subjects))
+    res = parallel_map(func, items, n_jobs=n_jobs if n_jobs is not None else cfg.n_jobs, scheduler=scheduler,
+                       desc="subjects", labels=subjects)
+    ok = [r for r in res.successful() if r is not None]
+    logger.info("ERP pipeline: %s", res.summary())
+    if not ok:
+        raise AppealInputError([f"{f.label}: {f.error}" for f in res.failures] or [f"{source}: no subject succeeded"])
+    return ErpResult(subjects=ok, failures=res.failures, emap=emap, head=head)
+
+
+def _process_item(item, cfg, emap, head, seed):
+    path, subject = item
+    return process_subject(path, cfg, emap, head=head, subject=subject, seed=seed)

@@ -1,0 +1,229 @@
+"""The ERP analysis config (``kind: erp``): recordings to N170 / EPN / LPP amplitudes.
+
+Defaults follow Zell's thesis §7.3: 128-channel BioSemi, average reference, causal 0.16 Hz
+high-pass and zero-phase 30 Hz low-pass, epochs -100 ... 600 ms with a -100 ... 0 ms
+baseline, 120 µV rejection, N170 (150-190 ms) and EPN (250-400 ms) over two
+temporo-occipital clusters, LPP (400-600 ms) over a parietal cluster. Example::
+
+    kind: erp
+    recordings: data/sub-*_task-faces_eeg.bdf
+    montage: biosemi128
+    events: {protocol: ../exp3_erp.yaml}
+    eog: [EXG1, EXG2, EXG3, EXG4]
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from appeal.studyfile import InputDir, InputFile, OutputPath, StudyModel
+
+__all__ = [
+    "ErpConfig",
+    "FilterConfig",
+    "EpochsConfig",
+    "RejectConfig",
+    "BadChannelsConfig",
+    "ComponentConfig",
+    "SourceConfig",
+    "ProtocolEvents",
+    "FiguresConfig",
+    "THESIS_COMPONENTS",
+]
+
+Level = str | int | float
+
+# Thesis §7.3 clusters (10-5 names). The right cluster's printed list repeats PO10 and reads
+# "TP8hT8"; it is the mirror image of the left one, which is what is used here.
+_LEFT = ["I1", "OI1", "O1", "POO3", "PO9", "PO9h", "PO7", "PO7h", "P9", "P9h", "P7", "P7h", "TP9h", "TP7", "TP7h"]
+_RIGHT = ["I2", "OI2", "O2", "POO4", "PO10", "PO10h", "PO8", "PO8h", "P10", "P10h", "P8", "P8h", "TP10h", "TP8", "TP8h"]
+_PARIETAL = ["CCPz", "CP5", "CP5h", "CP3", "CP1", "CPz", "CP2", "CP4", "CP6", "CPP5h", "CPP3", "CPPz", "CPP4",
+             "P3", "P1", "Pz", "P2", "P4", "PPO3", "PPO1", "PPOz", "PPO2", "PPO4", "PO3", "POz", "PO4"]
+
+#: The thesis's windows and clusters (§7.3).
+THESIS_COMPONENTS = {
+    "N170": {"window_s": [0.150, 0.190], "clusters": {"left": _LEFT, "right": _RIGHT}, "polarity": "negative"},
+    "EPN": {"window_s": [0.250, 0.400], "clusters": {"left": _LEFT, "right": _RIGHT}, "polarity": "negative"},
+    "LPP": {"window_s": [0.400, 0.600], "clusters": {"parietal": _PARIETAL}, "polarity": "positive"},
+}
+
+
+class ProtocolEvents(StudyModel):
+    """``events: {protocol: FILE}``: read ``triggers.codes`` of a runner protocol."""
+
+    protocol: InputFile
+
+
+class FilterConfig(StudyModel):
+    """Band limits; MNE's default FIR design (firwin, Hamming, automatic lengths)."""
+
+    highpass_hz: float | None = Field(0.16, gt=0)
+    lowpass_hz: float | None = Field(30.0, gt=0)
+    highpass_causal: bool = True
+    method: Literal["fir", "iir"] = "fir"
+    notch_hz: list[float] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _order(self) -> FilterConfig:
+        if self.highpass_hz and self.lowpass_hz and self.highpass_hz >= self.lowpass_hz:
+            raise ValueError(f"highpass_hz must be below lowpass_hz (got {self.highpass_hz} >= {self.lowpass_hz})")
+        return self
+
+
+class EpochsConfig(StudyModel):
+    """Epoch limits and baseline in seconds relative to the trigger."""
+
+    tmin_s: float = -0.1
+    tmax_s: float = 0.6
+    baseline_s: tuple[float, float] | None = (-0.1, 0.0)
+
+    @model_validator(mode="after")
+    def _order(self) -> EpochsConfig:
+        if self.tmin_s >= self.tmax_s:
+            raise ValueError(f"tmin_s must be below tmax_s (got {self.tmin_s} >= {self.tmax_s})")
+        if self.baseline_s is not None:
+            a, b = self.baseline_s
+            if not (self.tmin_s - 1e-9 <= a < b <= self.tmax_s + 1e-9):
+                raise ValueError(f"baseline_s must be an interval inside [tmin_s, tmax_s] (got {list(self.baseline_s)})")
+        return self
+
+
+class RejectConfig(StudyModel):
+    """Trial rejection: absolute threshold (thesis: 120 µV) or peak-to-peak (MNE ``reject``)."""
+
+    absolute_uV: float | None = Field(None, gt=0)
+    peak_to_peak_uV: float | None = Field(None, gt=0)
+
+    @model_validator(mode="after")
+    def _one(self) -> RejectConfig:
+        if self.absolute_uV is not None and self.peak_to_peak_uV is not None:
+            raise ValueError("give absolute_uV or peak_to_peak_uV, not both")
+        return self
+
+
+class BadChannelsConfig(StudyModel):
+    """Bad-channel detection (robust z-score of the channel's log SD, flat channels)."""
+
+    detect: bool = True
+    z_threshold: float = Field(5.0, gt=0)
+    flat_uV: float = Field(0.5, ge=0)
+    mark: list[str] = Field(default_factory=list)
+    interpolate: bool = True
+
+
+class ComponentConfig(StudyModel):
+    """One ERP component: its window, channel clusters and the direction of its peak."""
+
+    window_s: tuple[float, float]
+    clusters: dict[str, list[str]]
+    polarity: Literal["negative", "positive"] = "negative"
+
+    @field_validator("window_s")
+    @classmethod
+    def _window(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if v[0] >= v[1]:
+            raise ValueError(f"window_s must be [start, end] with start < end (got {list(v)})")
+        return v
+
+    @field_validator("clusters")
+    @classmethod
+    def _clusters(cls, v: dict[str, list[str]]) -> dict[str, list[str]]:
+        if not v:
+            raise ValueError("at least one cluster is needed")
+        for name, chans in v.items():
+            if not chans:
+                raise ValueError(f"cluster {name!r} has no channels")
+        return v
+
+
+class SourceConfig(StudyModel):
+    """Source-space summaries: forward, inverse, window maps and voxel-wise contrasts."""
+
+    enabled: bool = True
+    method: Literal["dSPM", "sLORETA", "MNE", "eLORETA"] = "sLORETA"
+    snr: float = Field(3.0, gt=0)
+    spacing_mm: float = Field(7.0, ge=2, le=20)
+    subjects_dir: InputDir | None = None
+    subject: str = "fsaverage"
+    bem: InputFile | None = None
+    trans: InputFile | None = None
+    factor: str | None = None
+    contrasts: list[tuple[Level, Level]] | None = None
+    components: list[str] | None = None
+    p_threshold: float = Field(0.005, gt=0, lt=1)
+    min_cluster_voxels: int = Field(25, ge=1)
+    n_permutations: int = Field(1000, ge=10)
+
+    @model_validator(mode="after")
+    def _bem(self) -> SourceConfig:
+        if self.bem is not None and self.trans is None:
+            raise ValueError("a bem needs trans (the head<->MRI transform of the template)")
+        return self
+
+
+class FiguresConfig(StudyModel):
+    """Figures: waveform channels (10-5 names or labels; thesis Fig. 7.5-7.7: PO8, CPPz)."""
+
+    channels: list[str] = Field(default_factory=lambda: ["PO8", "CPPz"])
+    topomap_factor: str | None = None
+
+
+class ErpConfig(StudyModel):
+    """An ERP analysis (``kind: erp``); see docs/erp.md for every key."""
+
+    kind: Literal["erp"]
+    recordings: OutputPath | list[OutputPath]
+    subject_pattern: str = r"sub-([A-Za-z0-9]+)"
+    montage: str = "biosemi128"
+    events: dict[int, dict[str, Level]] | ProtocolEvents
+    factors: list[str] | None = None
+    levels: dict[str, list[Level]] = Field(default_factory=dict)
+    ignore_codes: list[int] = Field(default_factory=list)
+    unknown_codes: Literal["error", "ignore"] = "error"
+    stim_channel: str = "auto"
+    trigger_mask: int = Field(0xFFFF, ge=1)
+    reference: Literal["average", "none"] | list[str] = "average"
+    filter: FilterConfig = Field(default_factory=FilterConfig)
+    resample_hz: float | None = Field(None, gt=0)
+    epochs: EpochsConfig = Field(default_factory=EpochsConfig)
+    eog: list[str] = Field(default_factory=list)
+    eog_method: Literal["regression", "ica"] = "regression"
+    bad_channels: BadChannelsConfig = Field(default_factory=BadChannelsConfig)
+    reject: RejectConfig = Field(default_factory=lambda: RejectConfig(absolute_uV=120.0))
+    components: dict[str, ComponentConfig] = Field(
+        default_factory=lambda: {k: ComponentConfig(**v) for k, v in THESIS_COMPONENTS.items()})
+    figures: FiguresConfig = Field(default_factory=FiguresConfig)
+    source: SourceConfig = Field(default_factory=SourceConfig)
+    n_jobs: int | None = Field(None, ge=1)
+
+    @field_validator("events", mode="before")
+    @classmethod
+    def _events(cls, v):
+        if isinstance(v, dict) and "protocol" not in v:
+            for code, levels in v.items():
+                try:
+                    int(code)
+                except (TypeError, ValueError):
+                    raise ValueError(f"event codes must be integers (got {code!r})") from None
+                if not isinstance(levels, dict) or not levels:
+                    raise ValueError(f"code {code}: expected a mapping of factor to level, "
+                                     f"e.g. {{stylisation: 0, emotion: angry}} (got {levels!r})")
+        return v
+
+    @field_validator("montage")
+    @classmethod
+    def _montage(cls, v: str) -> str:
+        if v.lower() == "none":
+            return "none"
+        import mne
+
+        builtin = mne.channels.get_builtin_montages() + ["standard_1005", "standard_1020"]
+        if v not in builtin:
+            import difflib
+
+            close = difflib.get_close_matches(v, builtin, n=1)
+            hint = f"did you mean '{close[0]}'?" if close else "expected an MNE montage name or none"
+            raise ValueError(f"unknown montage {v!r} ({hint})")
+        return v
