@@ -46,6 +46,8 @@ class Selection(StudyModel):
 
     where: dict[Name, Level | list[Level]] = Field(default_factory=dict,
                                                    description="factor -> level or list of levels to keep")
+    exclude: dict[Name, Level | list[Level]] = Field(default_factory=dict,
+                                                     description="factor -> level or list of levels to drop")
     match: list[Name] = Field(default_factory=list,
                               description="factors whose levels must be equal (e.g. [shape, material] = baseline)")
 
@@ -318,11 +320,11 @@ class Protocol(StudyModel):
 
         check("order.block_by", self.order.block_by)
         check("order.max_run", self.order.max_run)
-        check("stimuli.select", [*self.stimuli.select.where, *self.stimuli.select.match])
+        check("stimuli.select", [*self.stimuli.select.where, *self.stimuli.select.exclude, *self.stimuli.select.match])
         for part in ("anchors", "practice", "end_of_session"):
             spec = getattr(self, part)
             if spec is not None and spec.select is not None:
-                check(f"{part}.select", [*spec.select.where, *spec.select.match])
+                check(f"{part}.select", [*spec.select.where, *spec.select.exclude, *spec.select.match])
         names: list[str] = []
         for r in self.responses:
             names.append(r.name)

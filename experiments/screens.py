@@ -119,10 +119,10 @@ class Screens:
             slider = v.Slider(self.win, ticks=ticks, labels=[str(t) for t in ticks], granularity=1, style="rating",
                               size=(0.9, 0.04), pos=(0, -0.27), labelHeight=0.03, color=self.fg, fillColor="red",
                               borderColor=self.fg, font="Open Sans")
-            low = v.TextStim(self.win, spec.low, height=0.028, pos=(-0.45, -0.35), anchorHoriz="left", color=self.fg,
-                             wrapWidth=0.45)
+            low = v.TextStim(self.win, spec.low, height=0.028, pos=(-0.45, -0.35), anchorHoriz="left", alignText="left",
+                             color=self.fg, wrapWidth=0.45)
             high = v.TextStim(self.win, spec.high, height=0.028, pos=(0.45, -0.35), anchorHoriz="right",
-                              color=self.fg, wrapWidth=0.45)
+                              alignText="right", color=self.fg, wrapWidth=0.45)
             desc = v.TextStim(self.win, spec.description, height=0.026, pos=(0, -0.16), wrapWidth=1.15, color=self.fg)
             self._likert[spec.name] = (slider, low, high, desc)
         return self._likert[spec.name][0]

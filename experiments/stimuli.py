@@ -173,6 +173,8 @@ def select_stimuli(sset: StimulusSet, selection: Selection | None) -> StimulusSe
         return sset
     table = sset.table
     mask = _where_mask(table, selection.where)
+    for factor, levels in selection.exclude.items():
+        mask &= ~_where_mask(table, {factor: levels})
     if selection.match:
         first = table[selection.match[0]].map(_match_key)
         for other in selection.match[1:]:
