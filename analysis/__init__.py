@@ -1,6 +1,8 @@
 """Analysis: repeated-measures statistics on tidy tables and the MNE ERP pipeline."""
 
 # Rating-study statistics (issue 3); see analysis/stats and docs/statistics.md.
-from analysis.stats import compare_trends, polynomial_contrasts, rm_anova, tukey_hsd
+from analysis.stats import (compare_trends, cronbach_alpha, mixed_model_anova, polynomial_contrasts, rm_anova,
+                            tukey_hsd, within_ci)
 
-__all__ = ["compare_trends", "polynomial_contrasts", "rm_anova", "tukey_hsd"]
+__all__ = ["compare_trends", "cronbach_alpha", "mixed_model_anova", "polynomial_contrasts", "rm_anova",
+           "tukey_hsd", "within_ci"]
