@@ -1,0 +1,169 @@
+"""Closest points on a triangle mesh, as (triangle, barycentric) pairs, with boundary flags.
+
+A k-d tree over the target's vertices and triangle centroids proposes candidate triangles
+(those around the ``k`` nearest vertices plus the ``k`` nearest centroids); the exact
+point-triangle projection (Ericson, *Real-Time Collision Detection*, 5.1.5) picks the best.
+The result is exact whenever the closest triangle touches one of the candidates, which holds
+on the dense, near-coincident meshes the registration works with.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+__all__ = ["SurfaceIndex", "ClosestPoints", "closest_point_on_triangles", "boundary_edge_mask"]
+
+
+def boundary_edge_mask(faces: np.ndarray) -> np.ndarray:
+    """(F, 3) bool: the edge opposite corner ``k`` of face ``f`` has no neighbouring face."""
+    e = np.stack([faces[:, [1, 2]], faces[:, [2, 0]], faces[:, [0, 1]]], axis=1).reshape(-1, 2)
+    key = np.sort(e, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return (counts[inv.ravel()] == 1).reshape(-1, 3)
+
+
+def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):
+    """Closest point of each ``p`` on triangle ``(a, b, c)`` (all (K, 3)); returns bary (K, 3)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1 = np.einsum("ij,ij->i", ab, ap)
+    d2 = np.einsum("ij,ij->i", ac, ap)
+    bp = p - b
+    d3 = np.einsum("ij,ij->i", ab, bp)
+    d4 = np.einsum("ij,ij->i", ac, bp)
+    cp = p - c
+    d5 = np.einsum("ij,ij->i", ab, cp)
+    d6 = np.einsum("ij,ij->i", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v = vb / denom
+        w = vc / denom
+    bary = np.stack([1 - v - w, v, w], axis=1)
+    done = np.zeros(len(p), dtype=bool)
+
+    def put(mask, vals):
+        nonlocal done
+        m = mask & ~done
+        bary[m] = vals[m] if vals.ndim == 2 else vals
+        done |= m
+
+    k = len(p)
+    put((d1 <= 0) & (d2 <= 0), np.tile([1.0, 0, 0], (k, 1)))
+    put((d3 >= 0) & (d4 <= d3), np.tile([0, 1.0, 0], (k, 1)))
+    put((d6 >= 0) & (d5 <= d6), np.tile([0, 0, 1.0], (k, 1)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    put((vc <= 0) & (d1 >= 0) & (d3 <= 0), np.stack([1 - t_ab, t_ab, 0 * t_ab], axis=1))
+    put((vb <= 0) & (d2 >= 0) & (d6 <= 0), np.stack([1 - t_ac, 0 * t_ac, t_ac], axis=1))
+    put((va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0), np.stack([0 * t_bc, 1 - t_bc, t_bc], axis=1))
+    bad = ~np.isfinite(bary).all(axis=1)
+    bary[bad] = [1.0, 0.0, 0.0]  # degenerate triangle: use its first corner
+    return bary
+
+
+@dataclass
+class ClosestPoints:
+    """Closest points: ``face`` (Q,), ``bary`` (Q, 3), ``points`` (Q, 3), ``distance`` (Q,),
+    ``on_boundary`` (Q,) and the target ``normals`` (Q, 3) at those points (face normals)."""
+
+    face: np.ndarray
+    bary: np.ndarray
+    points: np.ndarray
+    distance: np.ndarray
+    on_boundary: np.ndarray
+    normals: np.ndarray
+
+
+class SurfaceIndex:
+    """Closest-point queries on a fixed triangulation whose vertex positions may change.
+
+    Parameters
+    ----------
+    vertices : (N, 3) array
+    faces : (F, 3) int array
+    k : int
+        Nearest vertices and centroids whose triangles are tested per query.
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, k: int = 3):
+        self.vertices = np.asarray(vertices, dtype=np.float64)
+        self.faces = np.asarray(faces, dtype=np.int64)
+        self.k = k
+        nf = len(self.faces)
+        # vertex -> incident faces, padded with -1 (candidates: faces around the 2 nearest
+        # vertices and the k nearest centroids)
+        fv = self.faces.ravel()
+        order = np.argsort(fv, kind="stable")
+        counts = np.bincount(fv, minlength=len(self.vertices))
+        width = int(counts.max()) if counts.size else 1
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        slot = np.arange(len(fv)) - np.repeat(starts, counts)
+        self._vf = np.full((len(self.vertices), max(width, 1)), -1, dtype=np.int64)
+        self._vf[fv[order], slot] = order // 3
+        self.boundary = boundary_edge_mask(self.faces)
+        bverts = np.zeros(len(self.vertices), dtype=bool)
+        for k_ in range(3):
+            e = self.faces[self.boundary[:, k_]]
+            bverts[e[:, (k_ + 1) % 3]] = True
+            bverts[e[:, (k_ + 2) % 3]] = True
+        self.boundary_vertices = bverts
+        self._n_faces = nf
+        self._build()
+
+    def _build(self) -> None:
+        tri = self.vertices[self.faces]
+        self._tri = tri
+        self._vtree = cKDTree(self.vertices)
+        self._ctree = cKDTree(tri.mean(axis=1))
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        self.face_normals = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+    def update(self, vertices: np.ndarray) -> None:
+        """New vertex positions, same triangulation."""
+        self.vertices = np.asarray(vertices, dtype=np.float64)
+        self._build()
+
+    def query(self, points: np.ndarray) -> ClosestPoints:
+        """Closest surface point for each of ``points`` (Q, 3)."""
+        p = np.asarray(points, dtype=np.float64)
+        k = min(self.k, len(self.vertices))
+        _, vi = self._vtree.query(p, k=min(2, k), workers=-1)
+        _, ci = self._ctree.query(p, k=min(self.k, self._n_faces), workers=-1)
+        vi = np.asarray(vi).reshape(len(p), -1)
+        ci = np.asarray(ci).reshape(len(p), -1)
+        cand = np.concatenate([self._vf[vi].reshape(len(p), -1), ci], axis=1)
+        q_idx = np.repeat(np.arange(len(p)), cand.shape[1])
+        f_idx = cand.ravel()
+        valid = f_idx >= 0
+        q_idx, f_idx = q_idx[valid], f_idx[valid]
+        tri = self._tri[f_idx]
+        bary = closest_point_on_triangles(p[q_idx], tri[:, 0], tri[:, 1], tri[:, 2])
+        pts = np.einsum("ij,ijk->ik", bary, tri)
+        d2 = ((pts - p[q_idx]) ** 2).sum(axis=1)
+        # best candidate per query: sort by (query, distance) and take the first of each query
+        order = np.lexsort((d2, q_idx))
+        first = np.ones(len(order), dtype=bool)
+        first[1:] = q_idx[order][1:] != q_idx[order][:-1]
+        best = order[first]
+        face = f_idx[best]
+        b = bary[best]
+        eps = 1e-9
+        on_edge = (b < eps) & self.boundary[face]
+        # a closest point at a vertex (two zero weights) is on the boundary if the vertex is
+        at_vertex = (b > 1 - eps) & self.boundary_vertices[self.faces[face]]
+        on_boundary = on_edge.any(axis=1) | at_vertex.any(axis=1)
+        return ClosestPoints(
+            face=face,
+            bary=b,
+            points=pts[best],
+            distance=np.sqrt(d2[best]),
+            on_boundary=on_boundary,
+            normals=self.face_normals[face],
+        )

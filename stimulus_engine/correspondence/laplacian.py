@@ -1,0 +1,144 @@
+"""Cotangent Laplacian, mixed Voronoi areas and the bi-Laplacian energy matrix (eq. 3.3-3.8).
+
+For a vertex ``i`` the Laplace-Beltrami operator is (eq. 3.4)
+``Δv_i = 1/(2 A_i) Σ_j (cot α_ij + cot β_ij)(v_j - v_i)``. We write ``Δ = A⁻¹ L`` with
+``L_ij = ½ (cot α_ij + cot β_ij)`` and ``L_ii = -Σ_j L_ij`` (symmetric, negative
+semi-definite), so that ``Σ_i A_i ||Δ v_i||² = tr(Vᵀ Lᵀ A⁻¹ L V)``: the matrix
+:func:`bilaplacian` returns. Keeping ``L`` fixed and updating only ``A`` follows
+Kazhdan et al. (2012), as the thesis does to avoid degenerate cotangent weights.
+
+Boundaries: the cotangent formula is a mean-curvature normal only at interior vertices; at a
+boundary vertex it measures the in-plane co-normal, and penalising it would shrink every open
+mesh (and make the energy grow with resolution). :func:`fairing_operator` therefore keeps the
+cotangent rows at interior vertices and uses the boundary curve's curvature vector
+``κ_b = 2/(|e1|+|e2|) ((v_prev - v_b)/|e1| + (v_next - v_b)/|e2|)`` (scaled by the vertex area,
+like the interior rows) at boundary vertices: a flat disc with a straight-ish boundary then has
+(near) zero energy, the thin-plate surface is free to flatten, and the boundary curve is faired
+too. With the boundaries of both meshes tied by boundary-loop correspondences this is the
+thesis's thin plate with identical Dirichlet boundaries (§3.2.3); without them (a face region
+against a scan of another extent) the boundary stays free.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = [
+    "cotangent_laplacian",
+    "voronoi_areas",
+    "bilaplacian",
+    "face_cotangents",
+    "boundary_vertices",
+    "fairing_operator",
+]
+
+#: Cotangents are clamped to this magnitude so that needle triangles cannot blow up the system.
+COT_CLAMP = 1e3
+
+
+def face_cotangents(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Cotangent of each triangle's three corner angles, shape (F, 3)."""
+    v = vertices[faces]  # F x 3 x 3
+    out = np.empty((len(faces), 3))
+    for k in range(3):
+        a = v[:, (k + 1) % 3] - v[:, k]
+        b = v[:, (k + 2) % 3] - v[:, k]
+        dot = np.einsum("ij,ij->i", a, b)
+        cross = np.linalg.norm(np.cross(a, b), axis=1)
+        out[:, k] = dot / np.maximum(cross, 1e-300)
+    return np.clip(out, -COT_CLAMP, COT_CLAMP)
+
+
+def cotangent_laplacian(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
+    """The cotangent matrix ``L`` (N x N): ``L_ij = ½(cot α + cot β)``, rows sum to zero."""
+    n = len(vertices)
+    cot = face_cotangents(vertices, faces)
+    # the angle at corner k is opposite to edge (k+1, k+2)
+    i = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
+    j = np.concatenate([faces[:, 2], faces[:, 0], faces[:, 1]])
+    w = 0.5 * np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
+    off = sp.coo_matrix((w, (i, j)), shape=(n, n))
+    off = (off + off.T).tocsr()
+    diag = np.asarray(off.sum(axis=1)).ravel()
+    return (off - sp.diags(diag)).tocsr()
+
+
+def voronoi_areas(vertices: np.ndarray, faces: np.ndarray, floor: float = 1e-12) -> np.ndarray:
+    """Mixed Voronoi area per vertex (Meyer et al. 2003); obtuse triangles split ½ / ¼ / ¼.
+
+    Vertices used by no triangle get the mean area (they are otherwise inert).
+    """
+    n = len(vertices)
+    v = vertices[faces]
+    e = [v[:, (k + 2) % 3] - v[:, (k + 1) % 3] for k in range(3)]  # edge opposite corner k
+    l2 = np.stack([np.einsum("ij,ij->i", x, x) for x in e], axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    cot = face_cotangents(vertices, faces)
+    # Voronoi part for corner k: 1/8 (|e_{k+1}|² cot_{k+1} + |e_{k+2}|² cot_{k+2})
+    vor = np.stack(
+        [
+            (l2[:, (k + 1) % 3] * cot[:, (k + 1) % 3] + l2[:, (k + 2) % 3] * cot[:, (k + 2) % 3]) / 8.0
+            for k in range(3)
+        ],
+        axis=1,
+    )
+    obtuse_corner = cot < 0  # angle > 90 degrees
+    any_obtuse = obtuse_corner.any(axis=1)
+    corner_area = np.where(any_obtuse[:, None], np.where(obtuse_corner, 0.5, 0.25) * area[:, None], vor)
+    out = np.bincount(faces.ravel(), weights=corner_area.ravel(), minlength=n)
+    used = np.bincount(faces.ravel(), minlength=n) > 0
+    if (~used).any():
+        out[~used] = out[used].mean() if used.any() else 1.0
+    return np.maximum(out, floor * max(out.max(), 1e-300))
+
+
+def bilaplacian(L: sp.spmatrix, areas: np.ndarray) -> sp.csr_matrix:
+    """``Lᵀ A⁻¹ L``: the matrix of ``Σ_i A_i ||Δ v_i||²`` (eq. 3.5, 3.8, 3.11)."""
+    return (L.T @ sp.diags(1.0 / areas) @ L).tocsr()
+
+
+def boundary_vertices(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Boundary vertices with their previous and next boundary neighbours (half-edge order).
+
+    Returns ``(b, prev, next)`` int arrays. Vertices on several boundary edges pairs (non-manifold
+    boundary "bow-ties") keep the first pair found.
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    he = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    base = int(n_vertices)
+    key = he[:, 0] * base + he[:, 1]
+    rev = he[:, 1] * base + he[:, 0]
+    border = he[~np.isin(key, rev)]
+    if len(border) == 0:
+        e = np.zeros(0, dtype=np.int64)
+        return e, e, e
+    nxt = np.full(base, -1, dtype=np.int64)
+    prv = np.full(base, -1, dtype=np.int64)
+    nxt[border[:, 0]] = border[:, 1]
+    prv[border[:, 1]] = border[:, 0]
+    b = np.flatnonzero((nxt >= 0) & (prv >= 0))
+    return b, prv[b], nxt[b]
+
+
+def fairing_operator(vertices: np.ndarray, faces: np.ndarray, areas: np.ndarray | None = None) -> sp.csr_matrix:
+    """``A·Δ`` rows: cotangent rows at interior vertices, boundary-curve curvature rows at
+    boundary vertices (see the module notes). ``Σ A_i ||Δv_i||² = ||A^{-1/2} (op @ V)||²``."""
+    v = np.asarray(vertices, dtype=np.float64)
+    n = len(v)
+    lap = cotangent_laplacian(v, faces)
+    b, prv, nxt = boundary_vertices(faces, n)
+    if len(b) == 0:
+        return lap
+    a = voronoi_areas(v, faces) if areas is None else areas
+    e1 = np.maximum(np.linalg.norm(v[prv] - v[b], axis=1), 1e-300)
+    e2 = np.maximum(np.linalg.norm(v[nxt] - v[b], axis=1), 1e-300)
+    s = 2.0 * a[b] / (e1 + e2)
+    w1, w2 = s / e1, s / e2
+    rows = np.concatenate([b, b, b])
+    cols = np.concatenate([prv, nxt, b])
+    vals = np.concatenate([w1, w2, -(w1 + w2)])
+    curve = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+    interior = np.ones(n)
+    interior[b] = 0.0
+    return (sp.diags(interior) @ lap + curve).tocsr()

@@ -1,0 +1,94 @@
+"""Quality of a correspondence: surface distances, fold-overs and degenerate triangles."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stimulus_engine.correspondence.closest import SurfaceIndex
+
+__all__ = ["surface_distances", "flipped_triangles", "against_target_triangles", "degenerate_triangles", "fit_metrics"]
+
+
+def surface_distances(points: np.ndarray, target_vertices: np.ndarray, target_faces: np.ndarray) -> np.ndarray:
+    """Distance of each point to the target surface (exact point-triangle distance)."""
+    return SurfaceIndex(target_vertices, target_faces).query(points).distance
+
+
+def _face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    v = vertices[faces]
+    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    area = 0.5 * np.linalg.norm(n, axis=1)
+    return n / np.maximum(2 * area[:, None], 1e-300), area
+
+
+def _local_folds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Triangles facing against the mean of their three (area-weighted) vertex normals."""
+    from stimulus_engine.correspondence.registration import vertex_normals
+
+    n, _ = _face_normals(vertices, faces)
+    vn = vertex_normals(vertices, faces)
+    return np.einsum("ij,ij->i", n, vn[faces].sum(axis=1)) < 0
+
+
+def flipped_triangles(vertices: np.ndarray, faces: np.ndarray, reference_vertices: np.ndarray) -> np.ndarray:
+    """Fold-overs created by the deformation: triangles that face against their neighbourhood
+    (the mean of their vertex normals) in ``vertices`` but did not in ``reference_vertices``
+    (the undeformed source). Boolean mask (F,).
+
+    Comparing with the source itself would count regions that legitimately turn round (a
+    model's inner lips laid onto a scan's closed mouth); this counts only folds.
+    """
+    return _local_folds(vertices, faces) & ~_local_folds(reference_vertices, faces)
+
+
+def against_target_triangles(
+    vertices: np.ndarray, faces: np.ndarray, target_vertices: np.ndarray, target_faces: np.ndarray
+) -> np.ndarray:
+    """Triangles whose normal points against the target's normal at the closest point of their
+    centroid (sensitive to scan noise; reported beside :func:`flipped_triangles`)."""
+    n, _ = _face_normals(vertices, faces)
+    cp = SurfaceIndex(target_vertices, target_faces).query(vertices[faces].mean(axis=1))
+    return np.einsum("ij,ij->i", n, cp.normals) < 0
+
+
+def degenerate_triangles(vertices: np.ndarray, faces: np.ndarray, reference_vertices: np.ndarray, rel: float = 1e-4) -> np.ndarray:
+    """Triangles whose area shrank below ``rel`` times their area in ``reference_vertices``
+    (or whose area is zero). Returns a boolean mask (F,)."""
+    _, a = _face_normals(vertices, faces)
+    _, a0 = _face_normals(reference_vertices, faces)
+    return (a <= rel * np.maximum(a0, 1e-300)) | (a <= 1e-300)
+
+
+def fit_metrics(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    target_vertices: np.ndarray,
+    target_faces: np.ndarray,
+    reference_vertices: np.ndarray,
+) -> dict:
+    """Distances relative to the target's bounding-box diagonal, both ways, and fold-overs.
+
+    ``hausdorff_rel``/``mean_dist_rel``/``median_dist_rel`` measure the deformed source
+    against the target surface (how well the source was fitted, as in thesis Table 3.1);
+    ``hausdorff_sym_rel`` also includes target vertices against the deformed source (it is
+    large when the target covers more than the source, e.g. a scan's neck).
+    """
+    diag = float(np.linalg.norm(np.ptp(target_vertices, axis=0)))
+    d_st = surface_distances(vertices, target_vertices, target_faces)
+    d_ts = surface_distances(target_vertices, vertices, faces)
+    flipped = flipped_triangles(vertices, faces, reference_vertices)
+    against = against_target_triangles(vertices, faces, target_vertices, target_faces)
+    degenerate = degenerate_triangles(vertices, faces, reference_vertices)
+    return {
+        "hausdorff_rel": float(d_st.max() / diag),
+        "mean_dist_rel": float(d_st.mean() / diag),
+        "median_dist_rel": float(np.median(d_st) / diag),
+        "p99_dist_rel": float(np.percentile(d_st, 99) / diag),
+        "hausdorff_sym_rel": float(max(d_st.max(), d_ts.max()) / diag),
+        "flipped_triangles": int(flipped.sum()),
+        "against_target_triangles": int(against.sum()),
+        "degenerate_triangles": int(degenerate.sum()),
+        "n_source_vertices": int(len(vertices)),
+        "n_target_vertices": int(len(target_vertices)),
+        "target_bbox_diagonal": diag,
+    }

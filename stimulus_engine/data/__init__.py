@@ -1,0 +1,1 @@
+"""Data tables shipped with the stimulus engine (landmark orderings)."""
