@@ -29,6 +29,8 @@ __all__ = [
     "head_to_mni_affine",
     "subject_source_maps",
     "contrast_clusters",
+    "grid_adjacency",
+    "map_peaks",
 ]
 
 
@@ -205,16 +207,28 @@ def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, me
     return out
 
 
-def _components(mask: np.ndarray, adjacency) -> list[np.ndarray]:
-    """Connected groups of supra-threshold voxels."""
-    from scipy.sparse.csgraph import connected_components
+def map_peaks(values: np.ndarray, mni: np.ndarray, n_peaks: int = 3, min_distance_mm: float = 30.0) -> list[int]:
+    """Indices of the largest values at least ``min_distance_mm`` apart (greedy, largest first)."""
+    order = np.argsort(values)[::-1]
+    peaks: list[int] = []
+    for i in order:
+        if all(np.linalg.norm(mni[i] - mni[j]) >= min_distance_mm for j in peaks):
+            peaks.append(int(i))
+            if len(peaks) == n_peaks:
+                break
+    return peaks
 
-    idx = np.flatnonzero(mask)
-    if not len(idx):
-        return []
-    sub = adjacency.tocsr()[idx][:, idx]
-    n, labels = connected_components(sub, directed=False)
-    return [idx[labels == k] for k in range(n)]
+
+def grid_adjacency(positions: np.ndarray, spacing: float):
+    """Face-neighbour (6-connected) adjacency of voxels on a regular grid, as a sparse matrix."""
+    from scipy.sparse import coo_matrix
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(positions).query_pairs(r=spacing * 1.01, output_type="ndarray")
+    n = len(positions)
+    i = np.r_[pairs[:, 0], pairs[:, 1]]
+    j = np.r_[pairs[:, 1], pairs[:, 0]]
+    return coo_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
 
 
 def contrast_clusters(diff: np.ndarray, head: HeadModel, *, p_threshold: float = 0.005, min_voxels: int = 25,
@@ -243,8 +257,12 @@ def contrast_clusters(diff: np.ndarray, head: HeadModel, *, p_threshold: float =
         The t map.
     table : pandas.DataFrame
         One row per cluster of at least ``min_voxels`` voxels, largest peak first: ``n_voxels``,
-        ``peak_t``, ``peak_p_uncorrected``, ``p_fwe``, ``x_mm``, ``y_mm``, ``z_mm`` (MNI),
-        ``hemisphere``.
+        ``peak_t`` (largest t in the cluster) and its one-sided ``peak_p_uncorrected``,
+        ``p_fwe``, ``peak_difference`` (largest mean difference in the cluster) and its
+        position ``x_mm``, ``y_mm``, ``z_mm`` (MNI) and ``hemisphere``. The position is that
+        of the largest effect rather than of the largest t: with few subjects the t map is
+        flat wherever between-subject spread scales with the signal, and its maximum wanders
+        off the generator, while the mean difference peaks on it.
     """
     import mne
     from scipy import stats
@@ -253,24 +271,31 @@ def contrast_clusters(diff: np.ndarray, head: HeadModel, *, p_threshold: float =
     if n < 3:
         raise AppealInputError(f"source: voxel-wise tests need at least 3 subjects (got {n})")
     thresh = float(stats.t.ppf(1 - p_threshold, n - 1))
-    adjacency = mne.spatial_src_adjacency(head.src, verbose="error")
+    pos = head.positions
+    from scipy.spatial import cKDTree
+
+    spacing = float(np.median(cKDTree(pos).query(pos, k=2)[0][:, 1]))  # the grid step
+    adjacency = grid_adjacency(pos, spacing)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         t_obs, clusters, p_fwe, _ = mne.stats.permutation_cluster_1samp_test(
             diff, threshold=thresh, tail=1, adjacency=adjacency, n_permutations=n_permutations, seed=seed,
             out_type="indices", verbose="error")
     mni = head.mni
+    effect = diff.mean(axis=0)
     rows = []
     for k, cl in enumerate(clusters):
         vox = np.asarray(cl[0] if isinstance(cl, tuple) else cl)
         if len(vox) < min_voxels:
             continue
-        peak = vox[np.argmax(t_obs[vox])]
+        peak_t = vox[np.argmax(t_obs[vox])]
+        peak = vox[np.argmax(effect[vox])]
         x, y, z = mni[peak]
-        rows.append(dict(n_voxels=len(vox), peak_t=float(t_obs[peak]),
-                         peak_p_uncorrected=float(stats.t.sf(t_obs[peak], n - 1)), p_fwe=float(p_fwe[k]),
+        rows.append(dict(n_voxels=len(vox), peak_t=float(t_obs[peak_t]),
+                         peak_p_uncorrected=float(stats.t.sf(t_obs[peak_t], n - 1)), p_fwe=float(p_fwe[k]),
+                         peak_difference=float(effect[peak]),
                          x_mm=round(float(x), 1), y_mm=round(float(y), 1), z_mm=round(float(z), 1),
                          hemisphere="L" if x < -5 else ("R" if x > 5 else "midline")))
-    cols = ["n_voxels", "peak_t", "peak_p_uncorrected", "p_fwe", "x_mm", "y_mm", "z_mm", "hemisphere"]
+    cols = ["n_voxels", "peak_t", "peak_p_uncorrected", "p_fwe", "peak_difference", "x_mm", "y_mm", "z_mm", "hemisphere"]
     table = pd.DataFrame(rows, columns=cols).sort_values("peak_t", ascending=False, ignore_index=True)
     return t_obs, table

@@ -1,0 +1,220 @@
+"""Writing a run: amplitudes.csv, qc.csv, stats/, figures/, source/ and report.md."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from appeal.atomic import atomic_write_text
+from appeal.logs import logger
+
+from analysis.erp.pipeline import ErpResult, resolve_components
+from analysis.erp_schema import ErpConfig
+
+__all__ = ["ErpOutputs", "grand_averages", "level_peaks", "source_contrasts", "write_erp_outputs"]
+
+
+@dataclass
+class ErpOutputs:
+    """Paths written and the main tables."""
+
+    out: Path
+    amplitudes: Path
+    qc: Path
+    report: Path
+    tables: list[Path] = field(default_factory=list)
+    figures: list[Path] = field(default_factory=list)
+    source_table: pd.DataFrame | None = None
+
+
+def _csv(df: pd.DataFrame, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, df.to_csv(index=False, float_format="%.6g"))
+    return path
+
+
+def grand_averages(result: ErpResult) -> tuple[dict, list[str], np.ndarray, object]:
+    """Mean over subjects of each cell's average, on the channels all subjects share."""
+    common = [c for c in result.subjects[0].info.ch_names if all(c in s.info.ch_names for s in result.subjects)]
+    grand = {}
+    for cell in result.emap.cells:
+        parts = [s.evokeds[cell][[s.info.ch_names.index(c) for c in common]] for s in result.subjects if cell in s.evokeds]
+        if parts:
+            grand[cell] = np.mean(parts, axis=0)
+    info = result.subjects[0].info.copy()
+    import mne
+
+    info = mne.pick_info(info, [info.ch_names.index(c) for c in common])
+    return grand, common, result.subjects[0].times, info
+
+
+def _contrast_pairs(cfg: ErpConfig, levels: list) -> list[tuple]:
+    if cfg.source.contrasts:
+        from analysis.erp.config import _level
+
+        return [(_level(a), _level(b)) for a, b in cfg.source.contrasts]
+    return [(levels[-1], levels[0]), (levels[0], levels[-1])]
+
+
+def source_contrasts(result: ErpResult, cfg: ErpConfig, seed: int = 0) -> tuple[pd.DataFrame, dict]:
+    """Voxel-wise paired contrasts of window-mean source maps, one table for all contrasts.
+
+    Returns
+    -------
+    table : pandas.DataFrame
+        component, contrast, cluster, then :func:`analysis.erp.source.contrast_clusters` columns.
+    tmaps : dict
+        (component, a, b) -> t map.
+    """
+    from appeal.errors import AppealInputError
+
+    from analysis.erp.source import contrast_clusters
+
+    src = cfg.source
+    factor = src.factor or result.emap.factors[0]
+    levels = result.emap.levels[factor]
+    pairs = _contrast_pairs(cfg, levels)
+    for a, b in pairs:
+        for lv in (a, b):
+            if lv not in levels:
+                raise AppealInputError(f"source.contrasts: level {lv!r} is not a level of {factor} (expected one of {levels})")
+    comps = src.components or list(cfg.components)
+    rows, tmaps = [], {}
+    for comp in comps:
+        for a, b in pairs:
+            subs = [s for s in result.subjects if (comp, a) in s.source_maps and (comp, b) in s.source_maps]
+            if len(subs) < 3:
+                logger.warning("source %s %s>%s: fewer than 3 subjects with both levels; skipped", comp, a, b)
+                continue
+            diff = np.array([s.source_maps[(comp, a)] - s.source_maps[(comp, b)] for s in subs], float)
+            t, table = contrast_clusters(diff, result.head, p_threshold=src.p_threshold,
+                                         min_voxels=src.min_cluster_voxels, n_permutations=src.n_permutations, seed=seed)
+            tmaps[(comp, a, b)] = t
+            table.insert(0, "cluster", np.arange(1, len(table) + 1))
+            table.insert(0, "contrast", f"{factor} {a} > {b}")
+            table.insert(0, "component", comp)
+            table["n_subjects"] = len(subs)
+            rows.append(table)
+    cols = ["component", "contrast", "cluster", "n_voxels", "peak_t", "peak_p_uncorrected", "p_fwe", "peak_difference",
+            "x_mm", "y_mm",
+            "z_mm", "hemisphere", "n_subjects"]
+    table = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=cols)
+    return table, tmaps
+
+
+def level_peaks(result: ErpResult, n_peaks: int = 3) -> pd.DataFrame:
+    """Peaks of the grand-mean window map of every component and level (thesis Fig. 7.8/7.9 top rows)."""
+    from analysis.erp.source import map_peaks
+
+    mni = result.head.mni
+    keys = list(dict.fromkeys(k for s in result.subjects for k in s.source_maps))
+    rows = []
+    for comp, level in keys:
+        maps = [s.source_maps[(comp, level)] for s in result.subjects if (comp, level) in s.source_maps]
+        grand = np.mean(maps, axis=0)
+        for rank, i in enumerate(map_peaks(grand, mni, n_peaks), start=1):
+            rows.append(dict(component=comp, level=level, peak=rank, value=float(grand[i]), x_mm=round(float(mni[i, 0]), 1),
+                             y_mm=round(float(mni[i, 1]), 1), z_mm=round(float(mni[i, 2]), 1)))
+    return pd.DataFrame(rows, columns=["component", "level", "peak", "value", "x_mm", "y_mm", "z_mm"])
+
+
+def _fmt(df: pd.DataFrame, cols: list[str]) -> str:
+    d = df[cols].copy()
+    for c in d.columns:
+        if d[c].dtype.kind == "f":
+            d[c] = d[c].map(lambda v: f"{v:.3g}" if pd.notna(v) else "")
+    head = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
+    return head + "".join("| " + " | ".join(str(v) for v in row) + " |\n" for row in d.itertuples(index=False))
+
+
+def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int = 0, config_name: str = "config") -> ErpOutputs:
+    """Write every table, figure and the Markdown report of a run into ``out``."""
+    from analysis.erp import figures as figs
+    from analysis.erp.stats import component_anovas, component_contrasts
+
+    out = Path(out)
+    emap = result.emap
+    amps = result.amplitudes
+    o = ErpOutputs(out=out, amplitudes=_csv(amps, out / "amplitudes.csv"), qc=_csv(result.qc, out / "qc.csv"),
+                   report=out / "report.md")
+    if result.failures:
+        fail = pd.DataFrame([{"subject": f.label, "error": f.error} for f in result.failures])
+        o.tables.append(_csv(fail, out / "failures.csv"))
+    # statistics
+    stats_text = ""
+    n_subj = amps["subject"].nunique()
+    if n_subj >= 2:
+        anova = component_anovas(amps, emap.factors)
+        contr = component_contrasts(amps, emap.factors, emap.levels)
+        o.tables += [_csv(anova, out / "stats" / "anova.csv"), _csv(contr, out / "stats" / "contrasts.csv")]
+        stats_text = ("### rm-ANOVA (window means; Greenhouse-Geisser p in p_gg)\n\n"
+                      + _fmt(anova, ["component", "effect", "num_df", "den_df", "F", "p", "p_gg", "pes"])
+                      + "\n### Linear vs quadratic contrasts\n\n"
+                      + _fmt(contr, ["component", "factor", "contrast", "F", "num_df", "den_df", "p", "pes"]))
+    else:
+        stats_text = "Statistics need at least two subjects; skipped.\n"
+    # figures
+    grand, common, times, info = grand_averages(result)
+    windows = {k: tuple(v.window_s) for k, v in cfg.components.items()}
+    try:
+        from analysis.erp.channels import resolve_cluster
+
+        chans = {}
+        for name in cfg.figures.channels:
+            ch = resolve_cluster([name], common, None if cfg.montage == "none" else cfg.montage, where="figures.channels")[0]
+            chans[name] = ch
+        o.figures += figs.plot_waveforms(grand, times, common, chans, emap.factors, emap.levels, windows,
+                                         out / "figures" / "waveforms")
+    except Exception as exc:  # noqa: BLE001 - a figure must not sink the run; the report says why
+        logger.warning("waveform figure skipped: %s", exc)
+    topo_f = cfg.figures.topomap_factor or (emap.factors[1] if len(emap.factors) > 1 else emap.factors[0])
+    ref = "neutral" if "neutral" in emap.levels[topo_f] else emap.levels[topo_f][0]
+    topo_windows = {k: w for k, w in windows.items() if k != "LPP"} or windows
+    o.figures += figs.plot_difference_topomaps(grand, info, emap.factors, emap.levels, topo_f, ref, topo_windows, times,
+                                               out / "figures" / f"topomaps_{topo_f}")
+    for comp in cfg.components:
+        o.figures += figs.plot_window_bars(amps, comp, emap.factors, emap.levels, out / "figures" / f"bars_{comp}")
+    # source
+    src_text = "Source summaries disabled in the config.\n"
+    if cfg.source.enabled and result.head is not None:
+        if n_subj >= 3:
+            from scipy import stats as sst
+
+            table, tmaps = source_contrasts(result, cfg, seed)
+            o.source_table = table
+            o.tables.append(_csv(table, out / "source" / "clusters.csv"))
+            o.tables.append(_csv(level_peaks(result), out / "source" / "level_peaks.csv"))
+            thr = float(sst.t.ppf(1 - cfg.source.p_threshold, n_subj - 1))
+            mni = result.head.mni
+            for (comp, a, b), t in tmaps.items():
+                stem = f"tmap_{comp}_{a}_gt_{b}"
+                _csv(pd.DataFrame({"x_mm": mni[:, 0], "y_mm": mni[:, 1], "z_mm": mni[:, 2], "t": t}),
+                     out / "source" / f"{stem}.csv")
+                o.figures += figs.plot_source_map(mni, t, thr, f"{comp}: {a} > {b} ({cfg.source.method}, p < "
+                                                  f"{cfg.source.p_threshold} uncorrected)", out / "figures" / stem)
+            src_text = (f"{cfg.source.method} on a {result.head.kind} head model, volume grid "
+                        f"{cfg.source.spacing_mm:g} mm ({len(mni)} voxels); paired t per voxel, one-sided p < "
+                        f"{cfg.source.p_threshold}, clusters ≥ {cfg.source.min_cluster_voxels} voxels, FWE p by "
+                        f"{cfg.source.n_permutations} sign-flip permutations (cluster mass). Coordinates in MNI mm.\n\n"
+                        + (_fmt(table, [c for c in table.columns if c != "n_subjects"]) if len(table) else
+                           "No cluster reached the size threshold.\n"))
+        else:
+            src_text = "Source statistics need at least three subjects; skipped.\n"
+    qc = result.qc
+    fails = "".join(f"- **{f.label}** failed: {f.error}\n" for f in result.failures) or "- none\n"
+    text = (f"# ERP analysis: {config_name}\n\n"
+            f"{len(result.subjects)} subjects analysed; failed subjects:\n\n{fails}\n"
+            "## Quality control (per subject)\n\n"
+            + _fmt(qc, ["subject", "n_channels", "pct_channels_interpolated", "n_events", "pct_trials_rejected",
+                        "trials_per_cell_mean", "trials_per_cell_min"])
+            + f"\nMean over subjects: {qc['pct_channels_interpolated'].mean():.2f}% channels interpolated, "
+              f"{qc['pct_trials_rejected'].mean():.2f}% trials rejected, {qc['trials_per_cell_mean'].mean():.2f} trials "
+              "per cell (thesis: 4.04%, 5.41%, 28.38).\n\n"
+            "## Statistics\n\n" + stats_text + "\n## Source space\n\n" + src_text + "\n## Files\n\n"
+            + "".join(f"- [{p.relative_to(out)}]({p.relative_to(out)})\n"
+                      for p in [o.amplitudes, o.qc, *o.tables, *o.figures] if p.suffix != ".svg"))
+    atomic_write_text(o.report, text)
+    return o
