@@ -1,0 +1,128 @@
+"""Figures in the style of thesis Figs. 6.4, 6.12 and 6.16 (PNG + SVG, matplotlib Agg)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["save_figure", "interaction_plot", "bar_plot", "realism_vs_appeal_plot"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure(fig, stem: str | Path) -> list[Path]:
+    """Save ``fig`` as ``stem.png`` (150 dpi) and ``stem.svg``; close it; return both paths."""
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
+    fig.savefig(paths[0], dpi=150, bbox_inches="tight")
+    fig.savefig(paths[1], bbox_inches="tight")
+    _plt().close(fig)
+    return paths
+
+
+def interaction_plot(ci: pd.DataFrame, x: str, trace: str | None, ylabel: str, stem: str | Path,
+                     title: str | None = None, ylim: tuple[float, float] | None = None,
+                     x_levels: Sequence[str] | None = None, trace_levels: Sequence[str] | None = None) -> list[Path]:
+    """Mean rating vs the levels of ``x``, one line per level of ``trace``, 95% CI bars.
+
+    Parameters
+    ----------
+    ci : DataFrame
+        From :func:`analysis.stats.intervals.within_ci` with ``factors=[trace, x]``.
+    x, trace : str
+        Factor on the x axis; factor drawn as separate lines (None: one line).
+    ylabel : str
+        The rating scale.
+    stem : path
+        Output path without suffix.
+    """
+    plt = _plt()
+    xl = list(x_levels) if x_levels is not None else list(dict.fromkeys(ci[x]))
+    tl = list(trace_levels) if trace_levels is not None else (list(dict.fromkeys(ci[trace])) if trace else [None])
+    fig, ax = plt.subplots(figsize=(5.2, 3.8))
+    colors = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(tl)))
+    pos = np.arange(len(xl))
+    offset = np.linspace(-0.08, 0.08, len(tl)) if len(tl) > 1 else [0.0]
+    for t, col, off in zip(tl, colors, offset):
+        part = ci if t is None else ci[ci[trace] == t]
+        part = part.set_index(x).reindex(xl)
+        ax.errorbar(pos + off, part["mean"], yerr=part["ci"], marker="o", ms=4, capsize=3, lw=1.5, color=col,
+                    label=str(t) if t is not None else None)
+    ax.set_xticks(pos, xl)
+    ax.set_xlabel(x)
+    ax.set_ylabel(f"mean {ylabel} (95% within-subject CI)")
+    if ylim:
+        ax.set_ylim(*ylim)
+    if trace:
+        ax.legend(title=trace, fontsize=8, title_fontsize=8, frameon=False, loc="best")
+    ax.set_title(title or f"{ylabel}: {x}" + (f" × {trace}" if trace else ""), fontsize=10)
+    ax.grid(axis="y", alpha=0.3)
+    return save_figure(fig, stem)
+
+
+def bar_plot(ci: pd.DataFrame, factor: str, ylabel: str, stem: str | Path, title: str | None = None,
+             ylim: tuple[float, float] | None = None) -> list[Path]:
+    """Bar chart of the cell means of one factor with 95% within-subject CI bars."""
+    plt = _plt()
+    levels = list(dict.fromkeys(ci[factor]))
+    part = ci.set_index(factor).reindex(levels)
+    fig, ax = plt.subplots(figsize=(4.2, 3.4))
+    ax.bar(np.arange(len(levels)), part["mean"], yerr=part["ci"], capsize=4, color="#5b8bd0", edgecolor="#2a4d80")
+    ax.set_xticks(np.arange(len(levels)), levels)
+    ax.set_xlabel(factor)
+    ax.set_ylabel(f"mean {ylabel}")
+    if ylim:
+        ax.set_ylim(*ylim)
+    ax.set_title(title or f"{ylabel} by {factor}", fontsize=10)
+    ax.grid(axis="y", alpha=0.3)
+    return save_figure(fig, stem)
+
+
+def realism_vs_appeal_plot(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, point: str, stem: str | Path,
+                           x_label: str = "realism", y_label: str = "appeal",
+                           lim: tuple[float, float] | None = (1, 7)) -> list[Path]:
+    """Realism-vs-appeal diagram (thesis Fig. 6.16): one graph per ``line`` level, nodes = ``point`` levels.
+
+    Parameters
+    ----------
+    x_ci, y_ci : DataFrame
+        :func:`analysis.stats.intervals.within_ci` tables of the two scales with
+        ``factors=[line, point]``.
+    line, point : str
+        E.g. ``"shape"`` (one graph per shape level) and ``"material"`` (its nodes).
+    """
+    plt = _plt()
+    key = [line, point]
+    merged = x_ci.merge(y_ci, on=key, suffixes=("_x", "_y"))
+    lines = list(dict.fromkeys(x_ci[line]))
+    points = list(dict.fromkeys(x_ci[point]))
+    fig, ax = plt.subplots(figsize=(5.4, 4.4))
+    colors = plt.get_cmap("plasma")(np.linspace(0, 0.85, len(lines)))
+    for lv, col in zip(lines, colors):
+        part = merged[merged[line] == lv].set_index(point).reindex(points)
+        ax.plot(part["mean_x"], part["mean_y"], "-", color=col, lw=1.5, label=f"{line} {lv}")
+        ax.errorbar(part["mean_x"], part["mean_y"], xerr=part["ci_x"], yerr=part["ci_y"], fmt="o", ms=4,
+                    color=col, capsize=2, lw=0.8)
+        for p, r in part.iterrows():
+            ax.annotate(str(p), (r["mean_x"], r["mean_y"]), textcoords="offset points", xytext=(3, 3), fontsize=6,
+                        color=col)
+    if lim:
+        ax.set_xlim(*lim)
+        ax.set_ylim(*lim)
+    ax.set_xlabel(f"mean {x_label}")
+    ax.set_ylabel(f"mean {y_label}")
+    ax.set_title(f"{x_label} vs {y_label}: one graph per {line}, nodes = {point}", fontsize=10)
+    ax.legend(fontsize=7, frameon=False)
+    ax.grid(alpha=0.3)
+    return save_figure(fig, stem)

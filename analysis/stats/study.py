@@ -1,0 +1,231 @@
+"""The whole analysis of a rating study (``kind: ratings``): every scale, every effect, post-hocs
+of significant effects, contrasts, Cronbach's alpha between scales, figures and a report.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from analysis.stats.anova import fit_design
+from analysis.stats.contrasts import compare_trends, contrasts_from_design
+from analysis.stats.design import prepare_design, read_ratings
+from analysis.stats.intervals import within_ci_from_design
+from analysis.stats.mixed import mixed_model_anova
+from analysis.stats.plots import bar_plot, interaction_plot, realism_vs_appeal_plot
+from analysis.stats.posthoc import pairwise_comparisons
+from analysis.stats.reliability import cronbach_alpha
+from analysis.stats.reporting import anova_text, format_comparison, markdown_table, sphericity_corrected
+from appeal.atomic import atomic_write_text
+from appeal.errors import AppealInputError
+from appeal.logs import logger
+from appeal.progress import progress
+from appeal.report import ReportSection, write_index_html
+
+__all__ = ["scale_columns", "analyze_rating_study", "StudyResult", "json_records"]
+
+
+@dataclass
+class StudyResult:
+    """What :func:`analyze_rating_study` wrote."""
+
+    sections: list[ReportSection] = field(default_factory=list)
+    report_md: Path | None = None
+    index_html: Path | None = None
+    summary: dict = field(default_factory=dict)
+
+
+def json_records(df: pd.DataFrame) -> list[dict]:
+    """Rows as dicts with NaN → None and numpy scalars → Python numbers (for JSON)."""
+    out = []
+    for rec in df.to_dict(orient="records"):
+        clean = {}
+        for k, v in rec.items():
+            if isinstance(v, (np.floating, float)):
+                v = None if math.isnan(v) else float(v)
+            elif isinstance(v, np.integer):
+                v = int(v)
+            clean[k] = v
+        out.append(clean)
+    return out
+
+
+def scale_columns(data: pd.DataFrame, requested: list[str] | None, source: str) -> dict[str, str]:
+    """Map scale names to columns: ``response_<name>`` (runner files) or ``<name>`` (long tables).
+
+    Without ``requested`` every ``response_*`` column is a scale.
+    """
+    if requested is None:
+        found = {c.removeprefix("response_"): c for c in data.columns if str(c).startswith("response_")}
+        if not found:
+            raise AppealInputError(f"{source}: scales: no response_* columns found; name the DV columns under 'scales:'")
+        return found
+    out, missing = {}, []
+    for name in requested:
+        col = f"response_{name}" if f"response_{name}" in data.columns else name
+        (out.__setitem__(name, col) if col in data.columns else missing.append(name))
+    if missing:
+        raise AppealInputError(f"{source}: scales: no column response_<name> or <name> for {', '.join(missing)}")
+    return out
+
+
+def _csv(df: pd.DataFrame, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, df.to_csv(index=False))
+    return path
+
+
+def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> StudyResult:
+    """Run the analysis described by a :class:`analysis.ratings_schema.RatingsAnalysis`.
+
+    Parameters
+    ----------
+    cfg : RatingsAnalysis
+        The validated study file.
+    out : Path
+        Output folder (exists; the caller manages it with ``appeal.outputs.output_run``).
+    data : DataFrame, optional
+        Use this table instead of reading ``cfg.data``.
+
+    Returns
+    -------
+    StudyResult
+        Report sections, ``report.md``, ``index.html`` and a summary dict (also in
+        ``results.json``).
+    """
+    data = read_ratings(cfg.data, subject=cfg.subject) if data is None else data
+    source = data.attrs.get("source", str(cfg.data))
+    scales = scale_columns(data, cfg.scales, source)
+    result = StudyResult()
+    md = [f"# {cfg.title}", "", f"Data: `{source}` — {data[cfg.subject].nunique()} participants, {len(data)} rows. "
+          f"Design: within {' × '.join(cfg.within)}" + (f", between {' × '.join(cfg.between)}" if cfg.between else "")
+          + f". Scales: {', '.join(scales)}.", "",
+          "Repeated-measures ANOVA (type III; Mauchly's test; Greenhouse–Geisser correction, marked F*, "
+          f"when Mauchly is significant at α = {cfg.alpha}); Tukey HSD for significant effects "
+          "(from each effect's error stratum, as emmeans); 95% within-subject CIs (Cousineau–Morey).", ""]
+    summary: dict = {"title": cfg.title, "scales": {}, "reliability": []}
+    designs = {}
+    for name, col in progress(list(scales.items()), desc="scales"):
+        sec_dir = out / name
+        figs, tables = [], []
+        try:
+            design = prepare_design(data, col, cfg.subject, cfg.within, cfg.between, cfg.aggregate,
+                                    drop_incomplete=cfg.incomplete != "error", scale=cfg.scale_range,
+                                    levels=cfg.levels, source=source)
+        except AppealInputError as exc:
+            if cfg.incomplete != "mixed" or "at least 2 complete subjects" not in str(exc):
+                raise
+            design = None
+        text = [f"## {name}", ""]
+        info: dict = {"column": col}
+        if design is None or design.dropped:
+            # incomplete design: the linear mixed model on all data is the primary analysis
+            n_drop = "all" if design is None else len(design.dropped)
+            if cfg.incomplete == "mixed":
+                stim = cfg.stimulus if cfg.stimulus and cfg.stimulus in data.columns and cfg.aggregate is None else None
+                mixed = mixed_model_anova(data.assign(**{col: pd.to_numeric(data[col], errors="coerce")}), col,
+                                          cfg.subject, cfg.within, cfg.between, stimulus=stim, aggregate=cfg.aggregate)
+                tables.append(_csv(mixed, sec_dir / "mixed_model.csv"))
+                text += [f"{n_drop} participant(s) miss cells of the design "
+                         f"({', '.join(design.dropped) if design else 'every participant'}). Analysis used: **linear mixed "
+                         "model** (statsmodels MixedLM, REML, random intercept per participant"
+                         + (" and per stimulus" if stim else "") + ", type-III Wald χ²) on all "
+                         f"{mixed.attrs['n_obs']} observations, so nobody is dropped. The rm-ANOVA below uses only the "
+                         "complete participants, for comparison.", "", markdown_table(mixed.drop(columns="method")), ""]
+                info["analysis"] = "mixed model"
+                info["mixed_model"] = json_records(mixed)
+            else:
+                text += [f"Dropped {n_drop} incomplete participant(s): {', '.join(design.dropped)}.", ""]
+                info["analysis"] = "rm-ANOVA (incomplete participants dropped)"
+            if design is None:
+                result.sections.append(ReportSection(title=f"Scale: {name}", text="\n".join(text[2:]), tables=tables))
+                md += text
+                summary["scales"][name] = info
+                continue
+        info.setdefault("analysis", "rm-ANOVA")
+        designs[name] = design
+        fit = fit_design(design)
+        table = fit.table
+        tables.append(_csv(table, sec_dir / "anova.csv"))
+        text += [anova_text(table, cfg.alpha), ""]
+        info["anova"] = json_records(table)
+        info["n_subjects"], info["dropped"] = design.n, design.dropped
+        # post-hocs for significant effects
+        ph_lines = []
+        for _, row in table.iterrows():
+            p = row["p_gg"] if sphericity_corrected(row, cfg.alpha) else row["p"]
+            factors = row["effect"].split(":")
+            n_cells = int(np.prod([len({**design.within, **design.between}[f]) for f in factors]))
+            if p >= cfg.alpha or len(factors) > cfg.posthoc.max_order or n_cells > cfg.posthoc.max_cells:
+                continue
+            ph = pairwise_comparisons(fit, row["effect"], cfg.posthoc.adjust)
+            tables.append(_csv(ph, sec_dir / f"posthoc_{row['effect'].replace(':', '_x_')}.csv"))
+            sig = ph[ph.p < cfg.alpha]
+            shown = "; ".join(format_comparison(r) for _, r in sig.assign(_abs=sig.t.abs()).nlargest(4, "_abs").iterrows())
+            ph_lines.append(f"- {row['effect']}: {len(sig)} of {len(ph)} pairs differ ({cfg.posthoc.adjust}, "
+                            f"α = {cfg.alpha})" + (f"; strongest: {shown}" if shown else ""))
+        if ph_lines:
+            text += ["Post-hoc comparisons:", "", *ph_lines, ""]
+        for spec in cfg.contrasts:
+            ct = contrasts_from_design(design, spec.factor, spec.max_degree)
+            tables.append(_csv(ct, sec_dir / f"contrasts_{spec.factor}.csv"))
+            text += [f"Polynomial contrasts of {spec.factor}:", "", markdown_table(ct), ""]
+            if len(ct) >= 2:
+                text += [compare_trends(ct)["text"], ""]
+        # figures
+        ylim = tuple(cfg.scale_range) if cfg.scale_range else None
+        for spec in cfg.figures.interactions:
+            fac = [spec.trace, spec.x] if spec.trace else [spec.x]
+            ci = within_ci_from_design(design, fac)
+            stem = sec_dir / (f"interaction_{spec.x}" + (f"_by_{spec.trace}" if spec.trace else ""))
+            figs.append(interaction_plot(ci, spec.x, spec.trace, name, stem, ylim=ylim)[0])
+        for factor in cfg.figures.bars:
+            ci = within_ci_from_design(design, [factor])
+            figs.append(bar_plot(ci, factor, name, sec_dir / f"bars_{factor}", ylim=ylim)[0])
+        result.sections.append(ReportSection(title=f"Scale: {name}", text="\n".join(text[2:]), figures=figs, tables=tables))
+        md += text + [f"![{Path(f).stem}]({Path(f).relative_to(out)})" for f in figs] + [""]
+        summary["scales"][name] = info
+
+    # between-scale figure and reliability
+    extra_figs, extra_tables, extra_text = [], [], []
+    sc = cfg.figures.realism_vs_appeal
+    if sc is not None and sc.x_scale in designs and sc.y_scale in designs:
+        cx = within_ci_from_design(designs[sc.x_scale], [sc.line, sc.point])
+        cy = within_ci_from_design(designs[sc.y_scale], [sc.line, sc.point])
+        lim = tuple(cfg.scale_range) if cfg.scale_range else None
+        extra_figs.append(realism_vs_appeal_plot(cx, cy, sc.line, sc.point, out / f"{sc.x_scale}_vs_{sc.y_scale}",
+                                                 sc.x_scale, sc.y_scale, lim=lim)[0])
+    groups = cfg.reliability or ([list(scales)] if len(scales) >= 2 else [])
+    by = [cfg.subject] + ([cfg.stimulus] if cfg.stimulus and cfg.stimulus in data.columns else list(cfg.within) + list(cfg.between))
+    rel_rows = []
+    for group in groups:
+        missing = [g for g in group if g not in scales]
+        if missing:
+            raise AppealInputError(f"{source}: reliability: unknown scale(s) {', '.join(missing)} (scales: {', '.join(scales)})")
+        frame = data[by + [scales[g] for g in group]].rename(columns={scales[g]: g for g in group})
+        res = cronbach_alpha(frame, group, by=by)
+        rel_rows.append({"scales": " + ".join(group), **res.to_dict()})
+    if rel_rows:
+        rel = pd.DataFrame(rel_rows)
+        extra_tables.append(_csv(rel, out / "reliability.csv"))
+        extra_text += ["Cronbach's α between scales (observations = participant × stimulus, Feldt 95% CI):", ""]
+        extra_text += [f"- {r['scales']}: α = {r['alpha']:.2f} [{r['ci_low']:.2f}, {r['ci_high']:.2f}]" for r in rel_rows]
+        summary["reliability"] = json_records(rel)
+    if extra_figs or extra_text:
+        result.sections.append(ReportSection(title="Between scales", text="\n".join(extra_text), figures=extra_figs,
+                                             tables=extra_tables))
+        md += ["## Between scales", "", *extra_text, ""] + [f"![{Path(f).stem}]({Path(f).relative_to(out)})" for f in extra_figs]
+
+    result.report_md = out / "report.md"
+    atomic_write_text(result.report_md, "\n".join(md) + "\n")
+    atomic_write_text(out / "results.json", json.dumps(summary, indent=1))
+    result.index_html = write_index_html(out / "index.html", cfg.title, result.sections,
+                                         intro="\n".join(md[2:9]) + f"\n\n[report.md](report.md) · [results.json](results.json)")
+    result.summary = summary
+    logger.info("rating analysis written to %s", out)
+    return result
