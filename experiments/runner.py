@@ -213,5 +213,9 @@ class SessionRunner:
             self.writer.write(row)
             self._flush_flips()
             done += 1
-        self.page("end", pr.instructions.end_text)
+        # the closing page is timed (no key needed), so an unattended session ends by itself
+        end_frames = 1 if self.p.virtual else max(1, round(2.0 * self.p.hz))
+        draw = None if self.screens is None else (lambda: self.screens.draw_text(markdown_to_text(pr.instructions.end_text)))
+        self.show("end", draw, end_frames)
+        self._flush_flips()
         return done
