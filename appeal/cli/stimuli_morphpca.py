@@ -1,0 +1,295 @@
+"""``appeal stimuli morphpca …``: morph-space PCA face models (build, project, avatar, reconstruct)."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import click
+
+from appeal.atomic import atomic_write_text
+from appeal.cli.groups import CONTEXT, stimuli
+from appeal.cli.options import out_options
+from appeal.errors import AppealInputError
+
+_JSON_HELP = "Also write the metrics (explained variance, PSNR/SSIM, seconds) to this JSON file."
+
+
+@stimuli.group(context_settings=CONTEXT)
+def morphpca() -> None:
+    """Morph-space PCA face models (Nagle et al.): expression spaces, mimicry, avatars.
+
+    \b
+    A model is built from aligned images of one person (an expression space) or of many
+    people (a face space). Faces become morph vectors (texture on the mean shape + warp
+    field from optical flow), compressed by PCA. Expressions can be projected from one
+    person's model into another's, and several identity models blended into an avatar.
+    """
+
+
+def _write_metrics(run, metrics: dict, json_path: Path | None) -> None:
+    text = json.dumps(metrics, indent=2, default=float) + "\n"
+    atomic_write_text(run.path("metrics.json"), text)
+    if json_path is not None:
+        atomic_write_text(json_path, text)
+    run.extra["metrics"] = metrics
+
+
+def _load_keypoints(spec: str | None, files: list[Path], images):
+    """Faceframes for ``files``: a CSV path, 'tem' (templates beside the images) or 'detect'."""
+    from stimulus_engine.morphpca.keypoints import detect_faceframe, faceframe_from_tem, read_keypoints_csv, read_tem
+    import numpy as np
+
+    if spec is None:
+        return None
+    if spec == "tem":
+        return np.stack([faceframe_from_tem(read_tem(f.with_suffix(".tem")), f.with_suffix(".tem")) for f in files])
+    if spec == "detect":
+        return np.stack([detect_faceframe(img, str(f)) for f, img in zip(files, images)])
+    return read_keypoints_csv(spec, files)
+
+
+@morphpca.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli morphpca build frames/ --out models/alice --components 50
+  appeal stimuli morphpca build frames/*.png --keypoints keypoints.csv --out models/alice
+  appeal stimuli morphpca build faces/ --keypoints tem --register --size 240x200 --out models/facespace
+  appeal stimuli morphpca build photos/ --keypoints detect --register --out models/bob --json bob.json""")
+@click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
+@out_options()
+@click.option("--keypoints", "keypoints", default=None, metavar="FILE|tem|detect",
+              help="Eye centres + philtrum per image: a CSV (image,left_eye_x,left_eye_y,right_eye_x,right_eye_y,"
+                   "philtrum_x,philtrum_y), 'tem' (WebMorph .tem beside each image) or 'detect' (dlib, offline).")
+@click.option("--register", is_flag=True, help="Similarity-align faces on their eye centres first (needs --keypoints).")
+@click.option("--size", default=None, metavar="HxW", help="Resize (or, with --register, crop) images to this size, e.g. 240x200.")
+@click.option("--components", type=click.IntRange(min=1), default=None, help="Principal components to keep (default: all).")
+@click.option("--variance", type=click.FloatRange(0, 1, min_open=True), default=None,
+              help="Keep the fewest components explaining this fraction of variance (e.g. 0.98).")
+@click.option("--reference", "reference", default="0", metavar="INDEX|NAME",
+              help="Reference image (neutral, eyes open): index or file name.", show_default=True)
+@click.option("--backend", type=click.Choice(["dis", "farneback"]), default="dis", show_default=True,
+              help="Optical flow (the paper's McGM is not available).")
+@click.option("--holdout", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Leave the last N images out of the model and report their reconstruction PSNR/SSIM.")
+@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
+def build(images, out, force, resume, keypoints, register, size, components, variance, reference, backend, holdout,
+          json_path) -> None:
+    """Build a PCA morph model from aligned face IMAGES (files or folders).
+
+    Writes DIR/model.npz (+ model.json metadata), DIR/mean.png, DIR/components.png (the mean
+    ± 2 SD along the first components), DIR/metrics.json and, with --keypoints, the faceframe.
+    """
+    import numpy as np
+
+    from appeal.outputs import output_run
+    from stimulus_engine.morphpca import build_model, psnr, save_image, save_model, ssim
+    from stimulus_engine.morphpca.io import list_images, parse_size, read_images, register_faces
+    from stimulus_engine.morphpca.mimicry import save_contact_sheet
+
+    t0 = time.perf_counter()
+    files = list_images(images)
+    if len(files) < 2:
+        raise AppealInputError(f"IMAGES: a model needs at least 2 images (got {len(files)}"
+                               f"{': ' + files[0].name if files else ''})")
+    shape = parse_size(size) if size else None
+    if register and keypoints is None:
+        raise AppealInputError("--register: needs --keypoints FILE, 'tem' or 'detect' (the eye centres to align)")
+    imgs = read_images(files, None if register else shape)
+    frames = _load_keypoints(keypoints, files, imgs)
+    if register:
+        imgs, frames = register_faces(imgs, frames, shape or (240, 200))
+    names = [f.name for f in files]
+    ref = int(reference) if reference.isdigit() else (names.index(reference) if reference in names else -1)
+    if not 0 <= ref < len(files):
+        raise AppealInputError(f"--reference: expected an index 0..{len(files) - 1} or one of the image names (got {reference!r})")
+    n_train = len(files) - holdout
+    if n_train < 2:
+        raise AppealInputError(f"--holdout: leaves {n_train} training image(s) (expected at least 2)")
+    with output_run(out, force=force, resume=resume, inputs=files) as run:
+        model = build_model(imgs[:n_train], n_components=components, variance=variance, reference_index=min(ref, n_train - 1),
+                            backend=backend, faceframes=None if frames is None else frames[:n_train], names=names[:n_train])
+        save_model(model, run.path("model.npz"))
+        mean = model.mean_image()
+        save_image(run.path("mean.png"), mean)
+        sd = np.sqrt(model.variances[: min(4, model.n_components)])
+        rows = []
+        for j, s in enumerate(sd):
+            lo = np.zeros((3, model.n_components), np.float32)
+            lo[0, j], lo[2, j] = -2 * s, 2 * s
+            rows.append(list(model.reconstruct(lo)))
+        save_contact_sheet(run.path("components.png"), rows, [f"PC{j + 1}" for j in range(len(rows))], ["-2 SD", "mean", "+2 SD"])
+        train_rec = model.reconstruct(model.loadings)
+        metrics = {"n_images": n_train, "n_components": model.n_components,
+                   "explained_variance": float(model.explained_variance_ratio.sum()),
+                   "explained_variance_ratio": [float(v) for v in model.explained_variance_ratio[:20]],
+                   "train_psnr_db": float(np.mean([psnr(a, b) for a, b in zip(imgs[:n_train], train_rec)])),
+                   "train_ssim": float(np.mean([ssim(a, b) for a, b in zip(imgs[:n_train], train_rec)])),
+                   "seconds_build": model.meta["seconds_total"]}
+        if holdout:
+            test = imgs[n_train:]
+            rec = model.reconstruct(model.project(model.encode(test)))
+            metrics.update(holdout_psnr_db=float(np.mean([psnr(a, b) for a, b in zip(test, rec)])),
+                           holdout_ssim=float(np.mean([ssim(a, b) for a, b in zip(test, rec)])))
+        metrics["seconds"] = time.perf_counter() - t0
+        _write_metrics(run, metrics, json_path)
+    click.echo(f"{run.out / 'model.npz'}: {model.n_components} components, "
+               f"{100 * metrics['explained_variance']:.1f}% variance, train PSNR {metrics['train_psnr_db']:.1f} dB")
+
+
+@morphpca.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli morphpca project smile.png --from models/alice/model.npz --to models/bob/model.npz --out proj
+  appeal stimuli morphpca project frames/ --from A.npz --to B.npz --out proj --caricature 1.5 --naive
+  appeal stimuli morphpca project a.png --from A.npz --to B.npz --truth b.png --out proj --json m.json""")
+@click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--from", "source", required=True, type=click.Path(path_type=Path), metavar="A.npz", help="Model of the person in IMAGES.")
+@click.option("--to", "target", required=True, type=click.Path(path_type=Path), metavar="B.npz", help="Model to render the expressions on.")
+@out_options()
+@click.option("--no-align", is_flag=True, help="Skip the faceframe affine transform (models of equal size only).")
+@click.option("--caricature", type=float, default=1.0, show_default=True, help="Scale the projected warp (1.5 = 50% stronger).")
+@click.option("--texture-weight", type=click.FloatRange(min=0), default=1.0, show_default=True,
+              help="Weight of texture vs warp when fitting B's loadings (1 = the paper's inner product; 0.1 lets the warp decide).")
+@click.option("--naive", is_flag=True, help="Also write the naive loading-transfer baseline.")
+@click.option("--truth", "truth", multiple=True, type=click.Path(path_type=Path),
+              help="True images of B with the same expressions (one per IMAGE): report SSIM/PSNR of both methods.")
+@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
+def project(images, source, target, out, force, resume, no_align, caricature, texture_weight, naive, truth, json_path) -> None:
+    """Project the expressions of IMAGES (person A) onto the face of model B.
+
+    Writes DIR/projected/NAME.png (and DIR/naive/NAME.png with --naive), DIR/loadings.csv
+    (loadings in B) and DIR/metrics.json.
+    """
+    import numpy as np
+    import pandas as pd
+
+    from appeal.outputs import output_run
+    from stimulus_engine.morphpca import load_model, naive_transfer, project_expression, psnr, save_image, ssim
+    from stimulus_engine.morphpca.io import list_images, read_images
+
+    t0 = time.perf_counter()
+    ma, mb = load_model(source), load_model(target)
+    files = list_images(images)
+    imgs = read_images(files, ma.size)
+    truth_imgs = None
+    if truth:
+        tfiles = list_images(truth)
+        if len(tfiles) != len(files):
+            raise AppealInputError(f"--truth: expected one true image per input image ({len(files)}), got {len(tfiles)}")
+        truth_imgs = read_images(tfiles, mb.size)
+    with output_run(out, force=force, resume=resume, inputs=[source, target, *files]) as run:
+        res = project_expression(imgs, ma, mb, align=not no_align, warp_factor=caricature, texture_weight=texture_weight)
+        for f, img in zip(files, res.images):
+            save_image(run.path("projected", f.stem + ".png"), img)
+        pd.DataFrame(res.loadings, columns=[f"pc{j + 1}" for j in range(res.loadings.shape[1])]).assign(
+            image=[f.name for f in files]).to_csv(run.path("loadings.csv"), index=False)
+        metrics: dict = {"n_images": len(files)}
+        base = naive_transfer(imgs, ma, mb) if naive or truth_imgs is not None else None
+        if base is not None and naive:
+            for f, img in zip(files, base.images):
+                save_image(run.path("naive", f.stem + ".png"), img)
+        if truth_imgs is not None:
+            metrics.update(ssim_projection=float(np.mean([ssim(a, b) for a, b in zip(res.images, truth_imgs)])),
+                           ssim_naive=float(np.mean([ssim(a, b) for a, b in zip(base.images, truth_imgs)])),
+                           psnr_projection_db=float(np.mean([psnr(a, b) for a, b in zip(res.images, truth_imgs)])),
+                           psnr_naive_db=float(np.mean([psnr(a, b) for a, b in zip(base.images, truth_imgs)])))
+        metrics["seconds"] = time.perf_counter() - t0
+        _write_metrics(run, metrics, json_path)
+    click.echo(f"{run.out / 'projected'}: {len(files)} image(s)" +
+               (f"; SSIM to truth {metrics['ssim_projection']:.3f} (naive {metrics['ssim_naive']:.3f})" if truth_imgs is not None else ""))
+
+
+@morphpca.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli morphpca avatar models/*/model.npz --out avatar
+  appeal stimuli morphpca avatar a.npz b.npz c.npz --weights 0.5,0.25,0.25 --out avatar_a
+  appeal stimuli morphpca avatar a.npz b.npz --reference 1 --components 20 --out avatar --json m.json""")
+@click.argument("models", nargs=-1, required=True, type=click.Path(path_type=Path))
+@out_options()
+@click.option("--reference", type=int, default=0, show_default=True, help="Model whose faceframe the avatar uses.")
+@click.option("--weights", default=None, metavar="W1,W2,...", help="Identity weights (sum 1; default equal).")
+@click.option("--components", type=click.IntRange(min=1), default=None, help="Components of the avatar model.")
+@click.option("--texture-weight", type=click.FloatRange(min=0), default=1.0, show_default=True,
+              help="See 'project --help'.")
+@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
+def avatar(models, out, force, resume, reference, weights, components, texture_weight, json_path) -> None:
+    """Blend identity MODELS into one avatar model (Nagle et al. §4, steps 5–9).
+
+    Each model's training faces are projected into every identity, sharpened, aligned to the
+    reference faceframe and morph-averaged; PCA of the blends gives DIR/model.npz.
+    DIR/blend.png shows the projections and blends side by side.
+    """
+    import numpy as np
+
+    from appeal.outputs import output_run
+    from stimulus_engine.morphpca import build_avatar, load_model, save_image, save_model
+    from stimulus_engine.morphpca.mimicry import save_contact_sheet
+
+    t0 = time.perf_counter()
+    loaded = [load_model(m) for m in models]
+    wts = None
+    if weights:
+        try:
+            wts = [float(v) for v in weights.split(",")]
+        except ValueError:
+            raise AppealInputError(f"--weights: expected comma-separated numbers, e.g. 0.5,0.5 (got {weights!r})") from None
+    with output_run(out, force=force, resume=resume, inputs=models) as run:
+        av = build_avatar(loaded, reference_model=reference, weights=wts, n_components=components,
+                          texture_weight=texture_weight)
+        save_model(av.model, run.path("model.npz"))
+        save_image(run.path("mean.png"), av.model.mean_image())
+        for j, fr in enumerate(av.frames):
+            save_image(run.path("frames", f"frame{j:03d}.png"), fr)
+        show = np.linspace(0, len(av.frames) - 1, min(8, len(av.frames))).round().astype(int)
+        save_contact_sheet(run.path("blend.png"), [list(av.projections[j]) + [av.frames[j]] for j in show],
+                           [f"expr {j}" for j in show], [f"id {i}" for i in range(len(loaded))] + ["blend"])
+        metrics = {"identities": len(loaded), "frames": len(av.frames), "n_components": av.model.n_components,
+                   "explained_variance": float(av.model.explained_variance_ratio.sum()),
+                   "weights": [float(v) for v in av.weights], "seconds": time.perf_counter() - t0}
+        _write_metrics(run, metrics, json_path)
+    click.echo(f"{run.out / 'model.npz'}: avatar of {len(loaded)} identities, {len(av.frames)} blended frames")
+
+
+@morphpca.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli morphpca reconstruct models/alice/model.npz --loadings faces.csv --out faces
+  appeal stimuli morphpca reconstruct avatar/model.npz --loadings proj/loadings.csv --out frames --json m.json""")
+@click.argument("model_path", metavar="MODEL.npz", type=click.Path(path_type=Path))
+@click.option("--loadings", required=True, type=click.Path(path_type=Path), metavar="FILE",
+              help="CSV: one row per face, columns pc1..pcK (fewer = zeros; an 'image' column names the outputs).")
+@out_options()
+@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
+def reconstruct(model_path, loadings, out, force, resume, json_path) -> None:
+    """Render faces from LOADINGS of a model (DIR/NAME.png per row)."""
+    import numpy as np
+    import pandas as pd
+
+    from appeal.outputs import output_run
+    from stimulus_engine.morphpca import Reconstructor, load_model, save_image
+
+    model = load_model(model_path)
+    if not loadings.is_file():
+        raise AppealInputError(f"{loadings}: loadings file not found")
+    df = pd.read_csv(loadings)
+    cols = [c for c in df.columns if c.lower().startswith("pc") and c[2:].isdigit()]
+    if not cols:
+        raise AppealInputError(f"{loadings}: no pc1..pcK columns (expected one column per component, e.g. pc1,pc2)")
+    cols.sort(key=lambda c: int(c[2:]))
+    if int(cols[-1][2:]) > model.n_components:
+        raise AppealInputError(f"{loadings}: {cols[-1]}: the model has only {model.n_components} components")
+    lo = np.zeros((len(df), model.n_components), np.float32)
+    vals = df[cols].apply(pd.to_numeric, errors="coerce").to_numpy(np.float32)
+    if not np.all(np.isfinite(vals)):
+        raise AppealInputError(f"{loadings}: non-numeric or missing loadings (expected numbers in every pc column)")
+    for c, v in zip(cols, vals.T):
+        lo[:, int(c[2:]) - 1] = v
+    names = [Path(str(n)).stem for n in df["image"]] if "image" in df.columns else [f"face{i:04d}" for i in range(len(df))]
+    with output_run(out, force=force, resume=resume, inputs=[model_path, loadings]) as run:
+        t0 = time.perf_counter()
+        imgs = Reconstructor(model)(lo)
+        dt = time.perf_counter() - t0
+        for name, img in zip(names, imgs):
+            save_image(run.path(name + ".png"), img)
+        metrics = {"faces": len(df), "seconds_reconstruct": dt, "faces_per_second": len(df) / max(dt, 1e-9)}
+        _write_metrics(run, metrics, json_path)
+    click.echo(f"{run.out}: {len(df)} face(s) in {dt:.3f} s")
