@@ -1,0 +1,96 @@
+"""``appeal stimuli grid`` and ``appeal stimuli neoteny``: rendered stimulus grids and their measures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from appeal.cli.groups import CONTEXT, stimuli
+from appeal.cli.options import out_options, parallel_options
+from appeal.errors import AppealInputError
+
+
+@stimuli.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli grid protocols/grids/exp1a_shape_material.yaml --out stimuli/exp1a
+  appeal stimuli grid protocols/grids/exp2_stylisation.yaml --out stimuli/exp2 --n-jobs 2
+  appeal stimuli grid protocols/grids/exp2_stylisation.yaml --out stimuli/exp2 --resume   # only what changed
+  appeal validate protocols/grids/*.yaml                                                    # check without rendering""")
+@click.argument("grid_file", metavar="GRID.yaml", type=click.Path(path_type=Path))
+@out_options()
+@parallel_options
+def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | None, scheduler: str | None) -> None:
+    """Render a stimulus grid: characters x shapes x materials x expressions x lighting x shading.
+
+    \b
+    GRID.yaml (kind: grid) names the characters (the ICT face model or a procedural head),
+    stylisation levels (0 realistic .. 1 cartoon, by the artist-free shape operator), materials
+    (original, blur25, blur50, bilateral, flat, or an albedo from another character),
+    expressions (FACS recipes: neutral, anger, happiness, sadness, surprise, ...), lighting
+    presets (direct_hard, direct_soft, gi_soft, flat) and shading (pbr, phong).
+
+    \b
+    Writes DIR/images/*.png (1024 x 768 by default, 50% grey background, every face framed
+    with the same size and eye position), DIR/manifest.csv (one row per image: file, factors,
+    input hashes, camera, seconds), DIR/landmarks.csv and contact sheets. With --resume, images
+    whose inputs are unchanged are kept. All input problems are reported before rendering.
+    """
+    from appeal.outputs import output_run
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid_schema import GridFile
+
+    spec = load_study_file(grid_file, GridFile)
+    with output_run(out, force=force, resume=resume, inputs=[grid_file]) as run:
+        manifest, sheets = run_grid(spec, run.out, n_jobs=n_jobs, scheduler=scheduler, source=str(grid_file))
+        n_ok = int(manifest["status"].isin(["rendered", "up to date"]).sum())
+        run.extra["images"] = len(manifest)
+        click.echo(f"{n_ok} of {len(manifest)} images in {run.out / 'images'}; manifest {run.out / 'manifest.csv'}")
+        for s in sheets:
+            click.echo(f"contact sheet: {s}")
+        if n_ok < len(manifest):
+            bad = manifest[~manifest["status"].isin(["rendered", "up to date"])]
+            raise click.ClickException(f"{len(bad)} image(s) failed, first: {bad.iloc[0]['file']}: {bad.iloc[0]['status']}")
+
+
+@stimuli.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli neoteny stimuli/exp2/manifest.csv
+  appeal stimuli neoteny stimuli/erp/manifest.csv --out stimuli/erp/neoteny""")
+@click.argument("manifest", metavar="MANIFEST", type=click.Path(path_type=Path))
+@out_options(required=False)
+def neoteny(manifest: Path, out: Path | None, force: bool, resume: bool) -> None:
+    """Neoteny measures (thesis Fig. 7.10) of every stimulus of a rendered grid.
+
+    \b
+    Reads MANIFEST (a grid's manifest.csv) and the landmarks.csv beside it; writes a tidy
+    table neoteny.csv (character, shape, stylisation, expression, measure, value: eye width and
+    height, nose length and width, mouth width, forehead height, vertical eye position, each
+    relative to face width or length) and a plot across stylisation levels (PNG + SVG) into
+    --out (default: MANIFEST's folder / neoteny).
+    """
+    import pandas as pd
+
+    from appeal.outputs import output_run
+    from stimulus_engine.neoteny import neoteny_table, plot_neoteny
+
+    manifest = Path(manifest)
+    if not manifest.is_file():
+        raise AppealInputError(f"{manifest}: manifest not found (expected DIR/manifest.csv of a rendered grid)")
+    lm_path = manifest.parent / "landmarks.csv"
+    if not lm_path.is_file():
+        raise AppealInputError(f"{lm_path}: landmarks table not found (expected beside the manifest; "
+                               "re-render the grid with 'appeal stimuli grid')")
+    try:
+        lms = pd.read_csv(lm_path)
+        table = neoteny_table(lms)
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise AppealInputError(f"{lm_path}: {exc}".splitlines()[0]) from None
+    out = out or manifest.parent / "neoteny"
+    with output_run(out, force=force, resume=resume, inputs=[manifest, lm_path]) as run:
+        from appeal.atomic import atomic_write_text
+
+        atomic_write_text(run.out / "neoteny.csv", table.to_csv(index=False))
+        figs = plot_neoteny(table, run.out / "neoteny.png")
+        click.echo(f"{len(table)} rows -> {run.out / 'neoteny.csv'}; plot {figs[0]}")

@@ -1,0 +1,435 @@
+"""Render a stimulus grid: characters × shapes × materials × expressions × lighting × shading.
+
+:func:`run_grid` plans every image (with a hash of everything that determines its pixels),
+prepares the shared inputs once in this process (stylised shapes with expressions carried over by
+deformation transfer, stylised albedos) into ``DIR/.cache``, renders the images that are not
+already up to date in parallel worker processes (one OpenGL context each; Dask when a scheduler
+is given), and writes:
+
+``DIR/manifest.csv``
+    One row per image: ``file`` (relative to DIR), the factors ``character``, ``shape`` (level),
+    ``stylisation`` (level index; photographs get the next index), ``material``, ``expression``
+    (canonical), ``emotion`` (as written in the grid), ``lighting``, ``shading``; the input
+    hashes ``geometry_hash``, ``albedo_hash``, ``input_hash``; ``camera``; ``seconds``; ``status``.
+``DIR/landmarks.csv``
+    3D landmarks of every (character, shape, expression) geometry (for neoteny measures).
+``DIR/contact_sheet.png`` (+ ``contact_sheet_expressions.png``)
+    Rows = character × shape level, columns = materials (thesis Fig. 6.11), for the first
+    expression/lighting/shading; and the same rows against expressions.
+
+A re-run over the same folder (``--resume``) skips images whose ``input_hash`` and file are
+unchanged.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from PIL import Image
+
+from appeal.atomic import atomic_write_bytes, atomic_write_text
+from appeal.errors import AppealInputError
+from appeal.logs import logger
+from stimulus_engine.expressions import FaceRig, apply_expression, load_ict_rig, resolve_expression
+from stimulus_engine.grid_schema import CharacterSpec, GridFile, MaterialSpec
+
+__all__ = ["GRID_VERSION", "RenderItem", "plan_grid", "run_grid"]
+
+#: Bumped when the rendering code changes what pixels come out (part of every input hash).
+GRID_VERSION = "grid-1"
+
+
+def _sha(*parts: object) -> str:
+    h = hashlib.sha256()
+    for p in parts:
+        h.update(p if isinstance(p, bytes) else json.dumps(p, sort_keys=True, default=str).encode())
+        h.update(b"\0")
+    return h.hexdigest()[:20]
+
+
+@dataclass(frozen=True)
+class RenderItem:
+    """Everything a worker needs to render one image (paths and settings; picklable)."""
+
+    file: str
+    out_dir: str
+    rig_npz: str
+    geometry_npy: str
+    albedo_png: str
+    lighting: str
+    shading: str
+    camera: tuple
+    width: int
+    height: int
+    shadows: bool
+    background: tuple
+
+
+# --------------------------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------------------------
+
+
+def _character_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
+    """The rig of a character and a hash of its inputs."""
+    if c.procedural is not None:
+        from stimulus_engine.procedural_head import procedural_head
+
+        p = c.procedural
+        return procedural_head(p.seed, texture_size=p.texture_size, resolution=p.resolution), _sha("procedural", p.model_dump())
+    assert c.ict is not None
+    rig = load_ict_rig(c.ict, c.identity)
+    files = sorted(Path(c.ict).glob("*.obj*"))
+    sig = [(f.name, f.stat().st_size, int(f.stat().st_mtime)) for f in files]
+    return rig, _sha("ict", c.identity, sig)
+
+
+def _load_texture(path: Path) -> np.ndarray:
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"))
+    except OSError as exc:
+        raise AppealInputError(f"{path}: cannot read the texture image ({exc})".splitlines()[0]) from None
+
+
+def _albedo_source(c: CharacterSpec, rig: FaceRig, grid_name: str) -> tuple[np.ndarray, dict]:
+    from stimulus_engine.materials import rig_albedo
+
+    if c.texture is not None:
+        if rig.uv is None:
+            raise AppealInputError(f"{grid_name}: characters.{c.name}.texture: the mesh has no UVs, "
+                                   "so a texture cannot be applied (expected a mesh with texture coordinates)")
+        return _load_texture(c.texture), {}
+    if rig.uv is None and rig.texture is None:
+        raise AppealInputError(f"{grid_name}: characters.{c.name}: the mesh has no UVs, so no albedo texture can be "
+                               "painted (expected a mesh with texture coordinates)")
+    return rig_albedo(rig, seed=c.texture_seed)
+
+
+def _camera_for(rig: FaceRig, shape_vertices: np.ndarray, grid: GridFile) -> tuple:
+    """Same face size and eye position for every shape: framed on the shape's neutral landmarks."""
+    from stimulus_engine.render import face_camera
+
+    lm = rig.landmark_points(shape_vertices)
+    eye = (lm["eye_left"] + lm["eye_right"]) / 2
+    length = float(np.linalg.norm(lm["forehead_top"] - lm["chin"]))
+    r = grid.render
+    cam = face_camera(eye, length, yfov_deg=r.yfov_deg, eye_row=r.eye_row, face_fraction=r.face_fraction)
+    return (cam.position, cam.target, cam.yfov_deg, cam.up)
+
+
+def _save_npy(path: Path, arr: np.ndarray) -> None:
+    import io
+
+    if path.exists():
+        return
+    buf = io.BytesIO()
+    np.save(buf, arr)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _save_rig(path: Path, rig: FaceRig) -> None:
+    import io
+
+    if path.exists():
+        return
+    buf = io.BytesIO()
+    np.savez(buf, faces=rig.faces, face_part=rig.face_part, part_names=np.array(rig.part_names),
+             uv=rig.uv if rig.uv is not None else np.zeros((0, 2)),
+             face_uv=rig.face_uv if rig.face_uv is not None else np.zeros((0, 3), np.int64))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+# --------------------------------------------------------------------------------------------
+# Planning
+# --------------------------------------------------------------------------------------------
+
+
+def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.DataFrame, list[RenderItem], pd.DataFrame]:
+    """Prepare the inputs of every image in ``out/.cache`` and list the images.
+
+    Everything that can be wrong with the inputs is found here, before any rendering.
+
+    Returns
+    -------
+    manifest : DataFrame
+        One row per image (``seconds`` and ``status`` still empty).
+    items : list of RenderItem
+        One per rendered image, in manifest order (photographs need no rendering).
+    landmarks : DataFrame
+        Long table: character, shape, expression, landmark, x, y, z.
+    """
+    from stimulus_engine.materials import albedo_hash, stylise_albedo
+    from stimulus_engine.stylise import stylise
+
+    cache = out / ".cache"
+    rigs: dict[str, tuple[FaceRig, str]] = {c.name: _character_rig(c) for c in grid.characters}
+    specs = {c.name: c for c in grid.characters}
+    albedo_src = {c.name: _albedo_source(c, rigs[c.name][0], source) for c in grid.characters}
+    mats = grid.material_specs()
+    for m in mats:
+        if m.from_character is None:
+            continue
+        a = rigs[m.from_character][0]
+        for c in grid.characters:
+            b = rigs[c.name][0]
+            if b.uv is None or a.uv is None or a.uv.shape != b.uv.shape or not np.allclose(a.uv, b.uv):
+                raise AppealInputError(
+                    f"{source}: materials.{m.name}: characters '{c.name}' and '{m.from_character}' do not share a UV "
+                    "layout (expected corresponded meshes; transfer the texture with the correspondence first)")
+    rows, items, lm_rows = [], [], []
+    r = grid.render
+    geom_cache: dict[tuple, tuple[Path, str]] = {}
+    albedo_cache: dict[tuple, tuple[Path, str]] = {}
+
+    def albedo_for(char: str, m: MaterialSpec) -> tuple[Path, str]:
+        src = m.from_character or char
+        key = (src, m.style)
+        if key not in albedo_cache:
+            img, masks = albedo_src[src]
+            styl = stylise_albedo(img, m.style, masks)
+            h = albedo_hash(styl)
+            p = cache / "albedo" / f"{h}.png"
+            if not p.exists():
+                from stimulus_engine.render import save_png
+
+                save_png(styl, p)
+            albedo_cache[key] = (p, h)
+        return albedo_cache[key]
+
+    for c in grid.characters:
+        rig, rig_hash = rigs[c.name]
+        rig_npz = cache / "rigs" / f"{rig_hash}.npz"
+        _save_rig(rig_npz, rig)
+        for si, level in enumerate(grid.shapes):
+            shape_v = stylise(rig, level)
+            cam = _camera_for(rig, shape_v, grid)
+            mat_list = [mats[si]] if grid.pair_materials_with_shapes else mats
+            for expr in grid.expressions:
+                canon = resolve_expression(expr)
+                gkey = (c.name, level, canon)
+                if gkey not in geom_cache:
+                    gh = _sha(GRID_VERSION, rig_hash, level, canon, r.intensity)
+                    gp = cache / "geometry" / f"{gh}.npy"
+                    if not gp.exists():
+                        v = apply_expression(rig, canon, r.intensity, target=None if level == 0 else shape_v)
+                        _save_npy(gp, v.astype(np.float32))
+                    v = np.load(gp)
+                    for name, pt in rig.landmark_points(v.astype(np.float64)).items():
+                        lm_rows.append({"character": c.name, "shape": level, "stylisation": si, "expression": canon,
+                                        "landmark": name, "x": pt[0], "y": pt[1], "z": pt[2]})
+                    geom_cache[gkey] = (gp, gh)
+                gp, gh = geom_cache[gkey]
+                for m in mat_list:
+                    ap, ah = albedo_for(c.name, m)
+                    for light in grid.lighting:
+                        for shading in grid.shading:
+                            fname = f"images/{c.name}_s{si}_{m.name}_{expr}_{light}_{shading}.png"
+                            ih = _sha(GRID_VERSION, gh, ah, light, shading, cam, r.model_dump())
+                            items.append(RenderItem(fname, str(out), str(rig_npz), str(gp), str(ap), light, shading,
+                                                    cam, r.width, r.height, r.shadows, tuple(r.background)))
+                            rows.append({"file": fname, "character": c.name, "shape": level, "stylisation": si,
+                                         "material": m.name, "material_style": m.style,
+                                         "material_from": m.from_character or c.name, "expression": canon,
+                                         "emotion": expr, "lighting": light, "shading": shading,
+                                         "geometry_hash": gh, "albedo_hash": ah, "input_hash": ih,
+                                         "camera": _camera_text(cam), "width": r.width, "height": r.height})
+    for p in grid.photographs:
+        for expr in grid.expressions:
+            src = p.files[expr]
+            fname = f"images/{p.character}_photo_{expr}.png"
+            ih = _sha(GRID_VERSION, "photo", hashlib.sha256(Path(src).read_bytes()).hexdigest(), r.width, r.height)
+            rows.append({"file": fname, "character": p.character, "shape": "photograph",
+                         "stylisation": len(grid.shapes), "material": "photograph", "material_style": "photograph",
+                         "material_from": p.character, "expression": resolve_expression(expr), "emotion": expr,
+                         "lighting": "photograph", "shading": "photograph", "geometry_hash": "", "albedo_hash": "",
+                         "input_hash": ih, "camera": f"photo:{Path(src).name}", "width": r.width, "height": r.height,
+                         "_photo": str(src)})
+    return pd.DataFrame(rows), items, pd.DataFrame(lm_rows)
+
+
+def _camera_text(cam: tuple) -> str:
+    from stimulus_engine.render import CameraSpec
+
+    return CameraSpec(tuple(cam[0]), tuple(cam[1]), cam[2], tuple(cam[3])).describe()
+
+
+# --------------------------------------------------------------------------------------------
+# Rendering (runs in worker processes)
+# --------------------------------------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=8)
+def _rig_static(path: str) -> FaceRig:
+    d = np.load(path)
+    uv = d["uv"] if len(d["uv"]) else None
+    fuv = d["face_uv"] if len(d["face_uv"]) else None
+    return FaceRig(name=Path(path).stem, vertices=np.zeros((0, 3)), faces=d["faces"], uv=uv, face_uv=fuv,
+                   face_part=d["face_part"], part_names=tuple(str(x) for x in d["part_names"]), landmarks={})
+
+
+@functools.lru_cache(maxsize=16)
+def _albedo_image(path: str) -> np.ndarray:
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB"))
+
+
+def render_item(item: RenderItem) -> float:
+    """Render one grid image to ``item.out_dir/item.file``; returns the seconds it took."""
+    from stimulus_engine.materials import rig_render_parts
+    from stimulus_engine.render import CameraSpec, render_mesh, save_png
+
+    t0 = time.perf_counter()
+    rig = _rig_static(item.rig_npz)
+    v = np.load(item.geometry_npy).astype(np.float64)
+    parts = rig_render_parts(rig, v, _albedo_image(item.albedo_png), shading=item.shading)
+    pos, target, yfov, up = item.camera
+    cam = CameraSpec(tuple(pos), tuple(target), yfov, tuple(up))
+    img = render_mesh(parts, width=item.width, height=item.height, lighting=item.lighting, camera=cam,
+                      background=item.background, shadows=item.shadows)
+    save_png(img, Path(item.out_dir) / item.file)
+    return time.perf_counter() - t0
+
+
+def _place_photo(src: str, dst: Path, width: int, height: int, background: tuple) -> None:
+    """Letterbox a photograph into the stimulus size on the grid's background."""
+    from stimulus_engine.render import save_png
+
+    with Image.open(src) as im:
+        im = im.convert("RGB")
+        scale = min(width / im.width, height / im.height)
+        im = im.resize((max(1, round(im.width * scale)), max(1, round(im.height * scale))), Image.LANCZOS)
+    canvas = Image.new("RGB", (width, height), tuple(int(round(b * 255)) for b in background))
+    canvas.paste(im, ((width - im.width) // 2, (height - im.height) // 2))
+    save_png(np.asarray(canvas), dst)
+
+
+# --------------------------------------------------------------------------------------------
+# The command's body
+# --------------------------------------------------------------------------------------------
+
+
+def _previous_hashes(out: Path) -> dict[str, str]:
+    p = out / "manifest.csv"
+    if not p.exists():
+        return {}
+    try:
+        old = pd.read_csv(p, dtype=str)
+    except (OSError, ValueError, pd.errors.ParserError):
+        return {}
+    if not {"file", "input_hash", "status"} <= set(old.columns):
+        return {}
+    old = old[old["status"].isin(["rendered", "up to date"])]
+    return dict(zip(old["file"], old["input_hash"]))
+
+
+def _sheets(out: Path, manifest: pd.DataFrame, grid: GridFile) -> list[Path]:
+    from stimulus_engine.render import contact_sheet, save_png
+
+    ok = manifest[manifest["status"].isin(["rendered", "up to date"])]
+    rendered = ok[ok["shape"] != "photograph"]
+    if rendered.empty:
+        return []
+    first = rendered.iloc[0]
+    paths = []
+
+    def sheet(sub: pd.DataFrame, col: str, name: str, title: str) -> None:
+        cols = list(dict.fromkeys(sub[col]))
+        row_keys = list(dict.fromkeys(zip(sub["character"], sub["stylisation"])))
+        lookup = {(r.character, r.stylisation, getattr(r, col)): r.file for r in sub.itertuples()}
+        imgs, labels = [], []
+        for ch, si in row_keys:
+            for cv in cols:
+                f = lookup.get((ch, si, cv))
+                imgs.append(None if f is None else np.asarray(Image.open(out / f).convert("RGB")))
+        row_labels = [f"{ch} s{si}" for ch, si in row_keys]
+        arr = contact_sheet(imgs, len(cols), thumb_width=220, row_labels=row_labels, col_labels=[str(c) for c in cols],
+                            title=title)
+        paths.append(save_png(arr, out / name))
+
+    sel = rendered[(rendered.expression == first.expression) & (rendered.lighting == first.lighting)
+                   & (rendered.shading == first.shading)]
+    sheet(sel, "material", "contact_sheet.png",
+          f"{grid.name}: shape (rows) x material (columns), {first.emotion}, {first.lighting}, {first.shading}")
+    sel = rendered[(rendered.material == first.material) & (rendered.lighting == first.lighting)
+                   & (rendered.shading == first.shading)]
+    sheet(sel, "emotion", "contact_sheet_expressions.png",
+          f"{grid.name}: shape (rows) x expression (columns), {first.material}, {first.lighting}, {first.shading}")
+    if len(grid.lighting) > 1 or len(grid.shading) > 1:
+        sel = rendered[(rendered.material == first.material) & (rendered.expression == first.expression)].copy()
+        sel["light_shading"] = sel["lighting"] + "/" + sel["shading"]
+        sheet(sel, "light_shading", "contact_sheet_lighting.png",
+              f"{grid.name}: shape (rows) x lighting/shading (columns), {first.material}, {first.emotion}")
+    return paths
+
+
+def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler: str | None = None,
+             source: str = "grid") -> tuple[pd.DataFrame, list[Path]]:
+    """Render ``grid`` into ``out`` (see the module docstring for the files written).
+
+    Parameters
+    ----------
+    grid : GridFile
+    out : Path
+        Output folder (prepared by the caller, e.g. :func:`appeal.outputs.output_run`).
+    n_jobs : int, optional
+        Local worker processes (default: all cores; 1 = in this process).
+    scheduler : str, optional
+        Dask scheduler address.
+    source : str
+        The grid file's name, for error messages.
+
+    Returns
+    -------
+    manifest : DataFrame
+    sheets : list of Path
+        The contact sheets written.
+    """
+    from appeal.parallel import parallel_map
+
+    out = Path(out)
+    manifest, items, landmarks = plan_grid(grid, out, source=source)
+    previous = _previous_hashes(out)
+    status = {}
+    todo = []
+    for it, row in zip(items, manifest[manifest["shape"] != "photograph"].itertuples()):
+        if previous.get(it.file) == row.input_hash and (out / it.file).exists():
+            status[it.file] = ("up to date", float("nan"))
+        else:
+            todo.append(it)
+    logger.info("%s: %d images, %d up to date, %d to render", grid.name, len(manifest), len(status), len(todo))
+    res = parallel_map(render_item, todo, n_jobs=n_jobs, scheduler=scheduler, desc="rendering",
+                       labels=[t.file for t in todo])
+    failed = {f.index: f.error for f in res.failures}
+    for i, (it, secs) in enumerate(zip(todo, res.results)):
+        status[it.file] = (f"failed: {failed[i]}", float("nan")) if i in failed else ("rendered", float(secs))
+    for idx in manifest.index[manifest["shape"] == "photograph"]:
+        t0 = time.perf_counter()
+        f = manifest.at[idx, "file"]
+        _place_photo(manifest.at[idx, "_photo"], out / f, grid.render.width, grid.render.height,
+                     grid.render.background)
+        status[f] = ("rendered", time.perf_counter() - t0)
+    manifest["seconds"] = [round(status[f][1], 4) for f in manifest["file"]]
+    manifest["status"] = [status[f][0] for f in manifest["file"]]
+    manifest = manifest.drop(columns=[c for c in manifest.columns if c.startswith("_")])
+    atomic_write_text(out / "manifest.csv", manifest.to_csv(index=False))
+    atomic_write_text(out / "landmarks.csv", landmarks.to_csv(index=False))
+    atomic_write_text(out / "grid.json", json.dumps(grid.model_dump(mode="json"), indent=2))
+    sheets = _sheets(out, manifest, grid)
+    if res.failures:
+        logger.warning(res.summary())
+    return manifest, sheets
+
+
+def item_dict(item: RenderItem) -> dict:
+    """A RenderItem as a plain dict (for logs)."""
+    return asdict(item)
