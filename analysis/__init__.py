@@ -6,3 +6,8 @@ from analysis.stats import (compare_trends, cronbach_alpha, mixed_model_anova, p
 
 __all__ = ["compare_trends", "cronbach_alpha", "mixed_model_anova", "polynomial_contrasts", "rm_anova",
            "tukey_hsd", "within_ci"]
+
+# ERP pipeline (issue 8); see analysis/erp and docs/erp.md.
+from analysis.erp import analyze_erp, run_erp, simulate_study  # noqa: E402
+
+__all__ += ["analyze_erp", "run_erp", "simulate_study"]

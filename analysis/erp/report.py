@@ -14,7 +14,7 @@ from appeal.logs import logger
 from analysis.erp.pipeline import ErpResult, resolve_components
 from analysis.erp_schema import ErpConfig
 
-__all__ = ["ErpOutputs", "grand_averages", "level_peaks", "source_contrasts", "write_erp_outputs"]
+__all__ = ["ErpOutputs", "analyze_erp", "grand_averages", "level_peaks", "source_contrasts", "write_erp_outputs"]
 
 
 @dataclass
@@ -218,3 +218,31 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
                       for p in [o.amplitudes, o.qc, *o.tables, *o.figures] if p.suffix != ".svg"))
     atomic_write_text(o.report, text)
     return o
+
+
+def analyze_erp(config: str | Path, out: Path, *, seed: int = 0, n_jobs: int | None = None,
+                scheduler: str | None = None, n_permutations: int | None = None) -> tuple[ErpResult, ErpOutputs]:
+    """Load a config, run every subject and write all outputs into ``out`` (an existing folder).
+
+    Parameters
+    ----------
+    config : path-like
+        The ``kind: erp`` YAML file.
+    out : Path
+        Output folder (create it with :func:`appeal.outputs.output_run`).
+    seed : int
+        Seed of ICA and permutations.
+    n_jobs, scheduler
+        Parallel subjects: local processes or a Dask scheduler.
+    n_permutations : int | None
+        Override ``source.n_permutations`` (quick runs).
+    """
+    from analysis.erp.config import load_erp_config
+    from analysis.erp.pipeline import run_erp
+
+    cfg = load_erp_config(config)
+    if n_permutations is not None:
+        cfg.source.n_permutations = int(n_permutations)
+    result = run_erp(cfg, source=config, n_jobs=n_jobs, scheduler=scheduler, seed=seed)
+    outputs = write_erp_outputs(result, cfg, Path(out), seed=seed, config_name=Path(config).name)
+    return result, outputs

@@ -30,7 +30,7 @@ __all__ = ["SimulationDesign", "GENERATORS_MNI", "planted_generators", "simulate
 #: Planted generator positions (MNI mm): right/left occipito-temporal (N170, EPN), parietal (LPP).
 GENERATORS_MNI = {"N170_right": (44.0, -76.0, -8.0), "N170_left": (-44.0, -76.0, -8.0), "LPP": (0.0, -60.0, 45.0)}
 
-EMOTIONS = ("angry", "neutral", "happy")
+EMOTIONS = ("angry", "happy", "neutral")  # code order of protocols/erp_stylisation.yaml
 
 
 def trigger_code(stylisation: int, emotion_index: int) -> int:

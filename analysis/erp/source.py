@@ -279,7 +279,7 @@ def contrast_clusters(diff: np.ndarray, head: HeadModel, *, p_threshold: float =
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         t_obs, clusters, p_fwe, _ = mne.stats.permutation_cluster_1samp_test(
-            diff, threshold=thresh, tail=1, adjacency=adjacency, n_permutations=n_permutations, seed=seed,
+            diff, threshold=thresh, tail=1, adjacency=adjacency, n_permutations=n_permutations, rng=seed,
             out_type="indices", verbose="error")
     mni = head.mni
     effect = diff.mean(axis=0)

@@ -1,0 +1,57 @@
+"""Demo stage 310: simulated BioSemi EEG -> the whole ERP pipeline -> tables, figures, report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from appeal.assets import protocols_dir
+from appeal.atomic import atomic_write_text
+from appeal.demo import DemoStage
+from appeal.report import ReportSection
+
+
+def _run(out: Path, seed: int) -> ReportSection:
+    import pandas as pd
+
+    from analysis.erp.report import analyze_erp
+    from analysis.erp.simulate import SimulationDesign, simulate_study
+
+    design = SimulationDesign(n_subjects=8, trials_per_cell=10, sfreq=256, spacing_mm=10.0, seed=seed)
+    sim = simulate_study(out / "data", design)
+    cfg = {
+        "kind": "erp",
+        "recordings": "data/sub-*_task-faces_eeg.bdf",
+        "events": {"protocol": str(protocols_dir() / "erp_stylisation.yaml")},
+        "factors": ["stylisation", "emotion"],
+        "levels": {"emotion": ["angry", "neutral", "happy"]},
+        "eog": list(design.eog),
+        "source": {"spacing_mm": design.spacing_mm, "contrasts": [[5, 0], [0, 2]], "n_permutations": 200},
+    }
+    config = atomic_write_text(out / "erp_demo.yaml", yaml.safe_dump(cfg, sort_keys=False))
+    results = out / "results"
+    results.mkdir(exist_ok=True)
+    result, outputs = analyze_erp(config, results, seed=seed, n_jobs=2)
+    contr = pd.read_csv(results / "stats" / "contrasts.csv")
+
+    def p(comp: str, factor: str, kind: str) -> str:
+        row = contr[(contr.component == comp) & (contr.factor == factor) & (contr.contrast == kind)]
+        return f"F({row.num_df.iloc[0]:.0f}, {row.den_df.iloc[0]:.0f}) = {row.F.iloc[0]:.2f}, p = {row.p.iloc[0]:.3g}"
+
+    gens = ", ".join(f"{k} ({', '.join(f'{v:.0f}' for v in xyz)})" for k, xyz in sim["generators"].items())
+    text = (f"{design.n_subjects} simulated subjects (BioSemi 128 + 4 EOG + Status, {design.sfreq} Hz, "
+            f"{design.trials_per_cell} trials per cell, one broken electrode each, blinks and drifts) written as BDF, "
+            "analysed with the config `erp_demo.yaml` (events from `protocols/erp_stylisation.yaml`). Planted: "
+            "u-shaped N170 over stylisation, emotion effects on N170/EPN, linearly rising LPP; generators at "
+            f"MNI {gens}.\n\n"
+            f"Recovered: N170 stylisation quadratic {p('N170', 'stylisation', 'quadratic')}, linear "
+            f"{p('N170', 'stylisation', 'linear')}; LPP stylisation linear {p('LPP', 'stylisation', 'linear')}. "
+            f"Full report: [results/report.md](results/report.md).")
+    figs = [f for f in outputs.figures if f.suffix == ".png"]
+    return ReportSection(title="ERP analysis (simulated EEG)", text=text, figures=figs,
+                         tables=[results / "qc.csv", results / "stats" / "contrasts.csv", results / "source" / "clusters.csv"],
+                         links=[outputs.amplitudes, outputs.report, results / "stats" / "anova.csv"])
+
+
+STAGE = DemoStage(name="erp", title="ERP analysis (simulated EEG)", order=310, run=_run)
