@@ -92,10 +92,11 @@ class SurfaceIndex:
         Nearest vertices and centroids whose triangles are tested per query.
     """
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, k: int = 3):
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, k: int = 3, k_vertices: int = 2):
         self.vertices = np.asarray(vertices, dtype=np.float64)
         self.faces = np.asarray(faces, dtype=np.int64)
         self.k = k
+        self.k_vertices = k_vertices
         nf = len(self.faces)
         # vertex -> incident faces, padded with -1 (candidates: faces around the 2 nearest
         # vertices and the k nearest centroids)
@@ -130,40 +131,47 @@ class SurfaceIndex:
         self.vertices = np.asarray(vertices, dtype=np.float64)
         self._build()
 
-    def query(self, points: np.ndarray) -> ClosestPoints:
+    def query(self, points: np.ndarray, chunk: int = 65536) -> ClosestPoints:
         """Closest surface point for each of ``points`` (Q, 3)."""
-        p = np.asarray(points, dtype=np.float64)
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        face = np.empty(len(p), dtype=np.int64)
+        bary = np.empty((len(p), 3))
+        for a in range(0, len(p), chunk):
+            face[a : a + chunk], bary[a : a + chunk] = self._query(p[a : a + chunk])
+        pts = np.einsum("ij,ijk->ik", bary, self._tri[face])
+        eps = 1e-9
+        on_edge = (bary < eps) & self.boundary[face]
+        # a closest point at a vertex (two zero weights) is on the boundary if the vertex is
+        at_vertex = (bary > 1 - eps) & self.boundary_vertices[self.faces[face]]
+        return ClosestPoints(
+            face=face,
+            bary=bary,
+            points=pts,
+            distance=np.linalg.norm(pts - p, axis=1),
+            on_boundary=on_edge.any(axis=1) | at_vertex.any(axis=1),
+            normals=self.face_normals[face],
+        )
+
+    def _query(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         k = min(self.k, len(self.vertices))
-        _, vi = self._vtree.query(p, k=min(2, k), workers=-1)
+        _, vi = self._vtree.query(p, k=min(self.k_vertices, k), workers=-1)
         _, ci = self._ctree.query(p, k=min(self.k, self._n_faces), workers=-1)
         vi = np.asarray(vi).reshape(len(p), -1)
         ci = np.asarray(ci).reshape(len(p), -1)
-        cand = np.concatenate([self._vf[vi].reshape(len(p), -1), ci], axis=1)
+        cand = np.concatenate([self._vf[vi].reshape(len(p), -1), ci], axis=1)  # (Q, K), -1 = none
         q_idx = np.repeat(np.arange(len(p)), cand.shape[1])
         f_idx = cand.ravel()
-        valid = f_idx >= 0
-        q_idx, f_idx = q_idx[valid], f_idx[valid]
+        keep = f_idx >= 0
+        q_idx, f_idx = q_idx[keep], f_idx[keep]  # still grouped by query, in order
         tri = self._tri[f_idx]
-        bary = closest_point_on_triangles(p[q_idx], tri[:, 0], tri[:, 1], tri[:, 2])
-        pts = np.einsum("ij,ijk->ik", bary, tri)
-        d2 = ((pts - p[q_idx]) ** 2).sum(axis=1)
-        # best candidate per query: sort by (query, distance) and take the first of each query
-        order = np.lexsort((d2, q_idx))
-        first = np.ones(len(order), dtype=bool)
-        first[1:] = q_idx[order][1:] != q_idx[order][:-1]
-        best = order[first]
-        face = f_idx[best]
-        b = bary[best]
-        eps = 1e-9
-        on_edge = (b < eps) & self.boundary[face]
-        # a closest point at a vertex (two zero weights) is on the boundary if the vertex is
-        at_vertex = (b > 1 - eps) & self.boundary_vertices[self.faces[face]]
-        on_boundary = on_edge.any(axis=1) | at_vertex.any(axis=1)
-        return ClosestPoints(
-            face=face,
-            bary=b,
-            points=pts[best],
-            distance=np.sqrt(d2[best]),
-            on_boundary=on_boundary,
-            normals=self.face_normals[face],
-        )
+        pr = p[q_idx]
+        bary = closest_point_on_triangles(pr, tri[:, 0], tri[:, 1], tri[:, 2])
+        diff = np.einsum("ij,ijk->ik", bary, tri) - pr
+        d2 = np.einsum("ij,ij->i", diff, diff)
+        counts = np.bincount(q_idx, minlength=len(p))
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        mins = np.minimum.reduceat(d2, starts)
+        is_min = np.flatnonzero(d2 == np.repeat(mins, counts))
+        _, first = np.unique(q_idx[is_min], return_index=True)
+        sel = is_min[first]
+        return f_idx[sel], bary[sel]
