@@ -124,7 +124,7 @@ def run_session(
     session : int
         Session number.
     out : str | Path | None
-        The session folder (default ``data/sub-<id>/ses-<n>``).
+        The session folder (default ``data/sub-<id>/ses-<n>/beh``, the BIDS layout).
     stimuli : str | Path | None
         Replace the protocol's stimulus source (manifest/factor-table CSV or a folder holding one).
     simulate : str | Path | None
@@ -171,7 +171,7 @@ def run_session(
     main = select_stimuli(full, protocol.stimuli.select)
     if not len(main):
         raise AppealInputError(f"{protocol_file}: stimuli.select: selects none of the {len(full)} images in {full.source}")
-    out = Path(out) if out is not None else Path("data") / f"sub-{participant}" / f"ses-{session}"
+    out = Path(out) if out is not None else Path("data") / f"sub-{participant}" / f"ses-{session}" / "beh"
     paths = session_paths(out, participant, session, protocol.task)
     protocol_hash = file_sha256(protocol_file)
     previous: dict[str, Any] = {}

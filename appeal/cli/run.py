@@ -12,8 +12,8 @@ from appeal.cli.groups import CONTEXT, cli
 @cli.command(context_settings=CONTEXT, epilog="""\b
 Examples:
   appeal run protocols/exp2_stylisation.yaml --participant 01
-  appeal run protocols/erp_stylisation.yaml --participant 07 --session 2 --out data/sub-07/ses-2
-  appeal run protocols/erp_stylisation.yaml --participant 07 --session 2 --out data/sub-07/ses-2 --resume
+  appeal run protocols/erp_stylisation.yaml --participant 07 --session 2 --out data/sub-07/ses-2/beh
+  appeal run protocols/erp_stylisation.yaml --participant 07 --session 2 --out data/sub-07/ses-2/beh --resume
   appeal run protocols/exp3_expressions.yaml --participant 01 --stimuli my_faces/factors.csv --windowed
   xvfb-run -a appeal run protocols/exp2_stylisation.yaml --participant 99 --simulate default --out sim/99
   appeal run protocols/erp_stylisation.yaml --participant 98 --simulate model.yaml --no-window --out sim/98""")
@@ -21,7 +21,7 @@ Examples:
 @click.option("--participant", required=True, metavar="ID", help="Participant label, letters and digits (BIDS sub-ID).")
 @click.option("--session", type=int, default=1, show_default=True, metavar="N", help="Session number.")
 @click.option("--out", type=click.Path(path_type=Path), default=None, metavar="DIR",
-              help="Session folder [default: data/sub-ID/ses-N]; must be new or empty unless --resume/--force.")
+              help="Session folder [default: data/sub-ID/ses-N/beh]; must be new or empty unless --resume/--force.")
 @click.option("--resume", is_flag=True, help="Continue a crashed or aborted session at its next trial, same order.")
 @click.option("--force", is_flag=True, help="Replace an existing session folder.")
 @click.option("--stimuli", type=click.Path(path_type=Path), default=None, metavar="PATH",
