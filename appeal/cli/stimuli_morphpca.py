@@ -148,7 +148,7 @@ Examples:
 @out_options()
 @click.option("--no-align", is_flag=True, help="Skip the faceframe affine transform (models of equal size only).")
 @click.option("--caricature", type=float, default=1.0, show_default=True, help="Scale the projected warp (1.5 = 50% stronger).")
-@click.option("--texture-weight", type=click.FloatRange(min=0), default=1.0, show_default=True,
+@click.option("--texture-weight", type=click.FloatRange(min=0), default=0.1, show_default=True,
               help="Weight of texture vs warp when fitting B's loadings (1 = the paper's inner product; 0.1 lets the warp decide).")
 @click.option("--naive", is_flag=True, help="Also write the naive loading-transfer baseline.")
 @click.option("--truth", "truth", multiple=True, type=click.Path(path_type=Path),
@@ -209,7 +209,7 @@ Examples:
 @click.option("--reference", type=int, default=0, show_default=True, help="Model whose faceframe the avatar uses.")
 @click.option("--weights", default=None, metavar="W1,W2,...", help="Identity weights (sum 1; default equal).")
 @click.option("--components", type=click.IntRange(min=1), default=None, help="Components of the avatar model.")
-@click.option("--texture-weight", type=click.FloatRange(min=0), default=1.0, show_default=True,
+@click.option("--texture-weight", type=click.FloatRange(min=0), default=0.1, show_default=True,
               help="See 'project --help'.")
 @click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
 def avatar(models, out, force, resume, reference, weights, components, texture_weight, json_path) -> None:

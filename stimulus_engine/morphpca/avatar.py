@@ -83,7 +83,7 @@ def _check_weights(weights, k: int) -> np.ndarray:
 
 
 def build_avatar(models: Sequence[MorphModel], *, reference_model: int = 0, weights: Sequence[float] | None = None,
-                 n_components: int | None = None, sharpen: float = 0.6, texture_weight: float = 1.0,
+                 n_components: int | None = None, sharpen: float = 0.6, texture_weight: float = 0.1,
                  backend: str = "dis") -> Avatar:
     """Blend k identity models into one avatar model (steps 5–9).
 

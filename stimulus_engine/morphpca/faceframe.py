@@ -23,7 +23,8 @@ def check_faceframe(frame, what: str = "faceframe") -> np.ndarray:
     arr = np.asarray(frame, dtype=np.float64)
     if arr.shape != (3, 2) or not np.all(np.isfinite(arr)):
         raise AppealInputError(f"{what}: expected 3 finite (x, y) points: left eye, right eye, philtrum (got {arr.tolist()})")
-    area = 0.5 * abs(np.cross(arr[1] - arr[0], arr[2] - arr[0]))
+    (ax, ay), (bx, by) = arr[1] - arr[0], arr[2] - arr[0]
+    area = 0.5 * abs(ax * by - ay * bx)
     if area < 1e-6:
         raise AppealInputError(f"{what}: the 3 points are collinear (expected eyes and philtrum forming a triangle)")
     return arr

@@ -53,8 +53,8 @@ def relative_in_target(relative: np.ndarray, source: MorphModel, target: MorphMo
                      for r in rel])
 
 
-def target_loadings(rel_b: np.ndarray, target: MorphModel, texture_weight: float = 1.0) -> np.ndarray:
-    """Loadings of relative vectors in ``target``: ``L_b = P_bᵀ R`` (``texture_weight`` = 1, the paper).
+def target_loadings(rel_b: np.ndarray, target: MorphModel, texture_weight: float = 0.1) -> np.ndarray:
+    """Loadings of relative vectors in ``target``: ``L_b = P_bᵀ R`` when ``texture_weight`` = 1 (the paper).
 
     With ``texture_weight`` w < 1 the loadings are the weighted least-squares fit
     ``argmin_l ‖Ω^½ (P_b l − R)‖²`` where Ω weighs texture entries by w² and warp entries by 1,
@@ -73,7 +73,7 @@ def target_loadings(rel_b: np.ndarray, target: MorphModel, texture_weight: float
 
 
 def project_relative(relative: np.ndarray, source: MorphModel, target: MorphModel, align: bool = True,
-                     warp_factor: float = 1.0, texture_factor: float = 1.0, texture_weight: float = 1.0,
+                     warp_factor: float = 1.0, texture_factor: float = 1.0, texture_weight: float = 0.1,
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Steps 3–5: ``L_b = P_bᵀ R`` and the absolute target vectors ``M_b = P_b L_b + M_mb``."""
     rel_b = relative_in_target(relative, source, target, align)
@@ -85,7 +85,7 @@ def project_relative(relative: np.ndarray, source: MorphModel, target: MorphMode
 
 
 def project_expression(images: np.ndarray, source: MorphModel, target: MorphModel, align: bool = True,
-                       warp_factor: float = 1.0, texture_factor: float = 1.0, texture_weight: float = 1.0,
+                       warp_factor: float = 1.0, texture_factor: float = 1.0, texture_weight: float = 0.1,
                        ) -> Projection:
     """Render the expressions of ``images`` (faces of the source model's person) on the target.
 
@@ -100,8 +100,8 @@ def project_expression(images: np.ndarray, source: MorphModel, target: MorphMode
     warp_factor, texture_factor : float
         Caricature: scale the projected relative warp / texture (1 = as projected).
     texture_weight : float
-        1 = the paper's inner product; < 1 lets the warp decide the loadings (see
-        :func:`target_loadings`).
+        1 = the paper's inner product ``P_bᵀ R``; the default 0.1 lets the warp decide the
+        loadings (see :func:`target_loadings`), which transfers expressions better.
 
     Returns
     -------
