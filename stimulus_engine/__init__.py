@@ -11,3 +11,15 @@ from stimulus_engine.mesh_io import (  # noqa: E402
     select_region,
     texture_image,
 )
+from stimulus_engine.correspondence import (  # noqa: E402
+    CorrespondParams,
+    Correspondences,
+    CorrespondenceResult,
+    SurfacePoints,
+    correspond,
+    deformed_mesh,
+    parse_pairs,
+    reorder_landmarks,
+)
+from stimulus_engine.texture_transfer import transfer_texture  # noqa: E402
+from stimulus_engine.morph import blend_images, blend_vertices, partial_blend  # noqa: E402

@@ -37,6 +37,7 @@ __all__ = [
     "load_pairs_file",
     "boundary_loops",
     "boundary_correspondences",
+    "nearest_boundary_vertices",
     "landmark_orderings",
     "reorder_landmarks",
     "read_ljson",
@@ -406,3 +407,13 @@ def read_ljson(path) -> tuple[np.ndarray, str]:
         raise AppealInputError(f"{path}: landmarks.points: expected 3D points (got shape {pts.shape})")
     ordering = "menpo_ljson" if labels[:2] == ["chin", "leye"] and len(pts) == 68 else "ibug68"
     return pts, ordering
+
+
+def nearest_boundary_vertices(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """For each 3D point, the index of the nearest vertex on any boundary loop."""
+    loops = boundary_loops(faces)
+    if not loops:
+        raise AppealInputError("boundary anchors: the mesh has no boundary loop")
+    b = np.concatenate(loops)
+    d = np.linalg.norm(np.asarray(vertices)[b][None, :, :] - np.asarray(points)[:, None, :], axis=2)
+    return b[np.argmin(d, axis=1)]

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-__all__ = ["correspondence_sheet"]
+__all__ = ["correspondence_sheet", "result_panels"]
 
 _GREY = np.array([200, 200, 200, 255], dtype=np.uint8)
 _RED = np.array([230, 30, 30, 255], dtype=np.uint8)
@@ -70,3 +70,18 @@ def correspondence_sheet(
     if path is not None:
         save_png(sheet, path)
     return sheet
+
+
+def result_panels(result, source, target) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The standard panels of a :class:`CorrespondenceResult`: source (aligned), faired source,
+    faired target, registered base, result, target (cropped-away target parts left out)."""
+    ft = np.asarray(target.faces)
+    keep = np.isfinite(result.faired_target[ft]).all(axis=(1, 2))
+    return [
+        ("source", result.alignment.apply(source.vertices), result.faces),
+        ("faired source", result.faired_source, result.faces),
+        ("faired target", np.nan_to_num(result.faired_target), ft[keep]),
+        ("registered base", result.registered_base, result.faces),
+        ("result", result.vertices, result.faces),
+        ("target", np.asarray(target.vertices), ft),
+    ]

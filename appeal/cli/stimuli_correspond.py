@@ -1,0 +1,237 @@
+"""``appeal stimuli correspond``, ``transfer-texture`` and ``morph`` (ElastiFace, thesis ch. 3)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from appeal.cli.groups import CONTEXT, stimuli
+from appeal.cli.options import out_options
+from appeal.errors import AppealInputError
+
+
+def _refuse_existing(path: Path, force: bool) -> None:
+    if path.exists() and not force:
+        raise AppealInputError(f"{path}: output file exists (use --force to overwrite)")
+    if not path.parent.exists():
+        raise AppealInputError(f"{path}: output folder {path.parent} does not exist")
+
+
+def _landmark_pairs(spec: str, src, tgt):
+    from stimulus_engine.correspondence.landmarks import load_pairs_file, parse_pairs
+
+    p = Path(spec)
+    if p.suffix.lower() == ".json" or p.exists():
+        return load_pairs_file(p, src, tgt)
+    try:
+        data = json.loads(spec)
+    except json.JSONDecodeError as exc:
+        raise AppealInputError(
+            f"--landmarks: expected a JSON file or inline JSON {{\"source\": [...], \"target\": [...]}} ({exc.msg})"
+        ) from None
+    return parse_pairs(data, src, tgt, where="--landmarks")
+
+
+@stimuli.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli correspond src.obj tgt.obj --landmarks pairs.json --out corr/
+  appeal stimuli correspond head.obj.gz scan.obj --landmarks '{"source": [12, 40, 99], "target": [[0,1,2], 17, {"face": 3, "bary": [0.2,0.3,0.5]}]}' --out corr/ --json metrics.json
+  appeal stimuli correspond src.obj cartoon.ply --landmarks pairs.json --lambda1 10 --out corr/ --force   # extreme pair""")
+@click.argument("source", type=click.Path(path_type=Path))
+@click.argument("target", type=click.Path(path_type=Path))
+@click.option("--landmarks", "landmarks", required=True, metavar="PAIRS",
+              help='Pairs file (.json) or inline JSON {"source": [...], "target": [...]}; each entry a '
+                   'vertex index, a point [x, y, z] snapped to the surface, or {"face": f, "bary": [a, b, c]}.')
+@click.option("--boundary", "boundary", default=None, metavar="PAIRS",
+              help='Optional boundary-loop anchors as JSON [[src_vertex, tgt_vertex], ...]; every other vertex '
+                   'of those source loops is matched by relative arc length (thesis Fig. 3.5).')
+@click.option("--lambda1", type=float, default=0.1, show_default=True, help="Fairing smoothness (10 for extreme pairs).")
+@click.option("--fairing-iterations", type=int, default=5, show_default=True, help="Joint-fairing solves (Voronoi areas updated).")
+@click.option("--no-sheet", is_flag=True, help="Skip the contact-sheet PNG (rendering).")
+@click.option("--json", "json_out", type=click.Path(path_type=Path), default=None, metavar="METRICS",
+              help="Also write the metrics to this JSON file.")
+@out_options()
+def correspond(source: Path, target: Path, landmarks: str, boundary: str | None, lambda1: float,
+               fairing_iterations: int, no_sheet: bool, json_out: Path | None, out: Path, force: bool,
+               resume: bool) -> None:
+    """Put SOURCE into dense correspondence with TARGET (joint fairing + non-rigid registration).
+
+    \b
+    The source is aligned (Umeyama similarity on the landmark pairs), both meshes are faired
+    jointly into smooth, similar base meshes (eq. 3.7-3.10), the faired source is registered
+    onto the faired target with a stiffness schedule (eq. 3.11-3.13), and the correspondences
+    found there drive the final fit of the original source onto the original target.
+
+    \b
+    Writes DIR/deformed.obj (the source's vertices moved onto the target, source vertex order,
+    faces and UVs kept), DIR/correspondence.npz (per source vertex: target triangle and
+    barycentric weights), DIR/metrics.json (seconds, hausdorff_rel, mean_dist_rel,
+    median_dist_rel, flipped_triangles, n_source_vertices, n_target_vertices, stage seconds)
+    and DIR/contact_sheet.png (source, faired meshes, registered base, result, target).
+    """
+    import dataclasses
+
+    import numpy as np
+
+    from appeal.atomic import atomic_write_bytes, atomic_write_text
+    from appeal.outputs import output_run
+    from stimulus_engine.correspondence import CorrespondParams, boundary_correspondences, correspond as run
+    from stimulus_engine.correspondence.pipeline import deformed_mesh
+    from stimulus_engine.mesh_io import load_mesh, save_mesh
+
+    src = load_mesh(source)
+    tgt = load_mesh(target)
+    corr = _landmark_pairs(landmarks, src, tgt)
+    if boundary:
+        try:
+            anchors = json.loads(Path(boundary).read_text() if Path(boundary).exists() else boundary)
+        except json.JSONDecodeError as exc:
+            raise AppealInputError(f"--boundary: expected JSON [[src_vertex, tgt_vertex], ...] ({exc.msg})") from None
+        if not isinstance(anchors, list) or not all(isinstance(a, list) and len(a) == 2 for a in anchors):
+            raise AppealInputError("--boundary: expected JSON [[src_vertex, tgt_vertex], ...]")
+        corr = corr.concat(boundary_correspondences(src.vertices, src.faces, tgt.vertices, tgt.faces, anchors))
+    if json_out is not None and not json_out.parent.exists():
+        raise AppealInputError(f"{json_out}: --json folder {json_out.parent} does not exist")
+    if lambda1 <= 0 or fairing_iterations < 1:
+        raise AppealInputError("--lambda1 must be > 0 and --fairing-iterations >= 1")
+    params = dataclasses.replace(CorrespondParams(), lambda1=lambda1, fairing_iterations=fairing_iterations)
+    with output_run(out, force=force, resume=resume, inputs=[source, target]) as orun:
+        res = run(src, tgt, corr, params)
+        save_mesh(deformed_mesh(src, res.vertices), orun.path("deformed.obj"))
+        import io
+
+        buf = io.BytesIO()
+        np.savez_compressed(buf, target_face=res.target_face, target_bary=res.target_bary, valid=res.valid)
+        atomic_write_bytes(orun.path("correspondence.npz"), buf.getvalue())
+        metrics = dict(res.metrics)
+        metrics["stage_seconds"] = res.seconds
+        text = json.dumps(metrics, indent=2)
+        atomic_write_text(orun.path("metrics.json"), text)
+        if json_out is not None:
+            atomic_write_text(json_out, text)
+        if not no_sheet:
+            from stimulus_engine.correspondence.metrics import flipped_triangles
+            from stimulus_engine.correspondence.sheet import correspondence_sheet, result_panels
+
+            correspondence_sheet(
+                result_panels(res, src, tgt), orun.path("contact_sheet.png"),
+                flipped=flipped_triangles(res.vertices, res.faces, res.alignment.apply(src.vertices)),
+            )
+        orun.extra["metrics"] = metrics
+        click.echo(
+            f"deformed.obj: {metrics['n_source_vertices']} vertices; hausdorff {metrics['hausdorff_rel']:.3%}, "
+            f"median {metrics['median_dist_rel']:.3%} of the bbox diagonal; {metrics['flipped_triangles']} "
+            f"fold-overs; {metrics['seconds']:.2f} s"
+        )
+
+
+@stimuli.command("transfer-texture", context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli transfer-texture corr/deformed.obj james.obj --out james_in_src_layout.png
+  appeal stimuli transfer-texture corr/deformed.obj tgt.obj --map tgt_specular.png --size 2048 2048 --out spec.png""")
+@click.argument("deformed", metavar="SRC_DEFORMED", type=click.Path(path_type=Path))
+@click.argument("target", metavar="TGT", type=click.Path(path_type=Path))
+@click.option("--out", "out", required=True, type=click.Path(path_type=Path), metavar="TEX.png", help="Output image.")
+@click.option("--map", "map_path", type=click.Path(path_type=Path), default=None,
+              help="Target map to transfer instead of its albedo (specular, normal map, ...).")
+@click.option("--size", type=(int, int), default=None, metavar="W H", help="Output size (default: the source texture's, else the target map's).")
+@click.option("--force", is_flag=True, help="Overwrite TEX.png.")
+def transfer_texture(deformed: Path, target: Path, out: Path, map_path: Path | None, size, force: bool) -> None:
+    """Re-lay TGT's texture into the UV layout of SRC_DEFORMED (thesis §3.3).
+
+    \b
+    SRC_DEFORMED is DIR/deformed.obj from `appeal stimuli correspond` (the source's UVs on the
+    target's shape). For every texel of the source layout: its 3D point, the closest target
+    point, the target's UV there, a bilinear lookup; then a 1-pixel dilation of the islands.
+    """
+    import io
+
+    from PIL import Image
+
+    from appeal.atomic import atomic_write_bytes
+    from stimulus_engine.mesh_io import load_mesh
+    from stimulus_engine.texture_transfer import transfer_texture as run
+
+    _refuse_existing(out, force)
+    src = load_mesh(deformed)
+    tgt = load_mesh(target)
+    image = None
+    if map_path is not None:
+        if not map_path.exists():
+            raise AppealInputError(f"{map_path}: --map image not found")
+        try:
+            image = Image.open(map_path)
+            image.load()
+        except OSError as exc:
+            raise AppealInputError(f"{map_path}: cannot read image ({exc})") from None
+    img = run(src, tgt, image=image, size=size)
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    atomic_write_bytes(out, buf.getvalue())
+    click.echo(f"{out}: {img.size[0]} x {img.size[1]}")
+
+
+def _split_weights(items: tuple, first: str) -> tuple[list[Path], list[float]]:
+    """MESH... and the weights: ``--weights 0.5 0.5`` leaves the trailing numbers among the
+    arguments (click options take one value), ``--weights 0.5,0.5`` is one value."""
+    rest = list(items)
+    trailing: list[str] = []
+    while rest:
+        try:
+            float(str(rest[-1]))
+        except ValueError:
+            break
+        trailing.insert(0, str(rest.pop()))
+    values = [x for x in str(first).replace(",", " ").split() if x] + trailing
+    try:
+        weights = [float(x) for x in values]
+    except ValueError:
+        raise AppealInputError(f"--weights: expected numbers (got {' '.join(values)})") from None
+    return [Path(x) for x in rest], weights
+
+
+@stimuli.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli morph corr_a/deformed.obj corr_b/deformed.obj --weights 0.5 0.5 --out half.obj
+  appeal stimuli morph a.obj b.obj c.obj --weights 0.2,0.3,0.5 --out blend.obj --force""")
+@click.argument("meshes", nargs=-1, required=True, metavar="MESH...")
+@click.option("--weights", "weights", required=True, metavar="W...",
+              help="One weight per mesh, summing to 1: '--weights 0.3 0.7' or '--weights 0.3,0.7'.")
+@click.option("--out", "out", required=True, type=click.Path(path_type=Path), metavar="OUT.obj", help="Output mesh.")
+@click.option("--force", is_flag=True, help="Overwrite OUT.obj (and its texture).")
+def morph(meshes: tuple, weights: str, out: Path, force: bool) -> None:
+    """Blend corresponded meshes (same connectivity and UV layout) with weights (thesis §3.4).
+
+    \b
+    The meshes are typically DIR/deformed.obj files of `appeal stimuli correspond` runs from
+    one source. Vertex positions blend linearly; when every mesh has a texture of one size,
+    the textures blend too (OUT.png beside OUT.obj). Region blends (a nose from one face on
+    another) are in the Python API: stimulus_engine.partial_blend.
+    """
+    from stimulus_engine.mesh_io import load_mesh, save_mesh, texture_image
+    from stimulus_engine.morph import blend_images, blend_vertices, check_weights
+    from stimulus_engine.correspondence.pipeline import deformed_mesh
+
+    paths, w = _split_weights(meshes, weights)
+    if len(paths) < 2:
+        raise AppealInputError(f"MESH...: expected at least two meshes to blend (got {len(paths)})")
+    w = check_weights(w, len(paths), "--weights")
+    _refuse_existing(out, force)
+    loaded = [load_mesh(p) for p in paths]
+    f0 = loaded[0].faces
+    for p, m in zip(paths[1:], loaded[1:]):
+        if m.vertices.shape != loaded[0].vertices.shape or (m.faces.shape == f0.shape and (m.faces != f0).any()) or m.faces.shape != f0.shape:
+            raise AppealInputError(
+                f"{p}: not in correspondence with {paths[0]} (expected the same vertex count and faces; "
+                f"got {len(m.vertices)} vs {len(loaded[0].vertices)} vertices)"
+            )
+    result = deformed_mesh(loaded[0], blend_vertices([m.vertices for m in loaded], w))
+    images = [texture_image(m) for m in loaded]
+    if all(im is not None for im in images) and len({im.size for im in images}) == 1:
+        import trimesh
+
+        result.visual.material = trimesh.visual.material.SimpleMaterial(image=blend_images(images, w))
+    save_mesh(result, out)
+    click.echo(f"{out}: blend of {len(paths)} meshes, weights {', '.join(f'{x:g}' for x in w)}")

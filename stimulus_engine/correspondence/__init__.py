@@ -1,0 +1,70 @@
+"""ElastiFace dense correspondence (Zell's thesis ch. 3): correspondences, similarity alignment,
+joint bi-Laplacian fairing, non-rigid registration, metrics.
+
+Public API
+----------
+correspond, CorrespondParams, CorrespondenceResult, deformed_mesh
+    The whole geometry matching (§3.2) and its result.
+SurfacePoints, Correspondences, parse_points, parse_pairs, load_pairs_file
+    Reference points (vertex, barycentric, or snapped 3D point) and their pairs (§3.2.1).
+boundary_loops, boundary_correspondences
+    Boundary-loop correspondences by relative arc length (Fig. 3.5).
+reorder_landmarks, read_ljson, landmark_orderings, LANDMARK_SUBSET_16
+    68-point landmark orderings (iBUG/Multi-PIE vs menpo LJSON).
+umeyama, Similarity
+    Closed-form similarity alignment.
+joint_fairing, nonrigid_register, Pruning
+    The two energies (eq. 3.7-3.10, 3.11-3.13).
+fit_metrics, flipped_triangles
+    Distances and fold-overs.
+"""
+
+from stimulus_engine.correspondence.alignment import Similarity, umeyama
+from stimulus_engine.correspondence.fairing import FairingResult, joint_fairing
+from stimulus_engine.correspondence.landmarks import (
+    LANDMARK_SUBSET_16,
+    Correspondences,
+    SurfacePoints,
+    boundary_correspondences,
+    boundary_loops,
+    landmark_orderings,
+    load_pairs_file,
+    parse_pairs,
+    parse_points,
+    read_ljson,
+    reorder_landmarks,
+)
+from stimulus_engine.correspondence.metrics import fit_metrics, flipped_triangles
+from stimulus_engine.correspondence.pipeline import (
+    CorrespondenceResult,
+    CorrespondParams,
+    correspond,
+    deformed_mesh,
+)
+from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
+
+__all__ = [
+    "LANDMARK_SUBSET_16",
+    "CorrespondParams",
+    "CorrespondenceResult",
+    "Correspondences",
+    "FairingResult",
+    "Pruning",
+    "Similarity",
+    "SurfacePoints",
+    "boundary_correspondences",
+    "boundary_loops",
+    "correspond",
+    "deformed_mesh",
+    "fit_metrics",
+    "flipped_triangles",
+    "joint_fairing",
+    "landmark_orderings",
+    "load_pairs_file",
+    "nonrigid_register",
+    "parse_pairs",
+    "parse_points",
+    "read_ljson",
+    "reorder_landmarks",
+    "umeyama",
+]
