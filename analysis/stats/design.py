@@ -294,12 +294,15 @@ def prepare_design(
     problems: list[str] = []
 
     raw = data[dv]
-    values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
-    blank = raw.isna().to_numpy() | raw.astype(str).str.strip().isin(["", "n/a", "NA", "nan", "NaN"]).to_numpy()
-    bad = np.isnan(values) & ~blank
-    if bad.any():
-        examples = ", ".join(repr(v) for v in pd.unique(raw[bad])[:3])
-        problems.append(f"{src}: {dv}: non-numeric values in {rows_text(_row_numbers(data, bad))} (e.g. {examples}); expected numbers")
+    if pd.api.types.is_numeric_dtype(raw.dtype):
+        values = raw.to_numpy(dtype=float)
+    else:
+        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+        blank = raw.isna().to_numpy() | raw.astype(str).str.strip().isin(["", "n/a", "NA", "nan", "NaN"]).to_numpy()
+        bad = np.isnan(values) & ~blank
+        if bad.any():
+            examples = ", ".join(repr(v) for v in pd.unique(raw[bad])[:3])
+            problems.append(f"{src}: {dv}: non-numeric values in {rows_text(_row_numbers(data, bad))} (e.g. {examples}); expected numbers")
     if scale is not None:
         lo, hi = scale
         out = ~np.isnan(values) & ((values < lo) | (values > hi))
@@ -314,53 +317,60 @@ def prepare_design(
         raise AppealInputError(problems)
 
     keep = ~np.isnan(values)
+    if not keep.any():
+        raise AppealInputError(f"{src}: {dv}: no numeric values")
     if not keep.all():
         logger.info("%s: %d rows without a %s value are ignored", src, int((~keep).sum()), dv)
-    df = pd.DataFrame({c: data[c].to_numpy()[keep] for c in [subject, *within, *between]})
-    df["__y"] = values[keep]
-    if df.empty:
-        raise AppealInputError(f"{src}: {dv}: no numeric values")
+    y = values[keep]
 
+    # factor codes via factorize (fast), mapped onto the level order
     fac_levels: dict[str, list] = {}
+    codes: dict[str, np.ndarray] = {}
     for col in [*between, *within]:
+        raw_codes, uniques = pd.factorize(data[col].to_numpy()[keep])
         try:
-            lv = factor_levels(data[col].iloc[np.flatnonzero(keep)], levels.get(col))
+            lv = factor_levels(pd.Series(uniques, dtype=data[col].dtype if isinstance(data[col].dtype, pd.CategoricalDtype) else None),
+                               levels.get(col))
         except ValueError as exc:
             problems.append(f"{src}: levels.{col}: {exc}")
             continue
         if len(lv) < 2:
             got = f"only '{lv[0]}'" if lv else "none"
             problems.append(f"{src}: {col}: a factor needs at least 2 levels (got {got})")
+        pos = {v: i for i, v in enumerate(lv)}
+        pos_str = {str(v): i for i, v in enumerate(lv)}
+        lut = np.array([pos[u] if u in pos else pos_str[str(u)] for u in uniques], dtype=np.int64)
         fac_levels[col] = lv
+        codes[col] = lut[raw_codes]
     if problems:
         raise AppealInputError(problems)
 
+    subj_codes, subj_uniques = pd.factorize(data[subject].to_numpy()[keep])
+    subj_str = [str(u) for u in subj_uniques]
+    subjects_all = sorted(subj_str)
+    rank = np.empty(len(subj_str), dtype=np.int64)
+    rank[np.argsort(subj_str, kind="stable")] = np.arange(len(subj_str))
+    si = rank[subj_codes]
+    n_s = len(subjects_all)
+
     # between factors: constant within subject
     if between:
-        per_subj = df.groupby(subject, sort=False)[between].nunique()
-        mixed = per_subj[(per_subj > 1).any(axis=1)]
-        if len(mixed):
-            who = ", ".join(map(str, mixed.index[:_MAX_LISTED]))
-            problems.append(f"{src}: between: subjects {who} have more than one level of a between factor ({', '.join(between)})")
-            raise AppealInputError(problems)
+        mixed_s = np.zeros(n_s, dtype=bool)
+        for col in between:
+            lo_c = np.full(n_s, np.iinfo(np.int64).max)
+            hi_c = np.full(n_s, -1)
+            np.minimum.at(lo_c, si, codes[col])
+            np.maximum.at(hi_c, si, codes[col])
+            mixed_s |= lo_c != hi_c
+        if mixed_s.any():
+            who = ", ".join(subjects_all[i] for i in np.flatnonzero(mixed_s)[:_MAX_LISTED])
+            raise AppealInputError(f"{src}: between: subjects {who} have more than one level of a between factor ({', '.join(between)})")
 
-    codes = {}
-    for col in [*between, *within]:
-        lv = fac_levels[col]
-        mapping = {v: i for i, v in enumerate(lv)}
-        codes[col] = df[col].map(mapping).to_numpy()
-
-    subjects_all = factor_levels(df[subject].astype(str))
-    subj_index = {s: i for i, s in enumerate(subjects_all)}
-    si = df[subject].astype(str).map(subj_index).to_numpy()
     shape = tuple(len(fac_levels[c]) for c in within)
     n_cells = int(np.prod(shape))
-    ci = np.ravel_multi_index(tuple(codes[c] for c in within), shape) if within else np.zeros(len(df), int)
-    n_s = len(subjects_all)
-    counts = np.zeros((n_s, n_cells), dtype=int)
-    np.add.at(counts, (si, ci), 1)
-    sums = np.zeros((n_s, n_cells))
-    np.add.at(sums, (si, ci), df["__y"].to_numpy())
+    ci = np.ravel_multi_index(tuple(codes[c] for c in within), shape)
+    counts = np.bincount(si * n_cells + ci, minlength=n_s * n_cells).reshape(n_s, n_cells)
+    sums = np.bincount(si * n_cells + ci, weights=y, minlength=n_s * n_cells).reshape(n_s, n_cells)
 
     cell_labels = list(itertools.product(*(map(str, fac_levels[c]) for c in within)))
 
@@ -399,12 +409,10 @@ def prepare_design(
         raise AppealInputError(f"{src}: {subject}: at least 2 complete subjects expected (got {len(subjects)})")
 
     if between:
-        first = df.drop_duplicates(subject).set_index(df.drop_duplicates(subject)[subject].astype(str))
         bshape = tuple(len(fac_levels[c]) for c in between)
-        bcodes = []
-        for c in between:
-            mapping = {v: k for k, v in enumerate(fac_levels[c])}
-            bcodes.append(first.loc[subjects, c].map(mapping).to_numpy())
+        first_row = np.full(n_s, -1)
+        first_row[si[::-1]] = np.arange(len(si))[::-1]
+        bcodes = [codes[c][first_row][keep_s] for c in between]
         group = np.ravel_multi_index(tuple(bcodes), bshape)
         n_groups = int(np.prod(bshape))
         present = np.bincount(group, minlength=n_groups)
