@@ -18,7 +18,7 @@ from stimulus_engine.morphpca.morphvec import deserialise
 __all__ = ["render_morph", "render_vectors", "Reconstructor", "reconstruct_image"]
 
 
-def render_morph(texture: np.ndarray, warp: np.ndarray, *, fix: bool = True, iterations: int = 10,
+def render_morph(texture: np.ndarray, warp: np.ndarray, *, fix: bool = True, iterations: int = 6,
                  base: np.ndarray | None = None) -> np.ndarray:
     """Image from a texture on the mean shape and its absolute warp field.
 
