@@ -23,3 +23,13 @@ from stimulus_engine.correspondence import (  # noqa: E402
 )
 from stimulus_engine.texture_transfer import transfer_texture  # noqa: E402
 from stimulus_engine.morph import blend_images, blend_vertices, partial_blend  # noqa: E402
+
+# --- 2D morph-space PCA face models (issue 6); full API in stimulus_engine.morphpca ---
+from stimulus_engine.morphpca import (  # noqa: E402
+    MorphModel,
+    Reconstructor,
+    build_avatar,
+    build_model,
+    load_model,
+    project_expression,
+)
