@@ -284,8 +284,8 @@ def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[
         backend = open_backend(protocol.triggers, log_path=paths["triggers"], clock=presenter.clock,
                                simulate=model is not None)
         sender = TriggerSender(backend, presenter.clock)
-    writer = TsvWriter(paths["beh"], columns)
-    flips = TsvWriter(paths["flips"], FLIP_COLUMNS, fsync=False)
+    writer = TsvWriter(paths["beh"], columns, fsync="background")
+    flips = TsvWriter(paths["flips"], FLIP_COLUMNS, fsync="off")
     runner = SessionRunner(protocol, presenter, screens, responder, writer, flips, sender,
                            {"participant_id": participant, "session": session},
                            screenshot_dir=Path(screenshot_dir) if screenshot_dir is not None else None)

@@ -126,7 +126,7 @@ MALFORMED = [
 ]
 
 
-@pytest.mark.parametrize("change,value,field,words", MALFORMED, ids=[f"{m[0]}={m[1]!r}"[:50] for m in MALFORMED])
+@pytest.mark.parametrize("change,value,field,words", MALFORMED, ids=[f"{i:02d}-{m[0]}" for i, m in enumerate(MALFORMED)])
 def test_malformed_protocol_one_line_error(tmp_path, change, value, field, words):
     data = copy.deepcopy(BASE)
     _set(data, change, value)

@@ -66,6 +66,18 @@ def test_tsv_writer_rows_durable_and_torn_line_cut(tmp_path):
     assert pd.read_csv(f, sep="\t")["b"].isna().tolist() == [True, False]
 
 
+def test_background_fsync_rows_visible_at_once(tmp_path):
+    f = tmp_path / "bg.tsv"
+    w = TsvWriter(f, ["a"], fsync="background")
+    for i in range(50):
+        w.write({"a": i})
+        assert read_completed(f)[-1] == {"a": str(i)}  # flushed before write() returned
+    w.close()
+    assert f.read_text().count("\n") == 51
+    with pytest.raises(ValueError, match="fsync must be"):
+        TsvWriter(tmp_path / "y.tsv", ["a"], fsync="sometimes")
+
+
 def test_simulated_session_without_window(tmp_path, manifest):
     proto = fast_protocol(tmp_path / "p.yaml", manifest)
     res = run_session(proto, "01", out=tmp_path / "o", simulate="default", window=False)
