@@ -94,10 +94,14 @@ def partial_blend(vertex_sets, faces: np.ndarray, vertex_weights: np.ndarray, ba
     anchors = w[:, base] >= 1 - 1e-9
     if not anchors.any():
         anchors[np.argmax(w[:, base])] = True
-    # min ||L X - δ||² + α Σ_anchor ||x_i - v_base,i||² + ε ||X - linear||²
+    # anchors are fixed exactly (Dirichlet); the rest solve min ||L X - δ||² + ε ||X - linear||²
+    free = ~anchors
+    out = np.where(anchors[:, None], v[base], linear)
+    if not free.any():
+        return out
     scale = float(np.median(np.abs(lap.diagonal()))) ** 2 + 1e-300
-    alpha = np.where(anchors, 1e3 * scale, 1e-6 * scale)
-    target = np.where(anchors[:, None], v[base], linear)
-    h = (lap.T @ lap + sp.diags(alpha)).tocsc()
-    rhs = lap.T @ delta + alpha[:, None] * target
-    return factorize(h).solve(rhs)
+    h = (lap.T @ lap).tocsr()
+    rhs = lap.T @ delta - h[:, anchors] @ out[anchors]
+    h_ff = h[free][:, free] + sp.identity(int(free.sum())) * (1e-6 * scale)
+    out[free] = factorize(h_ff).solve(rhs[free] + 1e-6 * scale * linear[free])
+    return out

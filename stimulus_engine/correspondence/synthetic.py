@@ -172,8 +172,8 @@ def synthetic_pair(
     src = synthetic_face(n_source, 1.0, 1.0, "grid", seed, texture_size)
     tgt = synthetic_face(n_target, eyes, nose, "jitter", seed + 1, texture_size)
     corr = Correspondences(
-        parse_points(synthetic_landmarks(1.0, 1.0), src, "source landmarks"),
-        parse_points(synthetic_landmarks(eyes, nose), tgt, "target landmarks"),
+        parse_points(synthetic_landmarks(1.0, 1.0), src, "source landmarks", snap_tolerance=0.1),
+        parse_points(synthetic_landmarks(eyes, nose), tgt, "target landmarks", snap_tolerance=0.1),
     )
     ends = np.array([[0, _RY, 0], [0, -_RY, 0], [_RX, 0, 0], [-_RX, 0, 0]], dtype=float)
     a = nearest_boundary_vertices(src.vertices, src.faces, ends)

@@ -1,0 +1,148 @@
+"""ElastiFace correspondence vs trimesh's nricp_amberg: time, fit and fold-overs on the same pairs.
+
+Pairs
+-----
+1. ICT face region (narrow face, 6,706 vertices) onto the menpo3d james scan (6,393 vertices),
+   16 of the 68 landmarks given, the other 52 held out (needs ../shared/data).
+2. A 19k -> 10k-vertex synthetic pair (grid source, stylised re-tessellated target).
+3. The stylised pair of the issue (eyes x1.6, nose x0.6, different tessellation), 3k -> 2k.
+
+For each: median wall time of repeats, stage seconds, relative Hausdorff/median distances,
+fold-overs (triangles facing against their neighbourhood that did not in the source), for ours
+and for ``trimesh.registration.nricp_amberg`` given the same landmarks, and the time ratio.
+
+Run: .venv/bin/python benchmarks/correspond.py [--repeats 3] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from appeal.assets import shared_data_dir  # noqa: E402
+from stimulus_engine.correspondence import Correspondences, SurfacePoints, correspond, fit_metrics  # noqa: E402
+from stimulus_engine.correspondence.landmarks import (  # noqa: E402
+    LANDMARK_SUBSET_16,
+    parse_points,
+    read_ljson,
+    reorder_landmarks,
+)
+from stimulus_engine.correspondence.synthetic import synthetic_pair  # noqa: E402
+from stimulus_engine.mesh_io import ict_regions, load_mesh, select_region  # noqa: E402
+
+
+def ict_james():
+    d = shared_data_dir()
+    if d is None:
+        return None
+    m = d / "meshes"
+    ict = load_mesh(m / "ict-facekit" / "generic_neutral_mesh.obj.gz")
+    regions = ict_regions(m / "ict-facekit" / "vertex_indices.json")
+    src, ids = select_region(ict, regions["narrow_face"])
+    remap = np.full(len(ict.vertices), -1)
+    remap[ids] = np.arange(len(ids))
+    lm_src = remap[regions["landmarks"]]
+    james = load_mesh(m / "menpo3d-james" / "james.obj")
+    pts, order = read_ljson(m / "menpo3d-james" / "james.ljson")
+    lm_t = reorder_landmarks(pts, order)
+    sub = LANDMARK_SUBSET_16
+    corr = Correspondences(SurfacePoints.from_vertices(lm_src[sub]), parse_points(lm_t[sub], james))
+    held = np.setdiff1d(np.arange(68), sub)
+    return src, james, corr, (lm_src[held], lm_t[held])
+
+
+def run_ours(src, tgt, corr, repeats):
+    times, res = [], None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        res = correspond(src, tgt, corr)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times), res
+
+
+def run_nicp(src, tgt, corr, repeats):
+    import trimesh
+
+    faces_idx = np.zeros(len(corr), dtype=np.int64)
+    bary = corr.source.weights
+    # nricp_amberg takes (triangle, barycentric) landmarks: find each point's triangle
+    fs = np.sort(src.faces, axis=1)
+    for k, (vv, ww) in enumerate(zip(corr.source.vertices, corr.source.weights)):
+        verts = set(int(x) for x, w in zip(vv, ww) if w > 0) or {int(vv[0])}
+        hit = np.flatnonzero(np.isin(src.faces, list(verts)).sum(axis=1) >= len(verts))
+        faces_idx[k] = hit[0]
+        f = src.faces[hit[0]]
+        bary[k] = [sum(w for x, w in zip(vv, ww) if x == fv) for fv in f]
+    del fs
+    from stimulus_engine.correspondence.alignment import umeyama
+
+    sim = umeyama(corr.source.positions(src.vertices), corr.target.positions(tgt.vertices))
+    aligned = trimesh.Trimesh(sim.apply(src.vertices), src.faces, process=False)
+    target_pos = corr.target.positions(tgt.vertices)
+    times, out = [], None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = trimesh.registration.nricp_amberg(
+            aligned, tgt, source_landmarks=(faces_idx, bary), target_positions=target_pos,
+            distance_threshold=0.05 * float(np.linalg.norm(np.ptp(tgt.vertices, axis=0))),
+        )
+        times.append(time.perf_counter() - t)
+    return statistics.median(times), np.asarray(out), sim.apply(src.vertices)
+
+
+def report(name, src, tgt, corr, repeats, held=None, n_features=None):
+    t_ours, res = run_ours(src, tgt, corr, repeats)
+    m = res.metrics
+    t_nicp, v_nicp, aligned = run_nicp(src, tgt, corr, repeats)
+    mn = fit_metrics(v_nicp, src.faces, tgt.vertices, tgt.faces, aligned)
+    rows = [("ours", m), ("nricp_amberg", mn)]
+    if n_features is not None and n_features < len(corr):
+        # NICP has no boundary-loop constraints: also run it on the feature landmarks alone
+        feat = Correspondences(corr.source.subset(slice(0, n_features)), corr.target.subset(slice(0, n_features)))
+        _, v_f, _ = run_nicp(src, tgt, feat, 1)
+        rows.append((f"nricp {n_features} lm", fit_metrics(v_f, src.faces, tgt.vertices, tgt.faces, aligned)))
+    print(f"\n== {name}: {len(src.vertices)} -> {len(tgt.vertices)} vertices, {len(corr)} correspondences, "
+          f"median of {repeats}")
+    stages = ", ".join(f"{k} {v:.2f}" for k, v in res.seconds.items() if k != "total")
+    print(f"  ours (ElastiFace)    {t_ours:7.2f} s   stages: {stages}")
+    print(f"  trimesh nricp_amberg {t_nicp:7.2f} s   ratio nicp/ours = {t_nicp / t_ours:.2f}")
+    print(f"  {'':20s} {'hausdorff':>10s} {'median':>9s} {'fold-overs':>10s} {'degenerate':>10s}")
+    for label, mm in rows:
+        print(f"  {label:20s} {mm['hausdorff_rel']:10.3%} {mm['median_dist_rel']:9.4%} "
+              f"{mm['flipped_triangles']:10d} {mm['degenerate_triangles']:10d}")
+    if held is not None:
+        ids, pts = held
+        diag = m["target_bbox_diagonal"]
+        for label, v in (("ours", res.vertices), ("nricp_amberg", v_nicp)):
+            d = np.linalg.norm(v[ids] - pts, axis=1) / diag
+            print(f"  held-out landmarks {label:13s} mean {d.mean():.2%}  median {np.median(d):.2%}  max {d.max():.2%}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--quick", action="store_true", help="only the small stylised pair, one repeat")
+    a = ap.parse_args()
+    if not a.quick:
+        pair = ict_james()
+        if pair is None:
+            print("ICT -> james skipped: ../shared/data not found")
+        else:
+            src, tgt, corr, held = pair
+            report("ICT face region -> james scan", src, tgt, corr, a.repeats, held)
+        src, tgt, corr = synthetic_pair(19000, 10000)
+        report("synthetic 19k -> 10k (stylised)", src, tgt, corr, a.repeats, n_features=16)
+    src, tgt, corr = synthetic_pair(3000, 2000)
+    report("stylised pair: eyes x1.6, nose x0.6, re-tessellated", src, tgt, corr, 1 if a.quick else a.repeats,
+           n_features=16)
+
+
+if __name__ == "__main__":
+    main()

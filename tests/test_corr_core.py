@@ -1,0 +1,184 @@
+"""Correspondence maths on small meshes: Laplacian, areas, Umeyama, closest points, landmarks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import trimesh
+
+from appeal.errors import AppealInputError
+from stimulus_engine.correspondence import (
+    Correspondences,
+    SurfacePoints,
+    boundary_correspondences,
+    boundary_loops,
+    parse_pairs,
+    parse_points,
+    reorder_landmarks,
+    umeyama,
+)
+from stimulus_engine.correspondence.closest import SurfaceIndex, closest_point_on_triangles
+from stimulus_engine.correspondence.landmarks import landmark_orderings
+from stimulus_engine.correspondence.laplacian import (
+    bilaplacian,
+    cotangent_laplacian,
+    fairing_operator,
+    voronoi_areas,
+)
+from stimulus_engine.correspondence.solve import ReusableSolver
+
+
+def grid(n=6, z=None):
+    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    v = np.column_stack([x.ravel(), y.ravel(), np.zeros(n * n) if z is None else z(x.ravel(), y.ravel())])
+    f = []
+    for i in range(n - 1):
+        for j in range(n - 1):
+            a = i * n + j
+            f += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
+    return v, np.array(f)
+
+
+def test_cotangent_laplacian_right_triangle():
+    # right isosceles triangle: angles 90 (cot 0), 45, 45 (cot 1)
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    L = cotangent_laplacian(v, np.array([[0, 1, 2]])).toarray()
+    # edge (1,2) is opposite the right angle: weight 0; edges (0,1), (0,2) opposite 45 deg: 1/2
+    np.testing.assert_allclose(L, [[-1, 0.5, 0.5], [0.5, -0.5, 0], [0.5, 0, -0.5]], atol=1e-12)
+
+
+def test_laplacian_of_linear_function_vanishes_inside():
+    v, f = grid(7)
+    L = cotangent_laplacian(v, f)
+    lin = 2 * v[:, 0] - 3 * v[:, 1] + 1
+    interior = (v[:, 0] > 0) & (v[:, 0] < 1) & (v[:, 1] > 0) & (v[:, 1] < 1)
+    np.testing.assert_allclose((L @ lin)[interior], 0, atol=1e-12)
+    # fairing operator: a flat grid (straight boundary sides) has zero energy except at corners
+    op = fairing_operator(v, f)
+    r = op @ v
+    corners = [0, 6, 42, 48]
+    mask = np.ones(len(v), bool)
+    mask[corners] = False
+    np.testing.assert_allclose(r[mask], 0, atol=1e-12)
+
+
+def test_voronoi_areas_sum_to_total_area():
+    v, f = grid(6, z=lambda x, y: 0.3 * np.sin(3 * x) * y)
+    m = trimesh.Trimesh(v, f, process=False)
+    np.testing.assert_allclose(voronoi_areas(v, f).sum(), m.area, rtol=1e-12)
+
+
+def test_bilaplacian_is_symmetric_psd():
+    v, f = grid(5, z=lambda x, y: x * y)
+    q = bilaplacian(fairing_operator(v, f), voronoi_areas(v, f))
+    assert abs(q - q.T).max() < 1e-9
+    assert np.linalg.eigvalsh(q.toarray()).min() > -1e-8
+
+
+def test_umeyama_recovers_similarity():
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(20, 3))
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    if np.linalg.det(q) < 0:
+        q[:, 0] *= -1
+    y = 2.5 * x @ q.T + [1, -2, 3]
+    s = umeyama(x, y)
+    assert s.scale == pytest.approx(2.5)
+    np.testing.assert_allclose(s.rotation, q, atol=1e-10)
+    np.testing.assert_allclose(s.apply(x), y, atol=1e-10)
+    np.testing.assert_allclose(s.inverse().apply(y), x, atol=1e-10)
+
+
+def test_umeyama_errors():
+    with pytest.raises(AppealInputError, match="at least 3"):
+        umeyama(np.zeros((2, 3)), np.zeros((2, 3)))
+    with pytest.raises(AppealInputError, match="collinear"):
+        umeyama(np.outer(np.arange(4), [1, 0, 0]), np.outer(np.arange(4), [0, 1, 0]))
+
+
+def test_closest_point_on_triangle_regions():
+    a, b, c = np.array([[0, 0, 0.0]]), np.array([[1, 0, 0.0]]), np.array([[0, 1, 0.0]])
+    pts = np.array([[0.2, 0.2, 1.0], [-1, -1, 0], [2, -0.5, 0], [1, 1, 0], [0.5, -1, 0]])
+    bary = closest_point_on_triangles(pts, *(np.repeat(t, len(pts), 0) for t in (a, b, c)))
+    want = np.array([[0.6, 0.2, 0.2], [1, 0, 0], [0, 1, 0], [0, 0.5, 0.5], [0.5, 0.5, 0]])
+    np.testing.assert_allclose(bary, want, atol=1e-12)
+
+
+def test_surface_index_matches_trimesh():
+    m = trimesh.creation.icosphere(3)
+    rng = np.random.default_rng(0)
+    q = rng.normal(size=(300, 3)) * 1.3
+    res = SurfaceIndex(m.vertices, m.faces).query(q)
+    _, d, _ = trimesh.proximity.closest_point(m, q)
+    np.testing.assert_allclose(res.distance, d, atol=1e-9)
+
+
+def test_boundary_flag():
+    v, f = grid(5)
+    res = SurfaceIndex(v, f).query(np.array([[-0.5, 0.5, 0.0], [0.5, 0.5, 0.3]]))
+    assert res.on_boundary.tolist() == [True, False]
+
+
+def test_parse_points_kinds_and_errors():
+    v, f = grid(4)
+    m = trimesh.Trimesh(v, f, process=False)
+    sp_ = parse_points([3, [0.5, 0.5, 0.001], {"face": 2, "bary": [0.2, 0.3, 0.5]}], m)
+    np.testing.assert_allclose(sp_.positions(v)[0], v[3])
+    np.testing.assert_allclose(sp_.positions(v)[1], [0.5, 0.5, 0.0], atol=1e-12)
+    np.testing.assert_allclose(sp_.positions(v)[2], 0.2 * v[f[2, 0]] + 0.3 * v[f[2, 1]] + 0.5 * v[f[2, 2]])
+    C = sp_.matrix(len(v))
+    np.testing.assert_allclose(C @ v, sp_.positions(v))
+    with pytest.raises(AppealInputError, match=r"landmarks\[0\]: vertex index 99 is out of range"):
+        parse_points([99], m)
+    with pytest.raises(AppealInputError, match=r"off the surface"):
+        parse_points([[0.5, 0.5, 3.0]], m)
+    with pytest.raises(AppealInputError, match="bary: expected 3 non-negative weights summing to 1"):
+        parse_points([{"face": 0, "bary": [0.5, 0.6, 0.1]}], m)
+    with pytest.raises(AppealInputError, match="same number of points"):
+        parse_pairs({"source": [0, 1, 2], "target": [0, 1]}, m, m)
+    with pytest.raises(AppealInputError, match="keys 'source' and 'target'"):
+        parse_pairs({"src": [0]}, m, m)
+
+
+def test_boundary_correspondences_by_arc_length():
+    # a square ring of 4x4 source vertices against a 7x7 target of the same square
+    vs, fs = grid(4)
+    vt, ft = grid(7)
+    loops = boundary_loops(fs)
+    assert len(loops) == 1 and len(loops[0]) == 12
+    corr = boundary_correspondences(vs, fs, vt, ft, [(0, 0)])
+    # equal relative arc length on equal squares: every source boundary vertex lands on itself
+    np.testing.assert_allclose(corr.target.positions(vt), corr.source.positions(vs), atol=1e-12)
+    with pytest.raises(AppealInputError, match="not on a boundary loop"):
+        boundary_correspondences(vs, fs, vt, ft, [(5, 0)])
+
+
+def test_landmark_orderings_round_trip():
+    pts = np.arange(68 * 3, dtype=float).reshape(68, 3)
+    ib = reorder_landmarks(pts, "menpo_ljson", "ibug68")
+    # menpo's 'leye' (points 17-22) are iBUG 36-41; its 'leyebrow' (29-33) are iBUG 17-21
+    np.testing.assert_array_equal(ib[36], pts[17])
+    np.testing.assert_array_equal(ib[17], pts[29])
+    np.testing.assert_array_equal(reorder_landmarks(ib, "ibug68", "menpo_ljson"), pts)
+    assert sorted(landmark_orderings()["menpo_ljson"]["to_ibug"]) == list(range(68))
+    with pytest.raises(AppealInputError, match="expected 68 points"):
+        reorder_landmarks(pts[:10], "ibug68")
+    with pytest.raises(AppealInputError, match="unknown"):
+        reorder_landmarks(pts, "dlib5")
+
+
+def test_reusable_solver_counts():
+    s = ReusableSolver()
+    h = sp.diags([2.0, 3.0, 4.0]).tocsc()
+    k = s.make_key(1.0, np.array([True, False]))
+    x1 = s.solve(k, lambda: h, np.ones((3, 1)))
+    x2 = s.solve(k, lambda: h, 2 * np.ones((3, 1)))
+    np.testing.assert_allclose(x2, 2 * x1)
+    s.solve(s.make_key(2.0), lambda: 2 * h, np.ones((3, 1)))
+    assert (s.factorizations, s.reuses) == (2, 1)
+
+
+def test_correspondences_length_check():
+    with pytest.raises(AppealInputError, match="same number"):
+        Correspondences(SurfacePoints.from_vertices([0, 1]), SurfacePoints.from_vertices([0]))
