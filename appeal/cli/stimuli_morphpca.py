@@ -16,7 +16,12 @@ from appeal.errors import AppealInputError
 _JSON_HELP = "Also write the metrics (explained variance, PSNR/SSIM, seconds) to this JSON file."
 
 
-@stimuli.group(context_settings=CONTEXT)
+@stimuli.group(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli morphpca build frames/ --keypoints keypoints.csv --out models/alice
+  appeal stimuli morphpca project smile.png --from models/alice/model.npz --to models/bob/model.npz --out proj
+  appeal stimuli morphpca avatar models/*/model.npz --out avatar
+  appeal stimuli morphpca reconstruct avatar/model.npz --loadings proj/loadings.csv --out frames""")
 def morphpca() -> None:
     """Morph-space PCA face models (Nagle et al.): expression spaces, mimicry, avatars.
 
