@@ -218,6 +218,31 @@ def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | Non
     raise ValueError(f"unknown shading '{shading}' (expected one of: {', '.join(SHADINGS)})")
 
 
+_SPLITS: dict[tuple[int, bool], tuple[object, list]] = {}
+
+
+def _split_parts(rig: FaceRig, textured_skin: bool) -> list:
+    """Per part: (name, (vertex, uv) index pairs, triangles, textured); cached per rig topology."""
+    key = (id(rig.faces), textured_skin)
+    hit = _SPLITS.get(key)
+    if hit is not None and hit[0] is rig.faces:
+        return hit[1]
+    out = []
+    for k, name in enumerate(rig.part_names):
+        sel = rig.face_part == k
+        if name == "hidden" or not sel.any():
+            continue
+        f = rig.faces[sel]
+        textured = name == "skin" and textured_skin
+        second = rig.face_uv[sel].ravel() if textured else np.zeros(f.size, np.int64)
+        uniq, inv = np.unique(np.stack([f.ravel(), second], axis=1), axis=0, return_inverse=True)
+        out.append((name, uniq, inv.reshape(-1, 3), textured))
+    if len(_SPLITS) > 16:
+        _SPLITS.clear()
+    _SPLITS[key] = (rig.faces, out)
+    return out
+
+
 def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | None, *,
                      shading: str = "pbr") -> list:
     """Render parts (skin with texture, eyes, teeth, mouth, lashes) for ``vertices`` of ``rig``.
@@ -241,18 +266,8 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         raise ValueError(f"rig '{rig.name}' has no UVs but a texture was asked for")
     normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
     parts = []
-    for k, name in enumerate(rig.part_names):
-        sel = rig.face_part == k
-        if name == "hidden" or not sel.any():
-            continue
-        f = rig.faces[sel]
-        textured = name == "skin" and albedo is not None
-        if textured:
-            pairs = np.stack([f.ravel(), rig.face_uv[sel].ravel()], axis=1)
-        else:
-            pairs = np.stack([f.ravel(), np.zeros(f.size, np.int64)], axis=1)
-        uniq, inv = np.unique(pairs, axis=0, return_inverse=True)
-        mesh = trimesh.Trimesh(v[uniq[:, 0]], inv.reshape(-1, 3), vertex_normals=normals[uniq[:, 0]], process=False)
+    for name, uniq, tri, textured in _split_parts(rig, albedo is not None):
+        mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=normals[uniq[:, 0]], process=False)
         if textured:
             mesh.visual = trimesh.visual.TextureVisuals(uv=rig.uv[uniq[:, 1]])
         mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), albedo if textured else None)
