@@ -33,3 +33,19 @@ from stimulus_engine.morphpca import (  # noqa: E402
     load_model,
     project_expression,
 )
+
+# --- stimulus grids: expressions, materials, stylisation, procedural head, neoteny (issue 5) ---
+# The renderer (pyrender/OpenGL) is the subpackage ``stimulus_engine.render`` (imported on use).
+from stimulus_engine.expressions import (  # noqa: E402
+    EXPRESSIONS,
+    FaceRig,
+    apply_expression,
+    deformation_transfer,
+    expression_weights,
+    load_ict_rig,
+)
+from stimulus_engine.materials import MATERIAL_LEVELS, rig_albedo, rig_render_parts, stylise_albedo  # noqa: E402
+from stimulus_engine.stylise import StyliseParams, stylise, stylise_rig  # noqa: E402
+from stimulus_engine.procedural_head import procedural_head  # noqa: E402
+from stimulus_engine.neoteny import neoteny_measures, neoteny_table  # noqa: E402
+from stimulus_engine.grid import run_grid  # noqa: E402
