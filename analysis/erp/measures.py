@@ -20,8 +20,8 @@ AMPLITUDE_COLUMNS = ["component", "cluster", "mean_uV", "peak_uV", "peak_latency
 def window_mask(times: np.ndarray, window: Sequence[float]) -> np.ndarray:
     """Samples inside ``window``, both ends snapped to the nearest sample and included.
 
-    The same rule as MNE's ``Evoked.get_data(tmin=, tmax=)`` / ``crop``, so window means
-    equal a plain MNE script's.
+    The same rule as MNE's ``Evoked.crop(tmin, tmax)``, so window means equal a plain MNE
+    script's (note that ``Evoked.get_data(tmin=, tmax=)`` leaves out the ``tmax`` sample).
 
     Raises
     ------

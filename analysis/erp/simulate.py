@@ -16,6 +16,7 @@ Recordings are written as BioSemi BDF with a Status channel (or FIF).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -159,7 +160,9 @@ def simulate_subject(design: SimulationDesign, subject_index: int, head=None, in
                     on_missing="ignore", verbose="error")
     # background EEG: ad hoc diagonal covariance coloured by an AR filter
     cov = mne.make_ad_hoc_cov(raw.info, std=dict(eeg=design.noise_uV * 1e-6), verbose="error")
-    mne.simulation.add_noise(raw, cov, iir_filter=[1.0, -0.6, 0.1], rng=int(rng.integers(2**31)), verbose="error")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mne.simulation.add_noise(raw, cov, iir_filter=[1.0, -0.6, 0.1], rng=int(rng.integers(2**31)), verbose="error")
     d = raw._data
     # slow drifts (removed by the high-pass) and blinks (removed by the EOG correction)
     tt = np.arange(n_times) / sf
@@ -229,19 +232,20 @@ def simulate_study(out_dir: str | Path, design: SimulationDesign | None = None, 
     -------
     dict
         ``files`` (list of paths), ``events`` (code -> levels), ``generators`` (name -> MNI mm
-        of the grid voxel used).
+        of the grid voxel used), ``bad_channels`` (subject -> broken electrodes).
     """
     design = design or SimulationDesign()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     head, info, fwd = _setup(design)
-    files = []
+    files, bads = [], {}
     for k in range(design.n_subjects):
         raw, _ = simulate_subject(design, k, head, info, fwd)
         files.append(write_raw(raw, out_dir / f"sub-{k + 1:02d}_task-faces_eeg.{fmt}"))
+        bads[f"{k + 1:02d}"] = raw.info["description"].split(": ", 1)[1].split()
     gens = {n: [round(float(v), 1) for v in g["mni"]] for n, g in planted_generators(head).items()}
-    truth = {"generators_mni_mm": gens, "events": {int(c): lv for c, lv in design.events.items()},
+    truth = {"generators_mni_mm": gens, "bad_channels": bads, "events": {int(c): lv for c, lv in design.events.items()},
              "design": {"n_subjects": design.n_subjects, "trials_per_cell": design.trials_per_cell,
                         "sfreq": design.sfreq, "spacing_mm": design.spacing_mm}}
     atomic_write_text(out_dir / "truth.yaml", yaml.safe_dump(truth, sort_keys=False))
-    return {"files": files, "events": design.events, "generators": gens}
+    return {"files": files, "events": design.events, "generators": gens, "bad_channels": bads}
