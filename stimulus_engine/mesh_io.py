@@ -558,6 +558,17 @@ def select_region(
     return sub, ids
 
 
+def read_json(path: str | os.PathLike, what: str):
+    """Parse a JSON file; a missing file or bad JSON is a one-line :class:`AppealInputError`."""
+    p = Path(path)
+    if not p.exists():
+        raise AppealInputError(f"{p}: {what} not found")
+    try:
+        return json.loads(p.read_text())
+    except json.JSONDecodeError as exc:
+        raise AppealInputError(f"{p}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+
+
 def ict_regions(vertex_indices_json: str | os.PathLike | None = None) -> dict[str, np.ndarray]:
     """Named vertex sets of the ICT Face Model.
 
@@ -570,12 +581,7 @@ def ict_regions(vertex_indices_json: str | os.PathLike | None = None) -> dict[st
     if vertex_indices_json is None:
         return out
     p = Path(vertex_indices_json)
-    if not p.exists():
-        raise AppealInputError(f"{p}: ICT vertex_indices.json not found")
-    try:
-        d = json.loads(p.read_text())
-    except json.JSONDecodeError as exc:
-        raise AppealInputError(f"{p}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    d = read_json(p, "ICT vertex_indices.json")
     keys = {
         "fitting": "idx_to_fitting_verts",
         "rigid": "idx_to_rigid_verts",

@@ -212,14 +212,9 @@ def parse_pairs(data, source_mesh, target_mesh, where: str = "landmarks") -> Cor
 
 def load_pairs_file(path, source_mesh, target_mesh) -> Correspondences:
     """Read a pairs JSON file (see :func:`parse_pairs`)."""
-    path = Path(path)
-    if not path.exists():
-        raise AppealInputError(f"{path}: landmark pairs file not found")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise AppealInputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    return parse_pairs(data, source_mesh, target_mesh, where=str(path))
+    from stimulus_engine.mesh_io import read_json
+
+    return parse_pairs(read_json(path, "landmark pairs file"), source_mesh, target_mesh, where=str(path))
 
 
 # --------------------------------------------------------------------------------------------
