@@ -1,0 +1,116 @@
+"""Expressions, deformation transfer, stylisation, materials and neoteny on small and real data."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stimulus_engine.expressions import (
+    apply_expression,
+    deformation_transfer,
+    expression_weights,
+    load_ict_rig,
+    resolve_expression,
+)
+from stimulus_engine.materials import rig_render_parts, stylise_albedo
+from stimulus_engine.neoteny import neoteny_measures
+from stimulus_engine.procedural_head import procedural_head
+from stimulus_engine.stylise import stylise
+
+
+@pytest.fixture(scope="module")
+def ict(shared_data):
+    return load_ict_rig(shared_data / "meshes/ict-facekit", "identity000",
+                        shapes=["mouthSmile_L", "mouthSmile_R", "cheekSquint_L", "cheekSquint_R", "mouthDimple_L",
+                                "mouthDimple_R", "mouthLowerDown_L", "mouthLowerDown_R", "jawOpen"])
+
+
+def test_recipes_weights_and_aliases():
+    w = expression_weights("happy", 0.5)
+    assert w == {"cheekSquint_L": 0.4, "cheekSquint_R": 0.4, "mouthSmile_L": 0.5, "mouthSmile_R": 0.5,
+                 "mouthDimple_L": 0.1, "mouthDimple_R": 0.1, "mouthLowerDown_L": 0.125, "mouthLowerDown_R": 0.125}
+    assert expression_weights("neutral") == {}
+    assert resolve_expression("Angry") == "anger"
+    with pytest.raises(ValueError, match="unknown expression 'smug'.*happiness"):
+        resolve_expression("smug")
+
+
+def test_deformation_transfer_on_a_tetrahedron_is_exact_for_affine_maps():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3], [1, 4, 2], [2, 4, 3], [1, 3, 4]])
+    A = np.array([[1.2, 0.1, 0], [0, 0.9, 0.2], [0.1, 0, 1.1]])
+    moved = v.copy()
+    moved[4] = A @ v[4] - A @ v[1] + v[1]  # only vertex 4 moves, by the affine map about vertex 1
+    # the same deformation carried to the same rest shape reproduces it
+    out = deformation_transfer(v, moved, v, f)
+    assert np.allclose(out, moved, atol=1e-6)
+    # on a uniformly scaled target the moved vertex follows the scaled deformation
+    out2 = deformation_transfer(v, moved, 2 * v, f)
+    assert np.allclose(out2[:4], 2 * v[:4])
+    assert np.linalg.norm(out2[4] - 2 * moved[4]) < np.linalg.norm(2 * v[4] - 2 * moved[4])
+
+
+def test_ict_expression_and_transfer_to_stylised_shape(ict):
+    v = apply_expression(ict, "happiness")
+    d = np.linalg.norm(v - ict.vertices, axis=1)
+    lm = ict.landmarks
+    # the smile moves the mouth corners up, the forehead not at all
+    corner = lm["mouth_left"][0]
+    assert v[corner, 1] - ict.vertices[corner, 1] > 0.3
+    assert d[lm["forehead_top"][0]] < 0.1 * d[corner]
+    # transfer onto the rig's own neutral is the plain blendshape sum
+    same = apply_expression(ict, "happiness", target=ict.vertices.copy())
+    assert np.abs(same - v).max() < 1e-6
+    # onto a stylised shape: the corners still move up; level 0 stylisation is the identity
+    assert np.array_equal(stylise(ict, 0.0), ict.vertices)
+    s = stylise(ict, 1.0)
+    t = apply_expression(ict, "happiness", target=s)
+    assert t[corner, 1] - s[corner, 1] > 0.2
+    with pytest.raises(ValueError, match="lacks blendshape"):
+        apply_expression(ict, "surprise")
+
+
+def test_stylisation_is_continuous_and_neotenic(ict):
+    m = [neoteny_measures(ict.landmark_points(stylise(ict, lv))) for lv in (0.0, 0.5, 1.0)]
+    assert m[0]["eye_width"] < m[1]["eye_width"] < m[2]["eye_width"]
+    assert m[0]["nose_width"] > m[2]["nose_width"]
+    assert m[0]["mouth_width"] > m[2]["mouth_width"]
+    assert m[0]["eye_position"] < m[2]["eye_position"] or m[0]["forehead_height"] < m[2]["forehead_height"]
+    a, b = stylise(ict, 0.50), stylise(ict, 0.51)
+    assert np.abs(a - b).max() < 0.1  # a small step in level is a small step in shape
+    with pytest.raises(ValueError, match="within 0..1"):
+        stylise(ict, 1.5)
+
+
+def test_albedo_stylisations():
+    rng = np.random.default_rng(0)
+    img = (rng.random((64, 64, 3)) * 255).astype(np.uint8)
+    lips = np.zeros((64, 64), np.float32)
+    lips[20:30, 20:40] = 1
+    img[20:30, 20:40] = (200, 40, 40)
+    flat = stylise_albedo(img, "flat", {"lips": lips})
+    assert (flat[25, 30] == (200, 40, 40)).all()
+    assert len(np.unique(flat[lips == 0].reshape(-1, 3), axis=0)) == 1
+    blur = stylise_albedo(img, "blur50", {"lips": lips})
+    assert blur[lips == 0].std() < img[lips == 0].std()
+    assert (blur[25, 30] == (200, 40, 40)).all()  # lips blurred on their own: no skin bleeds in
+    assert stylise_albedo(img, "bilateral").std() < img.std()
+    assert np.array_equal(stylise_albedo(img, "original"), img)
+    with pytest.raises(ValueError, match="unknown material style 'gold'"):
+        stylise_albedo(img, "gold")
+
+
+def test_procedural_head_is_deterministic_and_textured():
+    a = procedural_head(4, texture_size=64, resolution=24)
+    b = procedural_head.__wrapped__(4, texture_size=64, resolution=24) if hasattr(procedural_head, "__wrapped__") \
+        else procedural_head(4, texture_size=64, resolution=24)
+    assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.texture, b.texture)
+    c = procedural_head(5, texture_size=64, resolution=24)
+    assert not np.array_equal(a.texture, c.texture)
+    assert a.texture_masks["lips"].max() == 1.0
+    parts = rig_render_parts(a, a.vertices, a.texture)
+    assert {p.name for p in parts} == {"skin", "sclera", "iris"}
+    no_uv = a.with_vertices(a.vertices)
+    no_uv.uv = None
+    with pytest.raises(ValueError, match="no UVs but a texture was asked for"):
+        rig_render_parts(no_uv, a.vertices, a.texture)
