@@ -73,6 +73,9 @@ class StimulusSource(StudyModel):
     table: OutputPath | None = None
     grid: OutputPath | None = Field(None, description="grid file that renders these stimuli (shown in errors)")
     factors: list[Name] = Field(min_length=1, description="the factor columns, in analysis order")
+    levels: dict[Name, list[Level]] = Field(
+        default_factory=dict, description="factor -> its levels in order (most stylised first); used by "
+        "select.match (levels at the same position match) and by simulated participants")
     select: Selection = Field(default_factory=Selection)
 
     @model_validator(mode="after")
@@ -85,6 +88,9 @@ class StimulusSource(StudyModel):
             raise ValueError("'table' goes with 'folder', not with 'manifest'")
         if len(set(self.factors)) != len(self.factors):
             raise ValueError(f"factors must be unique (got {self.factors})")
+        unknown = [f for f in self.levels if f not in self.factors]
+        if unknown:
+            raise ValueError(f"levels: unknown factor(s) {unknown} (factors: {self.factors})")
         return self
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -36,13 +36,16 @@ class StimulusSet:
     table: pd.DataFrame
     factors: list[str]
     source: Path
+    order: dict[str, list[str]] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.table)
 
     def levels(self, factor: str) -> list[str]:
-        """The levels of ``factor`` in natural order (numbers numerically)."""
-        return sort_levels(self.table[factor].unique())
+        """The levels of ``factor``: in the protocol's declared order, else natural order."""
+        present = set(self.table[factor].unique())
+        declared = [v for v in self.order.get(factor, []) if v in present]
+        return declared + sort_levels(present - set(declared))
 
 
 def sort_levels(levels: Sequence[Any]) -> list[str]:
@@ -144,7 +147,8 @@ def load_stimuli(source: StimulusSource, *, override: str | Path | None = None, 
     dup = out["stimulus"][out["stimulus"].duplicated()].tolist()
     if dup:
         raise AppealInputError(f"{table_path}: file: listed twice: {dup[0]}")
-    sset = StimulusSet(out.reset_index(drop=True), list(source.factors), table_path)
+    order = {f: [level_key(v) for v in vs] for f, vs in source.levels.items()}
+    sset = StimulusSet(out.reset_index(drop=True), list(source.factors), table_path, order)
     if not apply_select:
         return sset
     selected = select_stimuli(sset, source.select)
@@ -162,7 +166,7 @@ def _where_mask(table: pd.DataFrame, where: Mapping[str, Any]) -> pd.Series:
 
 
 def _match_key(level: str) -> str:
-    """Levels compared by ``match``: their trailing number when they have one (s2 ~ m2 ~ 2)."""
+    """Levels compared by ``match`` (no declared order): their trailing number (s2 ~ m2 ~ 2)."""
     m = re.search(r"(\d+(?:\.\d+)?)$", level)
     return level_key(m.group(1)) if m else level
 
@@ -176,7 +180,12 @@ def select_stimuli(sset: StimulusSet, selection: Selection | None) -> StimulusSe
     for factor, levels in selection.exclude.items():
         mask &= ~_where_mask(table, {factor: levels})
     if selection.match:
-        first = table[selection.match[0]].map(_match_key)
+        def keys(f: str) -> pd.Series:
+            if f in sset.order:  # declared order: the level's position
+                pos = {v: str(i) for i, v in enumerate(sset.order[f])}
+                return table[f].map(lambda v: pos.get(v, f"?{v}"))
+            return table[f].map(_match_key)
+        first = keys(selection.match[0])
         for other in selection.match[1:]:
-            mask &= table[other].map(_match_key) == first
-    return StimulusSet(table[mask].reset_index(drop=True), sset.factors, sset.source)
+            mask &= keys(other) == first
+    return StimulusSet(table[mask].reset_index(drop=True), sset.factors, sset.source, sset.order)

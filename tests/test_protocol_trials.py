@@ -17,7 +17,7 @@ from experiments import (build_trials, check_order, constrained_order, fixation_
 from experiments.drawn_faces import draw_face_grid
 from experiments.protocol_schema import Selection
 
-ERP_FACTORS = {"character": ["c1", "c2"], "stylisation": list(range(6)), "emotion": ["angry", "happy", "neutral"]}
+ERP_FACTORS = {"character": ["ict000", "ict001"], "stylisation": list(range(6)), "emotion": ["angry", "happy", "neutral"]}
 GRID2 = {"character": ["c1", "c2"], "shape": [0, 1, 2], "material": [0, 1, 2],
          "expression": ["neutral", "anger", "happiness", "sadness", "surprise"]}
 
@@ -72,12 +72,12 @@ def test_erp_one_trigger_per_onset_and_codes_match_conditions(erp_manifest):
 def test_trigger_coverage_error(erp_manifest, tmp_path):
     proto = load_protocol(protocols_dir() / "erp_stylisation.yaml")
     proto = proto.model_copy(deep=True)
-    proto.triggers.codes = proto.triggers.codes[1:]  # drop c1/0/angry
+    proto.triggers.codes = proto.triggers.codes[1:]  # drop ict000/0/angry
     stim = load_stimuli(proto.stimuli, override=erp_manifest)
     with pytest.raises(AppealInputError) as exc:
         build_trials(proto, stim, seed=0, refresh_hz=60, source="erp.yaml")
-    assert exc.value.lines == ["erp.yaml: triggers.codes: no code for condition character=c1, stylisation=0, "
-                               "emotion=angry (stimulus character-c1_stylisation-0_emotion-angry.png)"]
+    assert exc.value.lines == ["erp.yaml: triggers.codes: no code for condition character=ict000, stylisation=0, "
+                               "emotion=angry (stimulus character-ict000_stylisation-0_emotion-angry.png)"]
 
 
 def test_same_seed_same_order_other_seed_other_order(erp_manifest):
@@ -127,6 +127,7 @@ def _proto(tmp_path, manifest, **changes):
     data = yaml.safe_load((protocols_dir() / "exp2_stylisation.yaml").read_text())
     data["stimuli"]["manifest"] = str(manifest)
     data["stimuli"].pop("grid")
+    data["stimuli"].pop("levels")  # the drawn faces have numeric levels
     for k, v in changes.items():
         data[k] = v
     f = tmp_path / "p.yaml"
@@ -193,6 +194,20 @@ def test_exp1c_three_passes_in_different_orders(tmp_path, grid2_manifest):
     assert all(sorted(p) == sorted(passes[0]) for p in passes)
     assert passes[0] != passes[1] != passes[2]
     assert [t.repetition for t in trials] == [1] * n + [2] * n + [3] * n
+
+
+def test_selection_match_by_declared_level_order(grid2_manifest, tmp_path):
+    """The grid's own level names: shape 1.0 ~ flat (most stylised), 0.0 ~ original (realistic)."""
+    df = pd.read_csv(grid2_manifest)
+    df["shape"] = df["shape"].map({0: "1.0", 1: "0.5", 2: "0.0"})
+    df["material"] = df["material"].map({0: "flat", 1: "blur50", 2: "original"})
+    named = grid2_manifest.parent / "named.csv"
+    df.to_csv(named, index=False)
+    proto = load_protocol(protocols_dir() / "exp2_stylisation.yaml")
+    full = load_stimuli(proto.stimuli, override=named, apply_select=False)
+    anchors = select_stimuli(full, proto.anchors.select).table
+    assert sorted(set(zip(anchors["shape"], anchors["material"]))) == [("0", "original"), ("0.5", "blur50"), ("1", "flat")]
+    assert full.levels("shape") == ["1", "0.5", "0"] and full.levels("material") == ["flat", "blur50", "original"]
 
 
 def test_selection_match_uses_level_numbers():

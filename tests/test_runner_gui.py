@@ -45,6 +45,7 @@ def _small(src, dst, manifest, **changes):
     data = yaml.safe_load((protocols_dir() / src).read_text())
     data["stimuli"]["manifest"] = str(manifest)
     data["stimuli"].pop("grid", None)
+    data["stimuli"].pop("levels", None)  # the drawn faces have numeric levels
     data.pop("breaks", None)
     data.update(changes)
     dst.write_text(yaml.safe_dump(data, allow_unicode=True))

@@ -42,13 +42,14 @@ def _run(out: Path, seed: int) -> ReportSection:
                                                     "material": [0, 2, 4], "expression": ["neutral", "happiness", "anger"]},
                                size=(400, 300))
         source = "simple drawn faces (no grid stage output found)"
+        exp2["stimuli"].pop("levels")  # numeric levels, ordered naturally
     exp2["stimuli"]["manifest"] = str(stim2)
     exp2["stimuli"].pop("grid")
     exp2["anchors"]["if_missing"] = "skip"  # a grid without matching shape/material levels has no baselines
     p2 = out / "exp2_demo.yaml"
     p2.write_text(yaml.safe_dump(exp2, allow_unicode=True))
     _session(p2, out / "exp2", out / "screens_exp2", stim2, seed, window)
-    erp_faces = draw_face_grid(out / "faces_erp", {"character": ["c1", "c2"], "stylisation": list(range(6)),
+    erp_faces = draw_face_grid(out / "faces_erp", {"character": ["ict000", "ict001"], "stylisation": list(range(6)),
                                                    "emotion": ["angry", "happy", "neutral"]}, size=(400, 300))
     _session(protocols_dir() / "erp_stylisation.yaml", out / "erp", out / "screens_erp", erp_faces, seed, window)
     import pandas as pd
