@@ -92,6 +92,11 @@ class RatingsAnalysis(StudyModel):
     scales: list[str] | None = Field(None, min_length=1)
     scale_range: tuple[float, float] | None = (1, 7)
     levels: dict[str, list[str | int | float]] = Field(default_factory=dict)
+    rows: dict[str, list[str | int | float]] = Field(
+        default_factory=lambda: {"phase": ["main"]},
+        description="Keep only rows whose column holds one of these values; a column the data lack is "
+                    "ignored. The default keeps the runner's main trials (drops anchors, practice and "
+                    "end-of-session items).")
     aggregate: Literal["mean"] | None = "mean"
     incomplete: Literal["error", "drop", "mixed"] = "mixed"
     stimulus: str | None = "stimulus"

@@ -178,6 +178,20 @@ def read_ratings(paths: str | Path | Sequence[str | Path], subject: str = "parti
     return out
 
 
+def keep_rows(data: pd.DataFrame, rows: dict[str, Sequence]) -> pd.DataFrame:
+    """Rows whose column ``c`` holds one of ``rows[c]`` (columns absent from ``data`` are ignored).
+
+    Values are compared as text, so ``main`` matches whether the column was read as text or not.
+    """
+    mask = np.ones(len(data), dtype=bool)
+    for col, values in rows.items():
+        if col in data.columns:
+            mask &= data[col].astype(str).isin([str(v) for v in values]).to_numpy()
+    out = data.loc[mask].reset_index(drop=True)
+    out.attrs.update(data.attrs)
+    return out
+
+
 # --------------------------------------------------------------------------- checks
 def rows_text(rows: Sequence[int]) -> str:
     """'rows 3, 7, 9' with at most a few listed."""

@@ -14,7 +14,7 @@ import pandas as pd
 
 from analysis.stats.anova import fit_design
 from analysis.stats.contrasts import compare_trends, contrasts_from_design
-from analysis.stats.design import prepare_design, read_ratings
+from analysis.stats.design import keep_rows, prepare_design, read_ratings
 from analysis.stats.intervals import within_ci_from_design
 from analysis.stats.mixed import mixed_model_anova
 from analysis.stats.plots import bar_plot, interaction_plot, realism_vs_appeal_plot
@@ -99,6 +99,7 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
         ``results.json``).
     """
     data = read_ratings(cfg.data, subject=cfg.subject) if data is None else data
+    data = keep_rows(data, cfg.rows)
     source = data.attrs.get("source", str(cfg.data))
     scales = scale_columns(data, cfg.scales, source)
     result = StudyResult()
