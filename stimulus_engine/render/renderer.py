@@ -96,7 +96,32 @@ def _points(parts: list[Any]) -> np.ndarray:
     return np.concatenate([p.bounds for p in parts], axis=0)
 
 
-def _add_lights(scene: Any, lights: list[LightSpec], camera: CameraSpec) -> bool:
+class _OrderedNode(pyrender.Node):
+    """A scene node hashed by its position in the scene, not by its memory address.
+
+    pyrender keeps meshes and lights in Python sets and draws / sums them in set order; with the
+    default identity hash that order changes from process to process, so pixels where two parts
+    meet at equal depth (and the floating-point sum over lights) could differ between two renders
+    of the same inputs. Small consecutive integer hashes give the same order every time.
+    """
+
+    def __init__(self, order: int, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self._order = order
+
+    def __hash__(self) -> int:
+        return self._order
+
+    def __eq__(self, other: object) -> bool:
+        return self is other
+
+
+def _add(scene: Any, counter: list[int], pose: np.ndarray | None = None, **what: Any) -> None:
+    counter[0] += 1
+    scene.add_node(_OrderedNode(counter[0], matrix=pose, **what))
+
+
+def _add_lights(scene: Any, lights: list[LightSpec], camera: CameraSpec, counter: list[int]) -> bool:
     """Add camera-relative lights to ``scene``; return True if any casts a shadow."""
     rot = camera.rotation()
     target = np.asarray(camera.target, float)
@@ -122,7 +147,7 @@ def _add_lights(scene: Any, lights: list[LightSpec], camera: CameraSpec) -> bool
             pose[:3, 3] = target - d * dist + (x * spec.offset[0] + y * spec.offset[1]) * dist
         else:
             raise ValueError(f"unknown light kind '{spec.kind}' (expected directional or spot)")
-        scene.add(light, pose=pose)
+        _add(scene, counter, pose, light=light)
         shadows |= spec.shadow
     return shadows
 
@@ -170,13 +195,14 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
     if camera is None:
         camera = fit_camera(_points(parts), width / height)
     scene = pyrender.Scene(bg_color=[*map(float, background), 1.0], ambient_light=[ambient] * 3)
+    counter = [0]
     for p in parts:
-        scene.add(p)
+        _add(scene, counter, mesh=p)
     dist = camera.distance
     cam = pyrender.PerspectiveCamera(yfov=math.radians(camera.yfov_deg), aspectRatio=width / height,
                                      znear=max(dist * 0.05, 1e-4), zfar=dist * 20)
-    scene.add(cam, pose=camera.pose())
-    want_shadows = _add_lights(scene, lights, camera) and shadows
+    _add(scene, counter, camera.pose(), camera=cam)
+    want_shadows = _add_lights(scene, lights, camera, counter) and shadows
     flags = pyrender.RenderFlags.NONE
     if want_shadows:
         flags |= pyrender.RenderFlags.SHADOWS_DIRECTIONAL | pyrender.RenderFlags.SHADOWS_SPOT
