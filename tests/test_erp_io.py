@@ -1,0 +1,125 @@
+"""Readers on the real BioSemi files, and bad input -> one-line errors naming file and field."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+
+from analysis.erp.config import event_map, load_erp_config, read_protocol_codes
+from analysis.erp.io import find_trigger_events, read_recording, select_events
+from analysis.erp.pipeline import preprocess
+from analysis.erp.simulate import SimulationDesign, simulate_study
+from appeal.errors import AppealInputError, StudyFileError
+
+
+def test_test_bdf_equals_eeglab_reading(shared_data):
+    from scipy.io import loadmat
+
+    raw = read_recording(shared_data / "eeg/biosemi/test.bdf")
+    eeglab = loadmat(shared_data / "eeg/biosemi/test_bdf_eeglab.mat")["data"]  # 72 x 2048, µV
+    assert raw.info["sfreq"] == 2048 and raw.ch_names[-1] == "Status"
+    ours = raw.get_data()[:72] * 1e6
+    # EEGLAB keeps single precision: values agree to < 0.01 µV (BioSemi's step is 1/32 µV)
+    assert np.abs(ours - eeglab).max() < 0.01
+    assert np.corrcoef(ours.ravel(), eeglab.ravel())[0, 1] > 0.999999
+
+
+def test_events_from_status_channel(shared_data):
+    path = shared_data / "eeg/biosemi/test_bdf_stim_channel.bdf"
+    raw = read_recording(path)
+    ev = find_trigger_events(raw, path)
+    # reference: mne.find_events(read_raw_bdf(path), shortest_event=1) -> codes 4, 2, then 1 x7
+    assert ev[:3].tolist() == [[242, 0, 4], [310, 0, 2], [952, 0, 1]]
+    assert dict(zip(*np.unique(ev[:, 2], return_counts=True))) == {1: 7, 2: 1, 4: 1}
+    with pytest.raises(AppealInputError, match=r"events: unknown trigger codes 4 \(1x\)"):
+        select_events(ev, codes=[1, 2], path=path)
+    assert len(select_events(ev, codes=[1, 2], ignore=[4], path=path)) == 8
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    d = tmp_path_factory.mktemp("erp_small")
+    design = SimulationDesign(n_subjects=1, trials_per_cell=2, sfreq=128, spacing_mm=15.0)
+    sim = simulate_study(d, design)
+    cfg = {"kind": "erp", "recordings": "sub-*_eeg.bdf", "events": {int(c): lv for c, lv in design.events.items()},
+           "eog": ["EXG1", "EXG2", "EXG3", "EXG4"], "source": {"enabled": False}}
+    (d / "erp.yaml").write_text(yaml.safe_dump(cfg))
+    return d, sim["files"][0]
+
+
+def _run(d, path, **changes):
+    cfg = load_erp_config(d / "erp.yaml")
+    cfg = cfg.model_copy(update=changes)
+    return preprocess(path, cfg, event_map(cfg))
+
+
+def test_small_recording_runs(small):
+    d, path = small
+    epochs, qc = _run(d, path)
+    assert qc["n_events"] == 36 and len(epochs) == 36 - round(qc["pct_trials_rejected"] * 36 / 100)
+
+
+def test_truncated_file(small, tmp_path):
+    d, path = small
+    bad = tmp_path / "sub-99_task-faces_eeg.bdf"
+    bad.write_bytes(path.read_bytes()[: path.stat().st_size // 2 + 7])
+    with pytest.raises(AppealInputError, match=r"sub-99_task-faces_eeg.bdf: truncated: header announces \d+ data records"):
+        read_recording(bad)
+
+
+def test_missing_eog_channel(small):
+    d, path = small
+    with pytest.raises(AppealInputError, match=r"eog: channels not in the recording: EXG9"):
+        _run(d, path, eog=["EXG1", "EXG9"])
+
+
+def test_wrong_montage(small):
+    d, path = small
+    with pytest.raises(AppealInputError, match=r"montage: 'biosemi64' has positions for \d+ of the 128 EEG channels"):
+        _run(d, path, montage="biosemi64")
+
+
+def test_unknown_codes_and_no_events(small, tmp_path):
+    d, path = small
+    cfg = load_erp_config(d / "erp.yaml")
+    events = {c: lv for c, lv in cfg.events.items() if c != 11}
+    with pytest.raises(AppealInputError, match=r"events: unknown trigger codes 11 \(2x\)"):
+        _run(d, path, events=events)
+    import mne
+
+    raw = mne.io.read_raw_bdf(path, preload=True, verbose="error")
+    raw._data[-1] = 0
+    with pytest.raises(AppealInputError, match=r"events: no trigger events found in the stim channel Status"):
+        find_trigger_events(raw, path)
+
+
+def test_protocol_codes_and_config_errors(tmp_path):
+    from appeal.assets import protocols_dir
+
+    codes = read_protocol_codes(protocols_dir() / "erp_stylisation.yaml")
+    assert {k: codes[11][k] for k in ("stylisation", "emotion")} == {"stylisation": 0, "emotion": "angry"}
+    assert set(codes[11]) == {"character", "stylisation", "emotion"}
+    assert len(codes) == 36
+    p = tmp_path / "bad.yaml"
+    p.write_text("kind: erp\nrecordings: x/*.bdf\nevents: {11: {s: 0}}\nreject: {absolute_uV: 100, peak_to_peak_uV: 80}\n"
+                 "components: {N170: {window_s: [0.2, 0.1], clusters: {left: [PO7]}}}\nmontage: biosemi129\n")
+    with pytest.raises(StudyFileError) as err:
+        load_erp_config(p)
+    text = str(err.value)
+    assert "bad.yaml: reject: give absolute_uV or peak_to_peak_uV, not both" in text
+    assert "bad.yaml: components.N170.window_s: window_s must be [start, end] with start < end" in text
+    assert "bad.yaml: montage: unknown montage 'biosemi129' (did you mean 'biosemi128'?)" in text
+    proto = tmp_path / "proto.yaml"
+    proto.write_text("triggers:\n  codes:\n    - {code: x1, emotion: angry}\n")
+    with pytest.raises(StudyFileError, match=r"proto.yaml: triggers.codes\[0\].code: expected an integer"):
+        read_protocol_codes(proto)
+    q = tmp_path / "q.yaml"
+    q.write_text(f"kind: erp\nrecordings: x.bdf\nevents: {{protocol: {proto.name}}}\nfactors: [emotion]\n")
+    with pytest.raises(StudyFileError, match="triggers.codes"):
+        event_map(load_erp_config(q), q)
+    proto.write_text("triggers:\n  codes:\n    - {code: 1, emotion: angry, s: 0}\n    - {code: 2, emotion: happy, s: 0}\n")
+    em = event_map(load_erp_config(q), q)
+    assert em.factors == ["emotion"] and em.cells == [("angry",), ("happy",)]

@@ -1,0 +1,139 @@
+"""End to end on simulated BDF recordings: planted effects recovered, source peaks near the
+planted generators, equality with a plain MNE script, and a broken subject that does not
+stop the others (through the ``appeal analyze erp`` command)."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from analysis.erp.simulate import SimulationDesign, simulate_study
+from appeal.cli import main
+
+DESIGN = SimulationDesign(n_subjects=8, trials_per_cell=8, sfreq=128, spacing_mm=12.0, seed=3)
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    d = tmp_path_factory.mktemp("erp_study")
+    sim = simulate_study(d / "data", DESIGN)
+    # a ninth, broken recording: the run must report it and go on
+    broken = d / "data" / "sub-09_task-faces_eeg.bdf"
+    broken.write_bytes(sim["files"][0].read_bytes()[:300_000])
+    cfg = {"kind": "erp", "recordings": "data/sub-*_task-faces_eeg.bdf",
+           "events": {int(c): lv for c, lv in DESIGN.events.items()},
+           "levels": {"emotion": ["angry", "neutral", "happy"]}, "eog": list(DESIGN.eog),
+           "source": {"spacing_mm": DESIGN.spacing_mm, "contrasts": [[5, 0]], "components": ["N170", "LPP"],
+                      "n_permutations": 50}}
+    config = d / "erp.yaml"
+    config.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    out = d / "out"
+    rc = main(["-q", "analyze", "erp", str(config), "--out", str(out), "--n-jobs", "2"])
+    return {"dir": d, "out": out, "rc": rc, "sim": sim, "config": config}
+
+
+def test_outputs_and_failed_subject(study):
+    out = study["out"]
+    assert study["rc"] == 0
+    amps = pd.read_csv(out / "amplitudes.csv")
+    assert list(amps.columns) == ["subject", "stylisation", "emotion", "component", "cluster", "mean_uV", "peak_uV",
+                                  "peak_latency_ms", "n_trials"]
+    assert sorted(amps["subject"].unique()) == list(range(1, 9))
+    assert len(amps) == 8 * 18 * 5  # N170 + EPN (2 clusters each) + LPP (1)
+    fail = pd.read_csv(out / "failures.csv")
+    assert fail["subject"].tolist() == [9] and "truncated" in fail["error"].iloc[0]
+    prov = json.loads((out / "provenance.json").read_text())
+    assert prov["status"] == "ok" and prov["failed_subjects"][0].startswith("09: ")
+    for f in ["report.md", "qc.csv", "stats/anova.csv", "stats/contrasts.csv", "source/clusters.csv",
+              "source/level_peaks.csv", "figures/waveforms.png", "figures/bars_N170.svg", "figures/topomaps_emotion.png"]:
+        assert (out / f).is_file(), f
+    # peak latencies of the planted N170 (170 ms) and LPP (500 ms)
+    lat = amps.groupby("component")["peak_latency_ms"].median()
+    assert abs(lat["N170"] - 170) <= 16 and abs(lat["LPP"] - 500) <= 40
+
+
+def test_strict_flag_fails_on_broken_subject(study, tmp_path, capsys):
+    cfg = yaml.safe_load(study["config"].read_text())
+    cfg.update(recordings=[str(study["dir"] / "data" / f"sub-{k}_task-faces_eeg.bdf") for k in ("01", "09")],
+               source={"enabled": False})
+    config = tmp_path / "two.yaml"
+    config.write_text(yaml.safe_dump(cfg))
+    rc = main(["analyze", "erp", str(config), "--out", str(tmp_path / "o"), "--strict", "--n-jobs", "1"])
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("09: ") and "truncated" in err[-1]
+    assert (tmp_path / "o" / "amplitudes.csv").is_file()
+
+
+def test_bad_channels_found_and_interpolated(study):
+    qc = pd.read_csv(study["out"] / "qc.csv", dtype={"subject": str})
+    truth = study["sim"]["bad_channels"]
+    for row in qc.itertuples():
+        assert str(row.bad_channels).split() == truth[row.subject]
+    assert np.allclose(qc["pct_channels_interpolated"], 100 / 128)
+
+
+def _contrast(out, comp, factor, kind):
+    c = pd.read_csv(out / "stats" / "contrasts.csv")
+    return c[(c.component == comp) & (c.factor == factor) & (c.contrast == kind)].iloc[0]
+
+
+def _effect(out, comp, effect):
+    a = pd.read_csv(out / "stats" / "anova.csv")
+    return a[(a.component == comp) & (a.effect == effect)].iloc[0]
+
+
+def test_planted_effects_recovered(study):
+    out = study["out"]
+    # u-shaped N170: quadratic significant, linear not
+    assert _contrast(out, "N170", "stylisation", "quadratic").p < 0.001
+    assert _contrast(out, "N170", "stylisation", "linear").p > 0.05
+    # linear LPP, explaining more than a u-shape
+    lin, quad = _contrast(out, "LPP", "stylisation", "linear"), _contrast(out, "LPP", "stylisation", "quadratic")
+    assert lin.p < 0.001 and lin.F > 10 * quad.F
+    # emotion effects on N170 and EPN, none on the LPP
+    assert _effect(out, "N170", "emotion").p_gg < 0.001
+    assert _effect(out, "EPN", "emotion").p_gg < 0.001
+    assert _effect(out, "LPP", "emotion").p > 0.01
+    assert _effect(out, "N170", "stylisation").pes > 0.5
+
+
+def test_source_peaks_near_planted_generators(study):
+    out = study["out"]
+    gens = {k: np.array(v) for k, v in study["sim"]["generators"].items()}
+    peaks = pd.read_csv(out / "source" / "level_peaks.csv")
+    n170 = peaks[(peaks.component == "N170") & (peaks.level == 0)][["x_mm", "y_mm", "z_mm"]].to_numpy()
+    for name in ("N170_left", "N170_right"):
+        assert np.linalg.norm(n170[:2] - gens[name], axis=1).min() <= 15, name
+    lpp = peaks[(peaks.component == "LPP") & (peaks.level == 5)].iloc[0][["x_mm", "y_mm", "z_mm"]].to_numpy(float)
+    assert np.linalg.norm(lpp - gens["LPP"]) <= 15
+    clusters = pd.read_csv(out / "source" / "clusters.csv")
+    top = clusters[(clusters.component == "LPP") & (clusters.contrast == "stylisation 5 > 0")].iloc[0]
+    assert top.n_voxels >= 25 and top.p_fwe < 0.05 and top.peak_p_uncorrected < 0.005
+    assert np.linalg.norm(top[["x_mm", "y_mm", "z_mm"]].to_numpy(float) - gens["LPP"]) <= 15
+
+
+def test_amplitudes_equal_plain_mne_script(study):
+    """Our window means == benchmarks/erp.py's plain_mne (the same steps written directly in MNE)."""
+    from analysis.erp.channels import make_montage
+    from analysis.erp.config import load_erp_config
+
+    spec = importlib.util.spec_from_file_location("bench_erp", Path(__file__).parent.parent / "benchmarks" / "erp.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    cfg = load_erp_config(study["config"])
+    comps = bench._components(cfg, make_montage("biosemi128").ch_names)
+    path = study["sim"]["files"][1]
+    ref = bench.plain_mne(path, {int(c): lv for c, lv in cfg.events.items()}, comps, bads=study["sim"]["bad_channels"]["02"])
+    amps = pd.read_csv(study["out"] / "amplitudes.csv")
+    amps = amps[amps.subject == 2]
+    ours = {((r.stylisation, r.emotion), r.component, r.cluster): r.mean_uV for r in amps.itertuples()}
+    assert set(ref) == set(ours)
+    assert max(abs(ref[k] - ours[k]) for k in ref) < 1e-4  # CSV keeps 6 significant digits
