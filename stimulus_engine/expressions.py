@@ -88,6 +88,9 @@ class FaceRig:
         Albedo of the skin in UV space.
     texture_masks : dict of str to (H, W) float array
         Region masks in UV space (``lips``, ``brows`` ...) for per-region material stylisation.
+    part_textures : dict of str to (H, W, 3) uint8 array
+        Fixed albedos of other parts in the rig's UV layout (e.g. ``eye``: sclera, iris and pupil
+        from :func:`stimulus_engine.eyes.eye_texture`); never stylised.
     """
 
     name: str
@@ -103,6 +106,7 @@ class FaceRig:
     skin: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     texture: np.ndarray | None = None
     texture_masks: dict[str, np.ndarray] = field(default_factory=dict)
+    part_textures: dict[str, np.ndarray] = field(default_factory=dict)
 
     def landmark_points(self, vertices: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Landmark positions (mean of each vertex set) on ``vertices`` (default: the neutral)."""
@@ -288,14 +292,50 @@ def apply_expression(rig: FaceRig, expression: str, intensity: float = 1.0, *,
 # The ICT Face Model
 # --------------------------------------------------------------------------------------------
 
-#: ICT iris vertex ranges (README "Eyeball Details"); the rest of each eyeball is sclera.
-_ICT_IRIS = ((22221, 23020), (23791, 24590))
+#: ICT eyeball vertex ranges (README "Eyeball Details"): the first range of each eyeball (called
+#: "sclera" there) is the front cap with the corneal bulge, meant as a *transparent* wet/cornea
+#: layer for Unreal's eye shader; the second ("iris") is the whole ball with the iris cone.
+#: Drawn opaque, the cap hides the iris, so it is not rendered; the ball gets a procedural eye
+#: texture (:mod:`stimulus_engine.eyes`) on UVs made from its geometry.
+_ICT_CORNEA = ((21451, 22220), (23021, 23790))
+_ICT_BALL = ((22221, 23020), (23791, 24590))
 _ICT_PART_OF_REGION = {
     "face": "skin", "head_and_neck": "skin", "eye_socket_left": "skin", "eye_socket_right": "skin",
-    "mouth_socket": "mouth", "gums_and_tongue": "mouth", "teeth": "teeth",
-    "eyeball_left": "sclera", "eyeball_right": "sclera", "eyelashes_left": "lashes", "eyelashes_right": "lashes",
+    "mouth_socket": "mouth", "gums_and_tongue": "tongue", "teeth": "teeth",
+    "eyeball_left": "eye", "eyeball_right": "eye", "eyelashes_left": "lashes", "eyelashes_right": "lashes",
 }
-_ICT_PARTS = ("skin", "sclera", "iris", "teeth", "mouth", "lashes", "hidden")
+# lacrimal fluid, eye blend and eye occlusion shells (transparent helpers in Unreal) stay hidden
+_ICT_PARTS = ("skin", "eye", "teeth", "mouth", "tongue", "lashes", "hidden")
+
+
+def _ict_eyes(v: np.ndarray, faces: np.ndarray, face_part: np.ndarray, uv: np.ndarray | None,
+              face_uv: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Hide the corneal caps and give the eyeballs their own UVs about each eye's gaze axis.
+
+    The gaze axis of an eye points from the centre of the sphere fitted to its corneal cap
+    through the cap's bulge (its 15 % of vertices farthest from the centre).
+    """
+    from stimulus_engine.eyes import eyeball_uv, fit_sphere
+
+    face_part = face_part.copy()
+    hidden = _ICT_PARTS.index("hidden")
+    new_uv, fuv = [], None if face_uv is None else face_uv.copy()
+    n_uv = 0 if uv is None else len(uv)
+    for (c0, c1), (b0, b1) in zip(_ICT_CORNEA, _ICT_BALL):
+        cap = v[c0:c1 + 1]
+        centre, _ = fit_sphere(cap)
+        d = np.linalg.norm(cap - centre, axis=1)
+        axis = (cap[d > np.percentile(d, 85)] - centre).mean(axis=0)
+        face_part[((faces >= c0) & (faces <= c1)).any(axis=1)] = hidden
+        if fuv is not None:
+            ball = ((faces >= b0) & (faces <= b1)).all(axis=1)
+            ball_centre, _ = fit_sphere(v[b0:b1 + 1])
+            new_uv.append(eyeball_uv(v[b0:b1 + 1], ball_centre, axis))
+            fuv[ball] = faces[ball] - b0 + n_uv
+            n_uv += b1 + 1 - b0
+    if fuv is None:
+        return face_part, uv, fuv
+    return face_part, np.concatenate([uv, *new_uv]), fuv
 
 
 def _ict_landmarks(v: np.ndarray, lm: np.ndarray, regions: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -364,6 +404,7 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
     identity and expression linearly, so the deltas are ``shape − generic_neutral`` and are added
     to any identity unchanged.
     """
+    from stimulus_engine.eyes import eye_texture
     from stimulus_engine.mesh_io import ict_regions
 
     d = _ict_dir(ict_dir)
@@ -383,27 +424,21 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
     vpart = np.full(len(v), _ICT_PARTS.index("hidden"))
     for region, part in _ICT_PART_OF_REGION.items():
         vpart[regions[region]] = _ICT_PARTS.index(part)
-    for a, b in _ICT_IRIS:
-        vpart[a:b + 1] = _ICT_PARTS.index("iris")
     face_part = vpart[faces].max(axis=1)  # a triangle touching a hidden vertex is hidden
     face_part = np.where((vpart[faces] == vpart[faces][:, :1]).all(axis=1), vpart[faces[:, 0]], face_part)
-    # the ICT sclera is a whole ball with a corneal bulge in front of the iris: hide the cap
-    # over the iris so the iris shows
-    for (a, b), ball in zip(_ICT_IRIS, ("eyeball_left", "eyeball_right")):
-        centre = v[regions[ball]].mean(axis=0)
-        iris_dir = v[a:b + 1].mean(axis=0) - centre
-        iris_dir /= np.linalg.norm(iris_dir)
-        cos_iris = ((v[a:b + 1] - centre) @ iris_dir / np.linalg.norm(v[a:b + 1] - centre, axis=1)).min()
-        in_ball = np.isin(faces[:, 0], regions[ball]) & (face_part == _ICT_PARTS.index("sclera"))
-        cdir = v[faces[in_ball]].mean(axis=1) - centre
-        cos = cdir @ iris_dir / np.linalg.norm(cdir, axis=1)
-        idx = np.flatnonzero(in_ball)[cos > cos_iris]
-        face_part[idx] = _ICT_PARTS.index("hidden")
+    # the lash strips are hair cards meant for an alpha texture; opaque, the lower ones lie on
+    # the cheek as a black band: keep the upper lashes (a dark lid line) only
+    for side in ("left", "right"):
+        lash = np.isin(faces[:, 0], regions[f"eyelashes_{side}"])
+        low = v[faces[lash]].mean(axis=1)[:, 1] < v[regions[f"eyeball_{side}"]].mean(axis=0)[1]
+        face_part[np.flatnonzero(lash)[low]] = _ICT_PARTS.index("hidden")
+    uv, face_uv = (None, None) if layout is None else layout
+    face_part, uv, face_uv = _ict_eyes(v, faces, face_part, uv, face_uv)
     skin = np.concatenate([regions["face"], regions["head_and_neck"], regions["eye_socket_left"],
                            regions["eye_socket_right"]])
     return FaceRig(
-        name=identity, vertices=v, faces=faces, uv=None if layout is None else layout[0],
-        face_uv=None if layout is None else layout[1], face_part=face_part, part_names=_ICT_PARTS,
+        name=identity, vertices=v, faces=faces, uv=uv, face_uv=face_uv, face_part=face_part, part_names=_ICT_PARTS,
         landmarks=_ict_landmarks(v, regions["landmarks"], regions), blendshapes=blend,
         rigid_sets=[regions["eyeball_left"], regions["eyeball_right"]], skin=skin,
+        part_textures={} if uv is None else {"eye": eye_texture()},
     )

@@ -43,7 +43,7 @@ from stimulus_engine.grid_schema import CharacterSpec, GridFile, MaterialSpec
 __all__ = ["GRID_VERSION", "RenderItem", "plan_grid", "run_grid"]
 
 #: Bumped when the rendering code changes what pixels come out (part of every input hash).
-GRID_VERSION = "grid-2"
+GRID_VERSION = "grid-3"
 
 
 def _sha(*parts: object) -> str:
@@ -144,7 +144,8 @@ def _save_rig(path: Path, rig: FaceRig) -> None:
     buf = io.BytesIO()
     np.savez(buf, faces=rig.faces, face_part=rig.face_part, part_names=np.array(rig.part_names),
              uv=rig.uv if rig.uv is not None else np.zeros((0, 2)),
-             face_uv=rig.face_uv if rig.face_uv is not None else np.zeros((0, 3), np.int64))
+             face_uv=rig.face_uv if rig.face_uv is not None else np.zeros((0, 3), np.int64),
+             **{f"part_texture_{k}": t for k, t in rig.part_textures.items()})
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(path, buf.getvalue())
 
@@ -208,7 +209,7 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
 
     for c in grid.characters:
         rig, rig_hash = rigs[c.name]
-        rig_npz = cache / "rigs" / f"{rig_hash}.npz"
+        rig_npz = cache / "rigs" / f"{_sha(GRID_VERSION, rig_hash)}.npz"
         _save_rig(rig_npz, rig)
         for si, level in enumerate(grid.shapes):
             shape_v = stylise(rig, level)
@@ -273,8 +274,10 @@ def _rig_static(path: str) -> FaceRig:
     d = np.load(path)
     uv = d["uv"] if len(d["uv"]) else None
     fuv = d["face_uv"] if len(d["face_uv"]) else None
+    textures = {k[len("part_texture_"):]: d[k] for k in d.files if k.startswith("part_texture_")}
     return FaceRig(name=Path(path).stem, vertices=np.zeros((0, 3)), faces=d["faces"], uv=uv, face_uv=fuv,
-                   face_part=d["face_part"], part_names=tuple(str(x) for x in d["part_names"]), landmarks={})
+                   face_part=d["face_part"], part_names=tuple(str(x) for x in d["part_names"]), landmarks={},
+                   part_textures=textures)
 
 
 @functools.lru_cache(maxsize=16)

@@ -79,7 +79,7 @@ class RenderSettings(StudyModel):
     height: int = Field(768, ge=16, le=8192)
     yfov_deg: float = Field(20.0, gt=1, lt=120)
     eye_row: float = Field(0.45, gt=0, lt=1)
-    face_fraction: float = Field(0.62, gt=0, le=2)
+    face_fraction: float = Field(0.70, gt=0, le=2)
     shadows: bool = True
     background: tuple[float, float, float] = (0.5, 0.5, 0.5)
     intensity: float = Field(1.0, ge=0, le=2)

@@ -42,11 +42,15 @@ MATERIAL_LEVELS: dict[int, str] = dict(enumerate(MATERIAL_STYLES))
 #: Shader models.
 SHADINGS: tuple[str, ...] = ("pbr", "phong")
 
-#: Colours of the untextured parts (linear RGB, alpha).
+#: Colours of the untextured parts (linear RGB, alpha). ``mouth`` is the mouth socket (dark, it
+#: is mostly in shadow inside a real mouth), ``tongue`` gums and tongue.
 _PART_COLOURS = {
-    "sclera": (0.85, 0.83, 0.80, 1.0), "iris": (0.18, 0.22, 0.30, 1.0), "teeth": (0.85, 0.82, 0.72, 1.0),
-    "mouth": (0.35, 0.08, 0.09, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0), "skin": (0.8, 0.62, 0.52, 1.0),
+    "sclera": (0.85, 0.83, 0.80, 1.0), "iris": (0.18, 0.22, 0.30, 1.0), "teeth": (0.82, 0.79, 0.70, 1.0),
+    "mouth": (0.10, 0.025, 0.03, 1.0), "tongue": (0.30, 0.08, 0.09, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0),
+    "skin": (0.8, 0.62, 0.52, 1.0), "eye": (0.9, 0.88, 0.85, 1.0),
 }
+#: PBR roughness per part (wet eyes and teeth are glossy; the default is the skin's).
+_PART_ROUGHNESS = {"eye": 0.18, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
 
 
 def _gauss_sigma(kernel_at_4k: int, size: int) -> float:
@@ -204,28 +208,28 @@ def rig_albedo(rig: FaceRig, *, size: int = 1024, seed: int = 0) -> tuple[np.nda
     return _painted(rig.name, id(rig), int(size), int(seed), _Ref((rig,)))
 
 
-def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None) -> object:
+def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float = 0.62) -> object:
     from stimulus_engine.render._pyrender import pyrender
 
     tex = None if texture is None else pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGB")
     if shading == "pbr":
         return pyrender.MetallicRoughnessMaterial(baseColorFactor=colour if tex is None else (1.0, 1.0, 1.0, 1.0),
-                                                  baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=0.62)
+                                                  baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=roughness)
     if shading == "phong":
         return pyrender.SpecularGlossinessMaterial(diffuseFactor=colour if tex is None else (1.0, 1.0, 1.0, 1.0),
                                                    diffuseTexture=tex, specularFactor=(0.22, 0.22, 0.22),
-                                                   glossinessFactor=0.55)
+                                                   glossinessFactor=min(0.95, 1.17 - roughness))
     raise ValueError(f"unknown shading '{shading}' (expected one of: {', '.join(SHADINGS)})")
 
 
-_SPLITS: dict[tuple[int, bool], tuple[object, list]] = {}
+_SPLITS: dict[tuple, tuple[object, list]] = {}
 
 
 def _split_parts(rig: FaceRig, textured_skin: bool) -> list:
     """Per part: (name, (vertex, uv) index pairs, triangles, textured); cached per rig topology."""
-    key = (id(rig.faces), textured_skin)
+    key = (id(rig.faces), id(rig.face_part), textured_skin, tuple(sorted(rig.part_textures)))
     hit = _SPLITS.get(key)
-    if hit is not None and hit[0] is rig.faces:
+    if hit is not None and hit[0][0] is rig.faces and hit[0][1] is rig.face_part:
         return hit[1]
     out = []
     for k, name in enumerate(rig.part_names):
@@ -233,13 +237,13 @@ def _split_parts(rig: FaceRig, textured_skin: bool) -> list:
         if name == "hidden" or not sel.any():
             continue
         f = rig.faces[sel]
-        textured = name == "skin" and textured_skin
+        textured = (name == "skin" and textured_skin) or (name in rig.part_textures and rig.face_uv is not None)
         second = rig.face_uv[sel].ravel() if textured else np.zeros(f.size, np.int64)
         uniq, inv = np.unique(np.stack([f.ravel(), second], axis=1), axis=0, return_inverse=True)
         out.append((name, uniq, inv.reshape(-1, 3), textured))
     if len(_SPLITS) > 16:
         _SPLITS.clear()
-    _SPLITS[key] = (rig.faces, out)
+    _SPLITS[key] = ((rig.faces, rig.face_part), out)
     return out
 
 
@@ -270,7 +274,9 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=normals[uniq[:, 0]], process=False)
         if textured:
             mesh.visual = trimesh.visual.TextureVisuals(uv=rig.uv[uniq[:, 1]])
-        mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), albedo if textured else None)
+        tex = (albedo if name == "skin" else rig.part_textures[name]) if textured else None
+        mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex,
+                        _PART_ROUGHNESS.get(name, 0.62))
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name))
     return parts
 

@@ -114,3 +114,68 @@ def test_procedural_head_is_deterministic_and_textured():
     no_uv.uv = None
     with pytest.raises(ValueError, match="no UVs but a texture was asked for"):
         rig_render_parts(no_uv, a.vertices, a.texture)
+
+
+def test_eye_texture_and_eyeball_uv():
+    from stimulus_engine.eyes import eye_texture, eyeball_uv, fit_sphere
+
+    tex = eye_texture(128)
+    assert tex[64, 64].max() < 20  # pupil at the centre
+    iris = tex[64, 64 + int(64 * np.sin(np.radians(16) / 2))]  # 16° from the axis: iris (brown)
+    assert iris[0] > iris[2] and 40 < iris.mean() < 160
+    sclera = tex[64, 64 + int(64 * np.sin(np.radians(60) / 2))]
+    assert sclera.min() > 200
+    assert tex[64, 2].max() < 20  # the back of the ball is dark (seen through a pupil hole)
+    # a unit sphere: the gaze point maps to the UV centre, the side to radius 0.5·sin(45°)
+    d = np.array([[0, 0, 1.0], [1, 0, 0], [0, 1, 0], [0, 0, -1.0]])
+    uv = eyeball_uv(np.array([2.0, 0, 0]) + d, np.array([2.0, 0, 0]), np.array([0, 0, 1.0]))
+    assert np.allclose(uv[0], [0.5, 0.5])
+    assert np.allclose(uv[1], [0.5 + 0.5 * np.sin(np.pi / 4), 0.5])
+    assert np.allclose(uv[2], [0.5, 0.5 + 0.5 * np.sin(np.pi / 4)])
+    assert np.isclose(np.linalg.norm(uv[3] - 0.5), 0.5)
+    c, r = fit_sphere(np.array([1.0, -1, 0.5]) + 3 * d)
+    assert np.allclose(c, [1, -1, 0.5]) and np.isclose(r, 3)
+    with pytest.raises(ValueError, match="pupil_angle < iris_angle"):
+        eye_texture(64, iris_angle=5.0, pupil_angle=8.0)
+
+
+def test_ict_eyes_render_open_with_iris_and_sclera(ict):
+    """The corneal caps and lower lash cards are hidden; an eye close-up shows sclera, iris, pupil."""
+    from stimulus_engine.render import face_camera, render_mesh
+
+    names = ict.part_names
+    cap = ((ict.faces >= 21451) & (ict.faces <= 22220)).any(axis=1)
+    assert (ict.face_part[cap] == names.index("hidden")).all()
+    ball = ((ict.faces >= 22221) & (ict.faces <= 23020)).all(axis=1)
+    assert (ict.face_part[ball] == names.index("eye")).all() and "eye" in ict.part_textures
+    lash = ict.face_part == names.index("lashes")
+    assert 0 < lash.sum() < 2160 / 2  # upper lashes only
+    lm = ict.landmark_points()
+    cam = face_camera(lm["eye_left"], 4.0, eye_row=0.5, face_fraction=1.0)
+    img = render_mesh(rig_render_parts(ict, ict.vertices, None), width=96, height=72, camera=cam,
+                      lighting="flat").astype(int)
+    centre = img[30:42, 42:54]
+    assert centre.max(axis=2).min() < 45  # the pupil is dark
+    row = img[36, 10:86]
+    assert (row.min(axis=1) > 150).sum() >= 6  # white sclera on either side of the iris
+
+
+def test_thesis_expressions_are_clearly_different_from_neutral(shared_data):
+    """At intensity 1 each expression moves its key features by millimetres, not fractions of one."""
+    rig = load_ict_rig(shared_data / "meshes/ict-facekit", "identity000")
+    v0 = rig.vertices
+    lm = rig.landmarks
+
+    def moved(expr: str, name: str) -> np.ndarray:
+        v = apply_expression(rig, expr)
+        return (v[lm[name]] - v0[lm[name]]).mean(axis=0)
+
+    brow = lambda e: (moved(e, "brow_left") + moved(e, "brow_right"))[1] / 2  # noqa: E731
+    gap = lambda e: (apply_expression(rig, e)[lm["mouth_top"][0], 1]  # noqa: E731
+                     - apply_expression(rig, e)[lm["mouth_bottom"][0], 1])
+    assert brow("anger") < -0.5 and brow("surprise") > 0.5  # cm: brows lowered / raised
+    assert gap("anger") > gap("neutral") + 0.3 and gap("surprise") > gap("neutral") + 1.0  # mouth opens
+    corner = lambda e: (moved(e, "mouth_left") + moved(e, "mouth_right"))[1] / 2  # noqa: E731
+    assert corner("happiness") > 0.5 and corner("sadness") < -0.3
+    inner_brow = moved("sadness", "brow_left")[1] - (apply_expression(rig, "sadness") - v0)[lm["brow_left"][-1], 1]
+    assert inner_brow > 0.1  # sad brows are oblique: the inner end rises more than the outer
