@@ -155,7 +155,7 @@ def test_appeal_validate_cli(tmp_path, capsys):
     data["order"]["repetitions"] = -3
     f = tmp_path / "bad.yaml"
     f.write_text(yaml.safe_dump(data))
-    assert main(["validate", str(SHIPPED[0]), str(f)]) == 2
+    assert main(["validate", "--schema-only", str(SHIPPED[0]), str(f)]) == 2
     cap = capsys.readouterr()
     assert f"{SHIPPED[0]}: ok (protocol)" in cap.out
     assert cap.err.strip() == f"{f}: order.repetitions: must be >= 1 (got -3)"
