@@ -20,7 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from appeal.progress import progress
-from stimulus_engine.morphpca.flow import compute_flow, fix_foldovers, grid, invert_displacement, sample_field, warp_image
+from stimulus_engine.morphpca.flow import (
+    compute_flow,
+    fix_foldovers,
+    grey_u8,
+    grid,
+    invert_displacement,
+    sample_field,
+    warp_image,
+)
 
 __all__ = ["TEXTURE_SCALE", "MorphSet", "serialise", "deserialise", "decompose", "encode_with_reference"]
 
@@ -33,11 +41,15 @@ def serialise(textures: np.ndarray, warps: np.ndarray) -> np.ndarray:
 
     The order is column-wise (Fortran order) over R, G, B, then x, y.
     """
-    t = np.asarray(textures, np.float32) * TEXTURE_SCALE
-    stacked = np.concatenate([t, np.asarray(warps, np.float32)], axis=-1)  # (..., h, w, 5)
-    # (..., h, w, 5) -> (..., 5, w, h): channel-major, then column-major within a channel
-    moved = np.moveaxis(stacked, (-1, -2, -3), (-3, -2, -1))
-    return np.ascontiguousarray(moved).reshape(*stacked.shape[:-3], -1)
+    t = np.asarray(textures, np.float32)
+    wp = np.asarray(warps, np.float32)
+    lead, (h, w) = t.shape[:-3], t.shape[-3:-1]
+    out = np.empty((*lead, 5, w, h), np.float32)
+    # (..., h, w, c) -> (..., c, w, h): channel-major, then column-major within a channel; one
+    # strided copy per part into the preallocated result (no concatenated temporary)
+    np.multiply(np.moveaxis(t, (-1, -2, -3), (-3, -2, -1)), np.float32(TEXTURE_SCALE), out=out[..., :3, :, :])
+    out[..., 3:, :, :] = np.moveaxis(wp, (-1, -2, -3), (-3, -2, -1))
+    return out.reshape(*lead, -1)
 
 
 def deserialise(vectors: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -102,14 +114,16 @@ def decompose(images: np.ndarray, reference_index: int = 0, backend: str = "dis"
     """
     n, h, w = images.shape[:3]
     ref = images[reference_index]
-    flows = np.zeros((n, h, w, 2), np.float32)
+    ref_grey = grey_u8(ref)  # converted once for all n flows
+    flows = np.empty((n, h, w, 2), np.float32)
+    flows[reference_index] = 0.0
     for i in progress(range(n), total=n, desc=desc):
         if i != reference_index:
-            flows[i] = compute_flow(ref, images[i], backend, levels)
-    wts = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, float)
-    mean_d = fix_foldovers(np.tensordot(wts, flows, axes=1).astype(np.float32))
+            flows[i] = compute_flow(ref_grey, images[i], backend, levels)
+    wts = np.full(n, 1.0 / n, np.float32) if weights is None else np.asarray(weights, np.float32)
+    mean_d = fix_foldovers((wts @ flows.reshape(n, -1)).reshape(h, w, 2))
     ref_positions = grid(h, w) + invert_displacement(mean_d)
-    textures = np.empty_like(images, dtype=np.float32)
+    textures = np.empty((n, h, w, 3), np.float32)
     warps = np.empty((n, h, w, 2), np.float32)
     for i in range(n):
         textures[i], warps[i] = encode_with_reference(images[i], ref, ref_positions, flow=flows[i])

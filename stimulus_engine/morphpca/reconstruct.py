@@ -5,21 +5,124 @@ image) is inverted by fixed-point iteration and the texture is sampled at the in
 positions, so every output pixel gets a value (no holes). Before inversion, regions where the
 warp would fold over (Jacobian determinant ≤ 0, e.g. after strong caricaturing or extreme
 loadings) are smoothed until the warp is one-to-one (no fold-over artefacts).
+
+Speed: warp fields are smooth (the DIS flows are searched at half resolution and blurred), so
+the fold check and the inversion run on the displacement at half resolution (images of at least
+:data:`HALF_RESOLUTION_MIN` pixels each way); the inverse is upsampled bilinearly and the texture
+is sampled at full resolution. :class:`Reconstructor` keeps the model's components in that
+pixel order (texture ``(h, w, 3)``, then the half-resolution displacement), so a batch is one
+float32 matrix product into a reused buffer, followed per face by OpenCV remaps into
+preallocated work arrays.
 """
 
 from __future__ import annotations
 
+import threading
+
 import cv2
 import numpy as np
 
-from stimulus_engine.morphpca.flow import fix_foldovers, grid, invert_displacement, warp_image
-from stimulus_engine.morphpca.morphvec import deserialise
+from stimulus_engine.morphpca.flow import fix_foldovers, grid, invert_displacement
+from stimulus_engine.morphpca.morphvec import TEXTURE_SCALE
 
-__all__ = ["render_morph", "render_vectors", "Reconstructor", "reconstruct_image"]
+__all__ = ["HALF_RESOLUTION_MIN", "render_morph", "render_vectors", "Reconstructor", "reconstruct_image"]
+
+#: Images at least this many pixels high and wide invert their warp at half resolution.
+HALF_RESOLUTION_MIN = 32
+
+#: Faces per matrix product in :class:`Reconstructor` (bounds the work buffer to ~this × D floats).
+MAX_BATCH = 128
 
 
-def render_morph(texture: np.ndarray, warp: np.ndarray, *, fix: bool = True, iterations: int = 6,
-                 base: np.ndarray | None = None) -> np.ndarray:
+class _Renderer:
+    """Grids and work buffers for rendering faces of one size (nothing allocated per face)."""
+
+    def __init__(self, size: tuple[int, int], iterations: int = 6, fix: bool = True):
+        h, w = self.size = (int(size[0]), int(size[1]))
+        self.halve = min(h, w) >= HALF_RESOLUTION_MIN
+        self.low = ((h + 1) // 2, (w + 1) // 2) if self.halve else (h, w)
+        hl, wl = self.low
+        # low-resolution pixel units → full-resolution pixel units (x, y)
+        self.scale = np.array([w / wl, h / hl], np.float32)
+        self.iterations, self.fix = iterations, fix
+        self.grid, self.grid_low = grid(h, w), grid(hl, wl)
+        self.e = np.empty((hl, wl, 2), np.float32)
+        self.pos_low = np.empty_like(self.e)
+        self.e_full = np.empty((h, w, 2), np.float32)
+        self.pos = np.empty((h, w, 2), np.float32)
+        self.image = np.empty((h, w, 3), np.float32)
+
+    @property
+    def n_texture(self) -> int:
+        return self.size[0] * self.size[1] * 3
+
+    def low_displacement(self, d: np.ndarray) -> np.ndarray:
+        """A full-resolution displacement ``(h, w, 2)`` at the inversion resolution, in its pixel units."""
+        d = np.ascontiguousarray(d, np.float32)
+        if not self.halve:
+            return d
+        low = cv2.resize(d, self.low[::-1], interpolation=cv2.INTER_AREA)
+        low /= self.scale
+        return low
+
+    def render(self, texture: np.ndarray, d_low: np.ndarray) -> np.ndarray:
+        """Sample ``texture`` (h, w, 3) at the inverse of the warp ``d_low`` into ``self.image`` (unclipped)."""
+        if self.fix:
+            d_low = fix_foldovers(d_low)  # returns the field itself when nothing folds
+        e = invert_displacement(d_low, self.iterations, base=self.grid_low, out=self.e, positions=self.pos_low)
+        if self.halve:
+            e = cv2.resize(e, self.size[::-1], dst=self.e_full, interpolation=cv2.INTER_LINEAR)
+            e *= self.scale
+        np.add(self.grid, e, out=self.pos)
+        return cv2.remap(texture, self.pos, None, cv2.INTER_LINEAR, dst=self.image, borderMode=cv2.BORDER_REPLICATE)
+
+    def pixel_rows(self, vectors: np.ndarray, texture_scale: float, absolute: bool) -> np.ndarray:
+        """Serialised morph vectors ``(n, D)`` → rows ``[texture (h, w, 3) · scale, low-res displacement]``.
+
+        ``texture_scale`` multiplies the stored texture values (0–255 scale): ``1 / TEXTURE_SCALE`` gives [0, 1].
+
+        ``absolute``: the warp part holds positions (a mean or a whole vector), so the pixel grid
+        is subtracted; relative vectors (components) are displacements already.
+        """
+        h, w = self.size
+        planes = np.atleast_2d(np.asarray(vectors, np.float32)).reshape(-1, 5, w, h)  # serialised: (c, x, y)
+        n, nt = planes.shape[0], self.n_texture
+        hl, wl = self.low
+        rows = np.empty((n, nt + hl * wl * 2), np.float32)
+        for i in range(n):
+            # (3, w, h) → (h, w, 3) in one strided copy, scaled on the way
+            np.multiply(planes[i, :3].T, np.float32(texture_scale), out=rows[i, :nt].reshape(h, w, 3))
+            d = planes[i, 3:].T - self.grid if absolute else planes[i, 3:].T
+            rows[i, nt:] = self.low_displacement(d).ravel()
+        return rows
+
+    def render_rows(self, rows: np.ndarray, out: np.ndarray, as_uint8: bool) -> None:
+        """Render pixel-order rows into ``out`` ``(n, h, w, 3)`` (uint8 rows carry +0.5 for rounding)."""
+        h, w = self.size
+        nt = self.n_texture
+        hl, wl = self.low
+        for i, row in enumerate(rows):
+            img = self.render(row[:nt].reshape(h, w, 3), row[nt:].reshape(hl, wl, 2))
+            if as_uint8:
+                np.clip(img, 0.0, 255.0, out=img)
+                out[i] = img  # truncation of value + 0.5 = rounding
+            else:
+                np.clip(img, 0.0, 1.0, out=out[i])
+
+
+_local = threading.local()
+
+
+def _renderer(size: tuple[int, int], iterations: int = 6, fix: bool = True) -> _Renderer:
+    """A cached renderer per thread, size and settings (its buffers are reused between calls)."""
+    cache = _local.__dict__.setdefault("renderers", {})
+    key = (int(size[0]), int(size[1]), iterations, fix)
+    if key not in cache:
+        cache[key] = _Renderer(size, iterations, fix)
+    return cache[key]
+
+
+def render_morph(texture: np.ndarray, warp: np.ndarray, *, fix: bool = True, iterations: int = 6) -> np.ndarray:
     """Image from a texture on the mean shape and its absolute warp field.
 
     Parameters
@@ -36,55 +139,71 @@ def render_morph(texture: np.ndarray, warp: np.ndarray, *, fix: bool = True, ite
     -------
     (h, w, 3) float32 in [0, 1]
     """
-    g = grid(*warp.shape[:2]) if base is None else base
-    d = warp - g
-    if fix:
-        d = fix_foldovers(d)
-    e = invert_displacement(d, iterations, base=g)
-    return np.clip(warp_image(texture, g + e, cv2.INTER_LINEAR), 0.0, 1.0)
+    r = _renderer(warp.shape[:2], iterations, fix)
+    d_low = r.low_displacement(np.asarray(warp, np.float32) - r.grid)
+    img = r.render(np.ascontiguousarray(texture, np.float32), d_low)
+    return np.clip(img, 0.0, 1.0)
 
 
 def render_vectors(vectors: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """Images ``(n, h, w, 3)`` from absolute morph vectors ``(n, D)``."""
-    textures, warps = deserialise(np.atleast_2d(vectors), size)
-    g = grid(*size)
-    return np.stack([render_morph(t, w, base=g) for t, w in zip(textures, warps)])
+    """Images ``(n, h, w, 3)`` float32 in [0, 1] from absolute morph vectors ``(n, D)``."""
+    r = _renderer(size)
+    rows = r.pixel_rows(vectors, 1.0 / TEXTURE_SCALE, absolute=True)
+    out = np.empty((rows.shape[0], *r.size, 3), np.float32)
+    r.render_rows(rows, out, as_uint8=False)
+    return out
 
 
 class Reconstructor:
     """Fast repeated reconstruction from one model: the function a trial loop calls.
 
-    Holds the model's component matrix as float32 ``(k, D)`` and the pixel grid, so a call does
-    one small matrix product, the fold-over check, the warp inversion and one remap. Calling
-    with a batch of loadings ``(n, k)`` reads the matrix once for the whole batch.
+    At construction the model's components and mean are reordered once into pixel order
+    (texture ``(h, w, 3)`` then the half-resolution displacement; the pixel grid, the texture
+    scale and the uint8 rounding offset folded into the mean). A call is then one float32
+    matrix product for the whole batch (up to :data:`MAX_BATCH` faces per product, into a
+    reused buffer), and per face the fold-over check, the warp inversion and one remap into
+    preallocated arrays.
+
+    A single face costs one matrix–vector product over the whole component matrix, which is
+    bound by memory bandwidth; ask for many faces in one call where possible (e.g. all frames
+    of a trial before it starts).
 
     Examples
     --------
     >>> rec = Reconstructor(model)                      # doctest: +SKIP
     >>> frame = rec(np.zeros(model.n_components))       # the mean face, uint8 RGB
+    >>> frames = rec(loadings)                          # (n, k) → (n, h, w, 3) uint8
     """
 
-    def __init__(self, model, *, as_uint8: bool = True):
-        self.size = model.size
-        self.components = np.ascontiguousarray(model.components, np.float32)
-        self.mean = np.ascontiguousarray(model.mean, np.float32)
-        self.k = self.components.shape[0]
-        self.grid = grid(*self.size)
+    def __init__(self, model, *, as_uint8: bool = True, iterations: int = 6):
+        self.size = tuple(model.size)
         self.as_uint8 = as_uint8
+        self._renderer = _Renderer(self.size, iterations)  # own buffers: safe next to other renderers
+        scale = 1.0 if as_uint8 else 1.0 / TEXTURE_SCALE  # uint8: texture stays on the 0–255 scale
+        self.matrix = self._renderer.pixel_rows(model.components, scale, absolute=False)
+        self.offset = self._renderer.pixel_rows(model.mean, scale, absolute=True)[0]
+        if as_uint8:
+            self.offset[: self._renderer.n_texture] += 0.5  # interpolation keeps +0.5: truncation rounds
+        self.k = self.matrix.shape[0]
+        self._buffer = np.empty((0, self.matrix.shape[1]), np.float32)
 
-    def vectors(self, loadings: np.ndarray) -> np.ndarray:
-        """Absolute morph vectors for ``loadings`` (``(k,)`` or ``(n, k)``; fewer columns = zeros)."""
-        lo = np.atleast_2d(np.asarray(loadings, np.float32))
-        if lo.shape[1] > self.k:
-            raise ValueError(f"loadings: expected at most {self.k} values per face (got {lo.shape[1]})")
-        return lo @ self.components[: lo.shape[1]] + self.mean
+    def _rows(self, lo: np.ndarray) -> np.ndarray:
+        if self._buffer.shape[0] < lo.shape[0]:
+            self._buffer = np.empty((lo.shape[0], self.matrix.shape[1]), np.float32)
+        buf = self._buffer[: lo.shape[0]]
+        np.matmul(lo, self.matrix[: lo.shape[1]], out=buf)
+        buf += self.offset
+        return buf
 
     def __call__(self, loadings: np.ndarray) -> np.ndarray:
         single = np.asarray(loadings).ndim == 1
-        textures, warps = deserialise(self.vectors(loadings), self.size)
-        out = np.stack([render_morph(t, w, base=self.grid) for t, w in zip(textures, warps)])
-        if self.as_uint8:
-            out = (out * 255.0 + 0.5).astype(np.uint8)
+        lo = np.atleast_2d(np.asarray(loadings, np.float32))
+        if lo.shape[1] > self.k:
+            raise ValueError(f"loadings: expected at most {self.k} values per face (got {lo.shape[1]})")
+        out = np.empty((lo.shape[0], *self.size, 3), np.uint8 if self.as_uint8 else np.float32)
+        for start in range(0, lo.shape[0], MAX_BATCH):
+            chunk = np.ascontiguousarray(lo[start : start + MAX_BATCH])
+            self._renderer.render_rows(self._rows(chunk), out[start : start + len(chunk)], self.as_uint8)
         return out[0] if single else out
 
 
