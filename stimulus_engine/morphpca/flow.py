@@ -144,17 +144,18 @@ def sample_field(field: np.ndarray, positions: np.ndarray) -> np.ndarray:
 
 
 def invert_displacement(d: np.ndarray, iterations: int = 12, base: np.ndarray | None = None,
-                        out: np.ndarray | None = None, positions: np.ndarray | None = None) -> np.ndarray:
+                        buffers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The inverse ``e`` of a fold-free displacement ``d``: ``x + d(x) = p  ⇔  x = p + e(p)``.
 
     Fixed-point iteration ``e ← -d(p + e)`` (converges where the warp does not fold).
-    ``out`` and ``positions`` are optional ``(h, w, 2)`` float32 work buffers (no allocation per
-    call); ``out`` receives ``e``.
+    ``buffers``: three optional ``(h, w, 2)`` float32 work arrays (``-d``, ``e``, positions) so
+    that repeated calls allocate nothing; the result is the second one.
     """
     g = grid(*d.shape[:2]) if base is None else base
-    neg = np.negative(d, dtype=np.float32)
-    e = np.empty_like(neg) if out is None else out
-    pos = np.empty_like(neg) if positions is None else positions
+    if buffers is None:
+        buffers = (np.empty(d.shape, np.float32), np.empty(d.shape, np.float32), np.empty(d.shape, np.float32))
+    neg, e, pos = buffers
+    np.negative(d, out=neg, casting="same_kind")
     e[...] = neg
     for _ in range(iterations):
         np.add(g, e, out=pos)

@@ -57,11 +57,13 @@ def pca_with_loadings(relative: np.ndarray, n_components: int | None = None, var
     sd = np.sqrt(np.maximum(evals[:k], 1e-300))
     u = evecs[:, :k] / sd
     components = u.T.astype(np.float32) @ np.asarray(relative, np.float32)
-    # re-orthonormalise in float32 precision and fix signs (largest |value| positive)
-    norms = np.linalg.norm(components, axis=1, keepdims=True)
-    components /= np.maximum(norms, 1e-30)
-    signs = np.sign(components[np.arange(k), np.argmax(np.abs(components), axis=1)])
-    components *= signs[:, None]
+    # re-normalise in float32 precision and fix signs (largest |value| positive); row by row, so
+    # no temporaries of the matrix's size
+    signs = np.empty(k)
+    for j, row in enumerate(components):
+        hi, lo = int(np.argmax(row)), int(np.argmin(row))
+        signs[j] = 1.0 if row[hi] >= -row[lo] else -1.0
+        row *= np.float32(signs[j] / max(float(np.sqrt(np.dot(row, row))), 1e-30))
     loadings = (evecs[:, :k] * (sd * signs)).astype(np.float32)  # = relative @ components.T
     return components, evals[:k] / max(n - 1, 1), total, loadings
 

@@ -46,8 +46,8 @@ class _Renderer:
         self.scale = np.array([w / wl, h / hl], np.float32)
         self.iterations, self.fix = iterations, fix
         self.grid, self.grid_low = grid(h, w), grid(hl, wl)
-        self.e = np.empty((hl, wl, 2), np.float32)
-        self.pos_low = np.empty_like(self.e)
+        self.work = tuple(np.empty((hl, wl, 2), np.float32) for _ in range(3))  # -d, e, positions
+        self.uniform = bool(self.scale[0] == self.scale[1])
         self.e_full = np.empty((h, w, 2), np.float32)
         self.pos = np.empty((h, w, 2), np.float32)
         self.image = np.empty((h, w, 3), np.float32)
@@ -69,11 +69,16 @@ class _Renderer:
         """Sample ``texture`` (h, w, 3) at the inverse of the warp ``d_low`` into ``self.image`` (unclipped)."""
         if self.fix:
             d_low = fix_foldovers(d_low)  # returns the field itself when nothing folds
-        e = invert_displacement(d_low, self.iterations, base=self.grid_low, out=self.e, positions=self.pos_low)
-        if self.halve:
+        e = invert_displacement(d_low, self.iterations, base=self.grid_low, buffers=self.work)
+        if not self.halve:
+            np.add(self.grid, e, out=self.pos)
+        else:
             e = cv2.resize(e, self.size[::-1], dst=self.e_full, interpolation=cv2.INTER_LINEAR)
-            e *= self.scale
-        np.add(self.grid, e, out=self.pos)
+            if self.uniform:  # even sizes: scale 2 in x and y, one fused OpenCV pass
+                cv2.scaleAdd(e, float(self.scale[0]), self.grid, dst=self.pos)
+            else:
+                e *= self.scale
+                np.add(self.grid, e, out=self.pos)
         return cv2.remap(texture, self.pos, None, cv2.INTER_LINEAR, dst=self.image, borderMode=cv2.BORDER_REPLICATE)
 
     def pixel_rows(self, vectors: np.ndarray, texture_scale: float, absolute: bool) -> np.ndarray:
@@ -180,20 +185,25 @@ class Reconstructor:
         self.as_uint8 = as_uint8
         self._renderer = _Renderer(self.size, iterations)  # own buffers: safe next to other renderers
         scale = 1.0 if as_uint8 else 1.0 / TEXTURE_SCALE  # uint8: texture stays on the 0–255 scale
-        self.matrix = self._renderer.pixel_rows(model.components, scale, absolute=False)
-        self.offset = self._renderer.pixel_rows(model.mean, scale, absolute=True)[0]
+        self.k = int(model.components.shape[0])
+        # rows 0..k-1: components; row k: the mean (grid subtracted, +0.5 for uint8 rounding),
+        # so that [loadings, 1] @ matrix is the whole reconstruction in one product
+        self.matrix = np.empty((self.k + 1, self._renderer.n_texture + 2 * np.prod(self._renderer.low)), np.float32)
+        self.matrix[: self.k] = self._renderer.pixel_rows(model.components, scale, absolute=False)
+        self.matrix[self.k] = self._renderer.pixel_rows(model.mean, scale, absolute=True)[0]
         if as_uint8:
-            self.offset[: self._renderer.n_texture] += 0.5  # interpolation keeps +0.5: truncation rounds
-        self.k = self.matrix.shape[0]
+            self.matrix[self.k, : self._renderer.n_texture] += 0.5  # interpolation keeps +0.5: truncation rounds
         self._buffer = np.empty((0, self.matrix.shape[1]), np.float32)
 
     def _rows(self, lo: np.ndarray) -> np.ndarray:
-        if self._buffer.shape[0] < lo.shape[0]:
-            self._buffer = np.empty((lo.shape[0], self.matrix.shape[1]), np.float32)
-        buf = self._buffer[: lo.shape[0]]
-        np.matmul(lo, self.matrix[: lo.shape[1]], out=buf)
-        buf += self.offset
-        return buf
+        """Pixel-order rows of a chunk of loadings ``(m, ≤ k)``: one float32 product into a reused buffer."""
+        m = lo.shape[0]
+        if self._buffer.shape[0] < m:
+            self._buffer = np.empty((m, self.matrix.shape[1]), np.float32)
+        ext = np.zeros((m, self.k + 1), np.float32)
+        ext[:, : lo.shape[1]] = lo
+        ext[:, self.k] = 1.0
+        return np.matmul(ext, self.matrix, out=self._buffer[:m])
 
     def __call__(self, loadings: np.ndarray) -> np.ndarray:
         single = np.asarray(loadings).ndim == 1
@@ -202,7 +212,7 @@ class Reconstructor:
             raise ValueError(f"loadings: expected at most {self.k} values per face (got {lo.shape[1]})")
         out = np.empty((lo.shape[0], *self.size, 3), np.uint8 if self.as_uint8 else np.float32)
         for start in range(0, lo.shape[0], MAX_BATCH):
-            chunk = np.ascontiguousarray(lo[start : start + MAX_BATCH])
+            chunk = lo[start : start + MAX_BATCH]
             self._renderer.render_rows(self._rows(chunk), out[start : start + len(chunk)], self.as_uint8)
         return out[0] if single else out
 
