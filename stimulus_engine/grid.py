@@ -77,8 +77,12 @@ class RenderItem:
 # --------------------------------------------------------------------------------------------
 
 
-def _character_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
-    """The rig of a character and a hash of its inputs."""
+def _file_sha(path: object) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _base_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
+    """The character's own rig (ICT identity or procedural head) and a hash of its inputs."""
     if c.procedural is not None:
         from stimulus_engine.procedural_head import procedural_head
 
@@ -89,6 +93,61 @@ def _character_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
     files = sorted(Path(c.ict).glob("*.obj*"))
     sig = [(f.name, f.stat().st_size, int(f.stat().st_mtime)) for f in files]
     return rig, _sha("ict", c.identity, sig)
+
+
+def _character_rig(c: CharacterSpec, cache: Path, source: str) -> tuple[FaceRig, str, FaceRig]:
+    """The rig of a character, a hash of its inputs, and the rig its expressions come from.
+
+    For a ``mesh`` character the base rig is corresponded onto the mesh (cached in
+    ``cache/mesh``, keyed by the inputs' hash); expressions are then carried over from the base
+    rig by deformation transfer.
+    """
+    base, base_hash = _base_rig(c)
+    if c.mesh is None:
+        return base, base_hash, base
+    from dataclasses import replace
+
+    m = c.mesh
+    h = _sha(GRID_VERSION, "mesh", base_hash, _file_sha(m.file), _file_sha(m.texture) if m.texture else None,
+             m.model_dump(mode="json", exclude={"file", "texture"}))
+    p = cache / "mesh" / f"{h}.npz"
+    if p.exists():
+        d = np.load(p)
+        masks = {k[5:]: d[k] for k in d.files if k.startswith("mask_")}
+        rig = replace(base.with_vertices(d["vertices"], name=c.name),
+                      texture=d["texture"] if "texture" in d.files else None, texture_masks=masks)
+        return rig, h, base
+    import io
+
+    from stimulus_engine.mesh_character import correspond_rig
+    from stimulus_engine.mesh_io import ict_regions, load_mesh
+
+    where = f"{source}: characters.{c.name}.mesh"
+    region = None
+    if m.region == "front":
+        from stimulus_engine.mesh_character import front_region
+
+        region = front_region(base)
+    elif m.region is not None:
+        regions = ict_regions(Path(c.ict) / "vertex_indices.json")
+        if m.region not in regions or m.region == "landmarks":
+            names = ", ".join(k for k in regions if k != "landmarks")
+            raise AppealInputError(f"{where}: region: unknown ICT region '{m.region}' (expected one of: {names})")
+        region = regions[m.region]
+    mesh = load_mesh(m.file)
+    texture = _load_texture(m.texture) if m.texture is not None else None
+    landmarks = {k: (list(v) if isinstance(v, tuple) else v) for k, v in m.landmarks.items()}
+    logger.info("%s: corresponding %s onto %s", c.name, base.name, m.file)
+    mc = correspond_rig(base, mesh, landmarks, region=region, texture=texture, texture_size=m.texture_size,
+                        name=c.name, where=where)
+    logger.info("%s: correspondence metrics %s", c.name,
+                {k: round(v, 5) for k, v in mc.metrics.items() if isinstance(v, float)})
+    buf = io.BytesIO()
+    extra = {} if mc.rig.texture is None else {"texture": mc.rig.texture}
+    np.savez(buf, vertices=mc.rig.vertices, **extra, **{f"mask_{k}": v for k, v in mc.rig.texture_masks.items()})
+    p.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(p, buf.getvalue())
+    return mc.rig, h, base
 
 
 def _load_texture(path: Path) -> np.ndarray:
@@ -173,7 +232,7 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
     from stimulus_engine.stylise import stylise
 
     cache = out / ".cache"
-    rigs: dict[str, tuple[FaceRig, str]] = {c.name: _character_rig(c) for c in grid.characters}
+    rigs: dict[str, tuple[FaceRig, str, FaceRig]] = {c.name: _character_rig(c, cache, source) for c in grid.characters}
     specs = {c.name: c for c in grid.characters}
     albedo_src = {c.name: _albedo_source(c, rigs[c.name][0], source) for c in grid.characters}
     mats = grid.material_specs()
@@ -208,7 +267,7 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
         return albedo_cache[key]
 
     for c in grid.characters:
-        rig, rig_hash = rigs[c.name]
+        rig, rig_hash, expr_rig = rigs[c.name]
         rig_npz = cache / "rigs" / f"{_sha(GRID_VERSION, rig_hash)}.npz"
         _save_rig(rig_npz, rig)
         for si, level in enumerate(grid.shapes):
@@ -222,7 +281,10 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
                     gh = _sha(GRID_VERSION, rig_hash, level, canon, r.intensity)
                     gp = cache / "geometry" / f"{gh}.npy"
                     if not gp.exists():
-                        v = apply_expression(rig, canon, r.intensity, target=None if level == 0 else shape_v)
+                        # the rig's own blendshapes on its own neutral; deformation transfer onto a
+                        # stylised shape or a corresponded mesh character
+                        plain = level == 0 and expr_rig is rig
+                        v = apply_expression(expr_rig, canon, r.intensity, target=None if plain else shape_v)
                         _save_npy(gp, v.astype(np.float32))
                     v = np.load(gp)
                     for name, pt in rig.landmark_points(v.astype(np.float64)).items():

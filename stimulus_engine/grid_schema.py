@@ -26,7 +26,7 @@ from pydantic import Field, field_validator, model_validator
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
-__all__ = ["CharacterSpec", "GridFile", "MaterialSpec", "PhotoSpec", "RenderSettings"]
+__all__ = ["CharacterSpec", "GridFile", "MaterialSpec", "MeshSpec", "PhotoSpec", "RenderSettings"]
 
 _STYLES = ("original", "blur25", "blur50", "bilateral", "flat")
 _LIGHTING = ("direct_hard", "direct_soft", "gi_soft", "flat")
@@ -40,20 +40,48 @@ class ProceduralSpec(StudyModel):
     resolution: int = Field(96, ge=16, le=256)
 
 
+class MeshSpec(StudyModel):
+    """Any face mesh, made a character by corresponding the character's rig onto it (ElastiFace).
+
+    ``landmarks`` maps rig landmark names (``nose_tip``, ``eye_right_outer``, ``mouth_left``,
+    ``chin`` ...; the error message lists them) to points on this mesh: a vertex index or
+    ``[x, y, z]``. ``texture`` is the mesh's albedo in *its own* UV layout (default: the mesh
+    file's own texture, if any); it is re-laid into the rig's layout. ``region``: the part of
+    the rig to correspond — default all skin; ``front`` (skin in front of the ears) for a
+    face-only mesh; or an ICT region name (``narrow_face``, ``face``).
+    """
+
+    file: InputFile
+    texture: InputFile | None = None
+    landmarks: dict[str, int | tuple[float, float, float]] = Field(min_length=6)
+    region: str | None = None
+    texture_size: int = Field(1024, ge=64, le=4096)
+
+
 class CharacterSpec(StudyModel):
-    """One character: the ICT face model (an identity), or a procedural head."""
+    """One character: the ICT face model (an identity) or a procedural head, optionally
+    corresponded onto a user ``mesh`` (then the ICT/procedural head is the rig that supplies
+    topology and expressions, and the mesh supplies the shape and texture)."""
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
     ict: InputDir | None = None
     identity: str = "identity000"
     procedural: ProceduralSpec | None = None
+    mesh: MeshSpec | None = None
     texture: InputFile | None = None
     texture_seed: int = 0
 
     @model_validator(mode="after")
     def _one_source(self) -> CharacterSpec:
         if (self.ict is None) == (self.procedural is None):
-            raise ValueError("give exactly one of 'ict' (an ICT-FaceKit folder) or 'procedural' (a generated head)")
+            raise ValueError("give exactly one of 'ict' (an ICT-FaceKit folder) or 'procedural' (a generated head)"
+                             + (" as the rig of the mesh" if self.mesh is not None else ""))
+        if self.mesh is not None and self.texture is not None:
+            raise ValueError("with 'mesh', give the mesh's texture as mesh.texture (in the mesh's UV layout), "
+                             "not 'texture'")
+        if self.mesh is not None and self.mesh.region not in (None, "front") and self.ict is None:
+            raise ValueError(f"mesh.region '{self.mesh.region}': the procedural head has only the region 'front' "
+                             "(ICT regions such as narrow_face need an ICT rig)")
         return self
 
 

@@ -2,7 +2,7 @@
 
 The head is a latitude/longitude sphere (so its UVs are the sphere's parameters, seam at the
 back) deformed into head proportions, with nose, brow ridge, eye sockets, cheeks, lips and chin
-as smooth bumps, two eyeballs (sclera and iris parts), expression blendshapes for every shape the
+as smooth bumps, two eyeballs (part ``eye``, textured with sclera, iris and pupil), expression blendshapes for every shape the
 FACS recipes use (smooth displacement fields at the right places), and an albedo texture painted
 analytically in UV space (skin tone with multi-scale noise, lips, brows, cheek blush, hair cap).
 Everything derives from ``seed``; no file is read.
@@ -18,10 +18,11 @@ import functools
 import numpy as np
 
 from stimulus_engine.expressions import FaceRig
+from stimulus_engine.eyes import eye_texture, eyeball_uv
 
 __all__ = ["paint_albedo_at", "procedural_head"]
 
-_PARTS = ("skin", "sclera", "iris", "teeth", "mouth", "lashes", "hidden")
+_PARTS = ("skin", "eye", "teeth", "mouth", "lashes", "hidden")
 
 
 def _smoothstep(a: float, b: float, x: np.ndarray) -> np.ndarray:
@@ -227,7 +228,9 @@ def _cached(seed: int, texture_size: int, resolution: int) -> FaceRig:
         ev, ef, iris = _eyeball(c, 1.2)
         off = sum(len(a) for a in verts)
         eye_sets.append(np.arange(off, off + len(ev)))
-        verts.append(ev); fs.append(ef + off); parts.append(np.where(iris, 2, 1)); uvs.append(np.zeros((len(ev), 2)))
+        # UVs about the gaze axis and a sclera/iris/pupil texture (stimulus_engine.eyes)
+        verts.append(ev); fs.append(ef + off); parts.append(np.ones(len(ef), int))
+        uvs.append(eyeball_uv(ev, c, np.array([0.0, 0.0, 1.0])))
     v = np.concatenate(verts)
     f = np.concatenate(fs)
     skin = np.arange(n_head)
@@ -257,7 +260,7 @@ def _cached(seed: int, texture_size: int, resolution: int) -> FaceRig:
     return FaceRig(
         name=f"procedural_{seed}", vertices=v, faces=f, uv=np.concatenate(uvs), face_uv=f.copy(), face_part=np.concatenate(parts),
         part_names=_PARTS, landmarks=lms, blendshapes=_blendshapes(v, skin, p), rigid_sets=eye_sets, skin=skin,
-        texture=tex, texture_masks=masks,
+        texture=tex, texture_masks=masks, part_textures={"eye": eye_texture(256, (0.25, 0.32, 0.42), seed=seed)},
     )
 
 
@@ -276,7 +279,7 @@ def procedural_head(seed: int = 0, *, texture_size: int = 1024, resolution: int 
     Returns
     -------
     FaceRig
-        Centimetre units, +y up, face towards +z; parts ``skin``, ``sclera``, ``iris``; every
+        Centimetre units, +y up, face towards +z; parts ``skin`` and ``eye``; every
         blendshape the FACS recipes use; UV texture with ``lips``/``brows``/``hair`` masks.
         The returned rig is shared between calls with the same arguments: do not modify it
         in place (use :meth:`FaceRig.with_vertices`).

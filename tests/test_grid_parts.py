@@ -109,7 +109,7 @@ def test_procedural_head_is_deterministic_and_textured():
     assert not np.array_equal(a.texture, c.texture)
     assert a.texture_masks["lips"].max() == 1.0
     parts = rig_render_parts(a, a.vertices, a.texture)
-    assert {p.name for p in parts} == {"skin", "sclera", "iris"}
+    assert {p.name for p in parts} == {"skin", "eye"}  # eyes: one textured part (sclera, iris, pupil)
     no_uv = a.with_vertices(a.vertices)
     no_uv.uv = None
     with pytest.raises(ValueError, match="no UVs but a texture was asked for"):
