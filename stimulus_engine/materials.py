@@ -208,7 +208,30 @@ def rig_albedo(rig: FaceRig, *, size: int = 1024, seed: int = 0) -> tuple[np.nda
     return _painted(rig.name, id(rig), int(size), int(seed), _Ref((rig,)))
 
 
+_MATERIALS: dict[tuple, tuple[object, object]] = {}
+
+
 def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float = 0.62) -> object:
+    """A pyrender material; cached per (shading, colour, texture array, roughness) in this process.
+
+    Reusing the same material (and so the same ``pyrender.Texture``) for every image that wears
+    the same albedo lets the renderer keep the texture on the GPU (pyrender uploads a texture,
+    and builds its mipmaps, only when it first appears in a scene): the texture upload was most
+    of the per-image time on llvmpipe. The key holds the array's id and the entry the array
+    itself, so a new array that reuses a freed id never hits a stale material.
+    """
+    key = (shading, tuple(colour), None if texture is None else id(texture), float(roughness))
+    hit = _MATERIALS.get(key)
+    if hit is not None and hit[0] is texture:
+        return hit[1]
+    mat = _new_material(shading, colour, texture, roughness)
+    if len(_MATERIALS) > 32:
+        _MATERIALS.clear()
+    _MATERIALS[key] = (texture, mat)
+    return mat
+
+
+def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float) -> object:
     from stimulus_engine.render._pyrender import pyrender
 
     tex = None if texture is None else pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGB")

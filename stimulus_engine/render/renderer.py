@@ -70,6 +70,17 @@ def release_renderers() -> None:
         r.delete()
 
 
+def _smooth_mesh(mesh: trimesh.Trimesh, material: Any) -> Any:
+    """A smooth-shaded pyrender mesh that *shares* ``material`` (what ``from_trimesh`` builds, minus
+    its deep copy of the material). Sharing lets the renderer keep a texture on the GPU from one
+    image to the next (pyrender uploads a texture only when a new one appears in the scene); the
+    copy re-uploaded (and re-mipmapped) every albedo for every image."""
+    uv = mesh.visual.uv if getattr(mesh.visual, "kind", None) == "texture" else None
+    prim = pyrender.Primitive(positions=mesh.vertices, normals=mesh.vertex_normals, texcoord_0=uv,
+                              indices=mesh.faces, material=material, mode=pyrender.constants.GLTF.TRIANGLES)
+    return pyrender.Mesh(primitives=[prim])
+
+
 def _as_parts(meshes: MeshLike | Sequence[MeshLike]) -> list[Any]:
     items = [meshes] if not isinstance(meshes, (list, tuple)) else list(meshes)
     flat: list[Any] = []
@@ -82,6 +93,8 @@ def _as_parts(meshes: MeshLike | Sequence[MeshLike]) -> list[Any]:
     for i, m in enumerate(items):
         if isinstance(m, pyrender.Mesh):
             out.append(m)
+        elif isinstance(m, RenderPart) and m.material is not None and m.smooth:
+            out.append(_smooth_mesh(m.mesh, m.material))
         elif isinstance(m, RenderPart):
             out.append(pyrender.Mesh.from_trimesh(m.mesh, material=m.material, smooth=m.smooth))
         elif isinstance(m, trimesh.Trimesh):
