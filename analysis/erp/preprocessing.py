@@ -4,6 +4,13 @@ Each step is one MNE call with MNE's defaults unless the config says otherwise, 
 MNE script with the same settings gives the same numbers (tests/test_erp_pipeline.py
 checks that). Filtering, interpolation and re-referencing are linear and commute, so the
 filters run first (bad-channel detection then sees filtered data) without changing results.
+
+Memory: the recording is held once (float64, as MNE reads it) and every step works on it in
+place. The filters run channel by channel (``n_jobs=1``; MNE's default ``n_jobs=None`` collects
+every filtered channel in a list before writing back, a second copy of the recording), the
+reference is subtracted in time blocks (MNE's ``set_eeg_reference`` indexes all EEG channels
+at once, another copy) and the rejection looks at one block of epochs at a time. The numbers
+are bit-for-bit those of the MNE calls (tests/test_erp_preprocessing.py).
 """
 
 from __future__ import annotations
@@ -72,13 +79,16 @@ def _picks(raw, kind: str) -> np.ndarray:
 
 
 def filter_raw(raw, highpass_hz: float | None, lowpass_hz: float | None, *, highpass_causal: bool = True,
-               method: str = "fir", notch_hz=(), n_jobs: int | None = None) -> None:
+               method: str = "fir", notch_hz=(), n_jobs: int | None = 1) -> None:
     """Band-limit EEG and EOG channels in place (thesis: causal 0.16 Hz HP, zero-phase 30 Hz LP).
 
     With ``highpass_causal`` the high-pass runs forward only (MNE ``phase="minimum"`` for FIR,
     ``"forward"`` for IIR) and the low-pass separately with zero phase; otherwise one
     zero-phase band-pass. MNE's default design is used (firwin, Hamming window, automatic
-    filter length and transition bands).
+    filter length and transition bands). ``n_jobs=1`` (the default here) makes MNE write each
+    filtered channel back at once; any other value (MNE's own default ``None`` included) first
+    collects all filtered channels, which doubles the memory of the recording. The filtered
+    values are the same either way.
     """
     picks = ["eeg", "eog"]
     kw = dict(picks=picks, method=method, n_jobs=n_jobs, verbose="error")
@@ -142,7 +152,7 @@ def fix_bad_channels(raw, *, detect: bool, z_threshold: float, flat_uV: float, m
     bads = list(mark)
     if detect:
         step = max(1, int(raw.info["sfreq"] // 128))  # the SD needs no more than ~128 samples/s
-        data = raw.get_data(picks=eeg)[:, ::step]
+        data = np.stack([raw.get_data(picks=[i])[0, ::step] for i in eeg])  # one channel copied at a time
         bads += [names[i] for i in robust_bad_channels(data, z_threshold, flat_uV * 1e-6) if names[i] not in bads]
     if len(bads) > len(names) // 2:
         raise AppealInputError(f"{path}: bad_channels: {len(bads)} of {len(names)} EEG channels are bad "
@@ -153,12 +163,30 @@ def fix_bad_channels(raw, *, detect: bool, z_threshold: float, flat_uV: float, m
     return bads
 
 
-def set_reference(raw, reference) -> None:
-    """Re-reference EEG in place: ``"average"``, ``"none"`` or a list of channels."""
+def set_reference(raw, reference, block_s: float = 10.0) -> None:
+    """Re-reference EEG in place: ``"average"``, ``"none"`` or a list of channels.
+
+    The same arithmetic as ``raw.set_eeg_reference(reference, projection=False)`` (the mean
+    of the reference channels, the good EEG channels for ``"average"``, subtracted from every
+    good EEG channel), done in blocks of ``block_s`` seconds so no copy of the whole recording
+    is made; MNE then records the custom reference in ``raw.info`` (``set_eeg_reference([])``:
+    the data are referenced, MNE adds no projector).
+    """
+    import mne
+
     if reference == "none":
         return
-    raw.set_eeg_reference("average" if reference == "average" else list(reference), projection=False,
-                          verbose="error")
+    eeg = mne.pick_types(raw.info, eeg=True, exclude="bads")
+    if reference == "average":
+        ref_from = eeg
+    else:
+        ref_from = mne.pick_channels(raw.ch_names, list(reference), ordered=True)
+    data = raw._data  # preloaded (io.read_recording); MNE's own _apply_reference works on it the same way
+    step = max(1, int(block_s * raw.info["sfreq"]))
+    for start in range(0, data.shape[1], step):
+        block = data[:, start:start + step]  # a view
+        block[eeg] -= block[ref_from].mean(axis=0, keepdims=True)
+    raw.set_eeg_reference([], projection=False, verbose="error")
 
 
 def correct_eog(raw, method: str, seed: int = 0) -> dict:
@@ -207,8 +235,12 @@ def reject_absolute(epochs, threshold_uV: float) -> int:
     int
         Number of epochs dropped.
     """
-    data = epochs.get_data(picks="eeg", copy=False)
-    bad = np.flatnonzero(np.abs(data).max(axis=(1, 2)) > threshold_uV * 1e-6)
+    import mne
+
+    data = epochs.get_data(copy=False)  # the preloaded array itself, no copy
+    eeg = mne.pick_types(epochs.info, eeg=True, exclude=())
+    peak = np.concatenate([np.abs(data[i:i + 64][:, eeg]).max(axis=(1, 2)) for i in range(0, len(data), 64)])
+    bad = np.flatnonzero(peak > threshold_uV * 1e-6)
     if len(bad):
         epochs.drop(bad, reason=f"ABS {threshold_uV:g} uV", verbose="error")
     return int(len(bad))
