@@ -130,38 +130,16 @@ def bake_surface_points(rig: FaceRig, size: int, part: str = "skin") -> tuple[np
     """
     if rig.uv is None or rig.face_uv is None:
         raise ValueError(f"rig '{rig.name}' has no UVs (a texture needs them)")
-    sel = rig.face_part == rig.part_names.index(part)
-    fuv = rig.face_uv[sel]
-    fv = rig.faces[sel]
-    used, inv = np.unique(fuv, return_inverse=True)
-    tris = inv.reshape(-1, 3)
-    vid = np.zeros(len(used), np.int64)
-    vid[tris.ravel()] = fv.ravel()
-    # texel coordinates of the UV corners (x right, y down; row 0 = v 1)
-    uvp = np.column_stack([rig.uv[used, 0] * size - 0.5, (1 - rig.uv[used, 1]) * size - 0.5])
-    P = rig.vertices[vid]
+    from stimulus_engine.texture_transfer import rasterize_uv
+
+    sel = np.flatnonzero(rig.face_part == rig.part_names.index(part))
+    # texel centres inside a UV triangle (row 0 = v 1; where UV islands overlap the later
+    # triangle wins), vectorised by the texture transfer's rasteriser
+    rows, cols, fid, bary = rasterize_uv(rig.uv, rig.face_uv[sel], size, size)
     pts = np.zeros((size, size, 3))
     valid = np.zeros((size, size), bool)
-    for a, b, c in tris:
-        A, B, C = uvp[a], uvp[b], uvp[c]
-        det = (B[1] - C[1]) * (A[0] - C[0]) + (C[0] - B[0]) * (A[1] - C[1])
-        if abs(det) < 1e-12:
-            continue
-        x0, x1 = int(np.ceil(min(A[0], B[0], C[0]))), int(np.floor(max(A[0], B[0], C[0])))
-        y0, y1 = int(np.ceil(min(A[1], B[1], C[1]))), int(np.floor(max(A[1], B[1], C[1])))
-        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, size - 1), min(y1, size - 1)
-        if x1 < x0 or y1 < y0:
-            continue
-        X, Y = np.meshgrid(np.arange(x0, x1 + 1), np.arange(y0, y1 + 1))
-        l1 = ((B[1] - C[1]) * (X - C[0]) + (C[0] - B[0]) * (Y - C[1])) / det
-        l2 = ((C[1] - A[1]) * (X - C[0]) + (A[0] - C[0]) * (Y - C[1])) / det
-        l3 = 1 - l1 - l2
-        inside = (l1 >= -1e-9) & (l2 >= -1e-9) & (l3 >= -1e-9)
-        if not inside.any():
-            continue
-        ys, xs = Y[inside], X[inside]
-        pts[ys, xs] = l1[inside, None] * P[a] + l2[inside, None] * P[b] + l3[inside, None] * P[c]
-        valid[ys, xs] = True
+    pts[rows, cols] = np.einsum("ij,ijk->ik", bary, rig.vertices[rig.faces[sel][fid]])
+    valid[rows, cols] = True
     return pts, valid
 
 
