@@ -156,3 +156,58 @@ def test_build_model_input_errors():
         build_model([img, np.zeros((20, 16), np.float32)])
     with pytest.raises(AppealInputError, match="keypoints: expected 3 points"):
         build_model([img, img], faceframes=np.zeros((1, 3, 2)))
+
+
+def test_gram_and_pca_loadings_match_plain_products():
+    from stimulus_engine.morphpca.pca import gram, pca_with_loadings
+
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal((9, 500)).astype(np.float32)
+    x -= x.mean(axis=0)
+    np.testing.assert_allclose(gram(x), x.astype(np.float64) @ x.T.astype(np.float64), rtol=1e-5, atol=1e-3)
+    comps, var, _, lo = pca_with_loadings(x, n_components=4)
+    np.testing.assert_allclose(lo, x @ comps.T, atol=1e-4)  # loadings from the eigenvectors = projections
+    np.testing.assert_allclose(lo.var(axis=0, ddof=1), var, rtol=1e-4)
+    assert all(abs(r.max()) >= abs(r.min()) for r in comps)  # sign rule: largest |value| positive
+
+
+def test_jacobian_det_equals_numpy_gradient_and_inversion_buffers():
+    rng = np.random.default_rng(4)
+    d = rng.standard_normal((13, 17, 2)).astype(np.float32)
+    dxdy, dxdx = np.gradient(d[..., 0])
+    dydy, dydx = np.gradient(d[..., 1])
+    np.testing.assert_allclose(jacobian_det(d), (1 + dxdx) * (1 + dydy) - dxdy * dydx, rtol=1e-6, atol=1e-6)
+    g = grid(13, 17)
+    smooth = 0.3 * np.dstack([np.sin(g[..., 1] / 4), np.cos(g[..., 0] / 5)]).astype(np.float32)
+    bufs = tuple(np.full((13, 17, 2), np.nan, np.float32) for _ in range(3))
+    np.testing.assert_array_equal(invert_displacement(smooth, 7, buffers=bufs), invert_displacement(smooth, 7))
+
+
+def test_half_resolution_render_matches_full_resolution_inversion():
+    from stimulus_engine.morphpca.flow import sample_field
+
+    rng = np.random.default_rng(5)
+    from scipy.ndimage import gaussian_filter
+
+    tex = gaussian_filter(rng.random((64, 48, 3)), (1.5, 1.5, 0)).astype(np.float32)
+    g = grid(64, 48)
+    d = np.dstack([2.0 * np.sin(g[..., 1] / 9), 1.5 * np.cos(g[..., 0] / 7)]).astype(np.float32)
+    np.testing.assert_allclose(render_morph(tex, g), tex, atol=1e-6)  # identity stays exact at half resolution
+    e = -d
+    for _ in range(20):  # full-resolution fixed point, by hand
+        e = -sample_field(d, g + e)
+    ref = np.clip(warp_image(tex, g + e), 0, 1)
+    assert np.abs(render_morph(tex, g + d) - ref)[4:-4, 4:-4].max() < 0.02
+
+
+def test_faceframe_on_mean_inverts_at_the_points():
+    from stimulus_engine.morphpca.flow import sample_field
+    from stimulus_engine.morphpca.pca import faceframe_on_mean
+
+    g = grid(50, 40)
+    d = np.dstack([1.5 * np.sin(g[..., 1] / 8), np.cos(g[..., 0] / 6)]).astype(np.float32)
+    frames = np.array([[[12.0, 20], [28, 20], [20, 35]]] * 2)
+    pts = faceframe_on_mean(np.stack([g + d, g + d]), frames)
+    # each point q on the mean shape moves to the image keypoint: q + d(q) = p
+    moved = pts + sample_field(d, pts.astype(np.float32).reshape(1, -1, 2)).reshape(-1, 2)
+    np.testing.assert_allclose(moved, frames[0], atol=1e-3)

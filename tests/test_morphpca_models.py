@@ -116,3 +116,18 @@ def test_avatar_blends_identities(two_models):
         build_avatar([small_a])
     with pytest.raises(AppealInputError, match="summing to 1"):
         build_avatar([small_a, small_b], weights=[0.5, 0.6])
+
+
+def test_reconstructor_chunks_and_float_mode_agree(two_models, monkeypatch):
+    import stimulus_engine.morphpca.reconstruct as rc
+
+    _, _, ma, _ = two_models
+    lo = ma.loadings[:5]
+    whole = Reconstructor(ma)(lo)
+    monkeypatch.setattr(rc, "MAX_BUFFER_BYTES", 2 * 4 * (240 * 200 * 3 + 120 * 100 * 2))  # 2 rows per product
+    chunked = Reconstructor(ma)(lo)  # products of 2, 2 and 1 rows: the same faces (BLAS rounding aside)
+    assert np.abs(chunked.astype(int) - whole).max() <= 1
+    as_float = ma.reconstruct(lo)
+    assert as_float.dtype == np.float32 and 0 <= as_float.min() and as_float.max() <= 1
+    assert np.abs(np.round(as_float * 255) - whole).max() <= 1
+    assert Reconstructor(ma)(np.zeros((0, ma.n_components))).shape == (0, 240, 200, 3)
