@@ -43,7 +43,10 @@ def ours_ms(ict: str, n: int) -> list[float]:
 
 
 def plain_ms(ict: str, n: int) -> list[float]:
+    from stimulus_engine.render import release_renderers
     from stimulus_engine.render._pyrender import pyrender  # same platform/np.infty set-up
+
+    release_renderers()  # our context holds the (shared) eye texture; a texture lives in one context
 
     rig, parts = _ict_parts(Path(ict))
     r = pyrender.OffscreenRenderer(1024, 768)

@@ -117,3 +117,16 @@ def test_contact_sheet_layout_and_png(tmp_path):
     assert p.read_bytes() == q.read_bytes()
     with pytest.raises(ValueError, match="no images"):
         contact_sheet([None], ncols=1)
+
+
+def test_textured_parts_render_at_two_sizes_in_one_process():
+    """Materials (and their textures) are shared between images; switching image size must not
+    try to load a texture into a second OpenGL context (pyrender refuses that)."""
+    from stimulus_engine.materials import rig_render_parts
+    from stimulus_engine.procedural_head import procedural_head
+
+    r = procedural_head(0, texture_size=64, resolution=24)
+    a = render_mesh(rig_render_parts(r, r.vertices, r.texture), width=64, height=48, lighting="flat")
+    b = render_mesh(rig_render_parts(r, r.vertices, r.texture), width=96, height=72, lighting="flat")
+    c = render_mesh(rig_render_parts(r, r.vertices, r.texture), width=64, height=48, lighting="flat")
+    assert b.shape == (72, 96, 3) and np.array_equal(a, c)

@@ -54,17 +54,24 @@ _RENDERERS: dict[tuple[int, int], Any] = {}
 
 
 def _renderer(width: int, height: int) -> Any:
-    """The process's renderer for this size (created once; OpenGL contexts are expensive)."""
+    """The process's renderer for this size (kept for reuse; OpenGL contexts are expensive).
+
+    Only one renderer lives at a time: textures are shared between images (see
+    :func:`_smooth_mesh`) and a pyrender texture can be loaded in one OpenGL context only, so a
+    new size first releases the old context (and with it the textures loaded there).
+    """
     key = (int(width), int(height))
     r = _RENDERERS.get(key)
     if r is None:
+        release_renderers()
         r = pyrender.OffscreenRenderer(viewport_width=key[0], viewport_height=key[1])
         _RENDERERS[key] = r
     return r
 
 
 def release_renderers() -> None:
-    """Free this process's OpenGL contexts (they are otherwise kept for reuse)."""
+    """Free this process's OpenGL context (it is otherwise kept for reuse) and the textures
+    loaded into it (call before rendering the same materials with a renderer of your own)."""
     while _RENDERERS:
         _, r = _RENDERERS.popitem()
         r.delete()
