@@ -284,7 +284,10 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
                         # the rig's own blendshapes on its own neutral; deformation transfer onto a
                         # stylised shape or a corresponded mesh character
                         plain = level == 0 and expr_rig is rig
-                        v = apply_expression(expr_rig, canon, r.intensity, target=None if plain else shape_v)
+                        try:
+                            v = apply_expression(expr_rig, canon, r.intensity, target=None if plain else shape_v)
+                        except ValueError as exc:  # a recipe shape the rig lacks
+                            raise AppealInputError(f"{source}: characters.{c.name}: {exc}") from None
                         _save_npy(gp, v.astype(np.float32))
                     v = np.load(gp)
                     for name, pt in rig.landmark_points(v.astype(np.float64)).items():

@@ -192,6 +192,9 @@ def _blendshapes(v: np.ndarray, skin: np.ndarray, p: dict[str, float]) -> dict[s
         "mouthLowerDown": [((0.5 * m, -4.75), (0.9, 0.35), (0, -0.25, 0))],
         "mouthPress": [((0.5 * m, -4.3), (1.0, 0.5), (0, 0, -0.2)), ((0.5 * m, -3.9), (1.0, 0.3), (0, -0.1, 0)),
                        ((0.5 * m, -4.75), (1.0, 0.3), (0, 0.12, 0))],
+        # upper lip raiser (anger's snarl) and lip stretcher (corners pulled sideways)
+        "mouthUpperUp": [((0.55 * m, -3.85), (0.8, 0.35), (0, 0.25, 0.05))],
+        "mouthStretch": [((1.3 * m, -4.35), (0.7, 0.7), (0.35, -0.05, -0.1))],
     }
     out: dict[str, np.ndarray] = {}
     for name, fields in spec.items():
