@@ -43,3 +43,29 @@ def test_demo_command_environment_stage(tmp_path, capsys):
 def test_demo_unknown_stage(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path / "d"), "--only", "nope"]) == 2
     assert "--only: unknown stage(s) nope" in capsys.readouterr().err
+
+
+def test_whole_demo_every_stage_succeeds(tmp_path):
+    """`appeal demo` end to end (what `make demo` runs): no stage fails, every linked file exists.
+
+    Runs in a subprocess: the grid stage renders with pyrender and the experiment stage opens
+    PsychoPy windows in its own subprocesses, as in `make demo`.
+    """
+    import re
+    import subprocess
+    import sys
+
+    out = tmp_path / "demo"
+    res = subprocess.run([sys.executable, "-m", "appeal", "-q", "demo", "--out", str(out)],
+                         capture_output=True, text=True, check=False, timeout=1200)
+    assert res.returncode == 0, res.stderr[-2000:]
+    prov = json.loads((out / "provenance.json").read_text())
+    assert prov["failed_stages"] == []
+    page = (out / "index.html").read_text()
+    assert "This stage failed" not in page
+    names = [s.name for s in discover_stages()]
+    assert {"environment", "grid", "correspond", "avatar", "experiment", "ratings", "erp"} <= set(names)
+    links = set(re.findall(r"(?:src|href)='([^'#]+)'", page))
+    assert len(links) > 20
+    missing = [link for link in links if not (out / link).exists()]
+    assert not missing, missing
