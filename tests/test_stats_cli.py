@@ -145,3 +145,19 @@ def test_simulator_is_deterministic_and_bids_like(tmp_path):
     assert t.loc["shape", "pes"] > 0.8 and t.loc["shape", "mauchly_p"] < 0.05
     m = big.groupby("shape")["response_realism"].mean()
     assert np.all(np.diff(m.to_numpy()) > 0)
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "tsv"])
+def test_anova_reads_parquet_and_tsv_like_csv(tmp_path, fmt):
+    """The same long-format table as CSV, TSV or Parquet gives the same ANOVA table."""
+    df = pd.read_csv(OBK)
+    other = tmp_path / f"obk.{fmt}"
+    if fmt == "parquet":
+        df.to_parquet(other, index=False)
+    else:
+        df.to_csv(other, sep="\t", index=False)
+    args = ["--dv", "value", "--subject", "id", "--within", "phase", "hour", "--between", "treatment", "gender"]
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    assert main(["analyze", "anova", OBK, *args, "--json", str(a)]) == 0
+    assert main(["analyze", "anova", str(other), *args, "--json", str(b)]) == 0
+    assert json.loads(a.read_text()) == json.loads(b.read_text())
