@@ -137,3 +137,33 @@ def test_amplitudes_equal_plain_mne_script(study):
     ours = {((r.stylisation, r.emotion), r.component, r.cluster): r.mean_uV for r in amps.itertuples()}
     assert set(ref) == set(ours)
     assert max(abs(ref[k] - ours[k]) for k in ref) < 1e-4  # CSV keeps 6 significant digits
+
+
+def test_shared_forward_equals_per_subject_forward(study):
+    """run_erp computes the montage's forward once; a subject's pick of it equals its own forward."""
+    import mne
+
+    from analysis.erp.config import load_erp_config
+    from analysis.erp.io import read_recording
+    from analysis.erp.pipeline import _head_info
+    from analysis.erp.preprocessing import setup_channels
+    from analysis.erp.source import _forward, add_forward, template_head
+
+    cfg = load_erp_config(study["config"])
+    path = study["sim"]["files"][2]
+    head = template_head(_head_info(cfg, path), DESIGN.spacing_mm)
+    raw = read_recording(path)
+    setup_channels(raw, cfg.montage, cfg.eog, path)
+    info = raw.pick("eeg").set_eeg_reference("average", projection=True, verbose="error").info
+    own = _forward(head, info)  # head.forward is None: computed for this subject
+    add_forward(head, _head_info(cfg, path))
+    shared = _forward(head, info)
+    assert shared is not head.forward and shared["sol"]["data"].shape == own["sol"]["data"].shape
+    assert shared["info"]["ch_names"] == own["info"]["ch_names"] == info["ch_names"]
+    assert np.array_equal(shared["sol"]["data"], own["sol"]["data"])
+    # electrodes elsewhere (another montage): the subject gets its own forward again
+    moved = info.copy()
+    with moved._unlock():
+        moved["chs"][0]["loc"][:3] += 0.01
+    assert not np.array_equal(_forward(head, moved)["sol"]["data"], shared["sol"]["data"])
+    assert mne.pick_types(moved, eeg=True).size == 128

@@ -216,7 +216,7 @@ def run_erp(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: int | None
     AppealInputError
         When the config is inconsistent, or no subject succeeds.
     """
-    from analysis.erp.source import template_head
+    from analysis.erp.source import add_forward, template_head
 
     emap = event_map(cfg, source)
     files = find_recordings(cfg, source)
@@ -235,8 +235,9 @@ def run_erp(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: int | None
     head = None
     if cfg.source.enabled:
         s = cfg.source
-        head = template_head(_head_info(cfg, files[0]), s.spacing_mm, bem=s.bem, trans=s.trans,
-                             subjects_dir=s.subjects_dir, subject=s.subject)
+        info = _head_info(cfg, files[0])
+        head = add_forward(template_head(info, s.spacing_mm, bem=s.bem, trans=s.trans, subjects_dir=s.subjects_dir,
+                                         subject=s.subject), info)
     func = functools.partial(_process_item, cfg=cfg, emap=emap, head=head, seed=seed)
     items = list(zip(files, subjects))
     res = parallel_map(func, items, n_jobs=n_jobs if n_jobs is not None else cfg.n_jobs, scheduler=scheduler,

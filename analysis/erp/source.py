@@ -26,6 +26,7 @@ from appeal.errors import AppealInputError
 __all__ = [
     "HeadModel",
     "template_head",
+    "add_forward",
     "head_to_mni_affine",
     "subject_source_maps",
     "contrast_clusters",
@@ -50,6 +51,9 @@ class HeadModel:
         Affine from source-space coordinates (metres) to MNI (millimetres).
     kind : str
         ``"sphere"`` or ``"bem"``.
+    forward : mne.Forward | None
+        Forward solution of the montage's EEG channels (:func:`add_forward`), shared by the
+        subjects whose electrodes sit at the same positions; ``None``: one per subject.
     """
 
     bem: object
@@ -57,6 +61,7 @@ class HeadModel:
     trans: object
     to_mni: np.ndarray
     kind: str
+    forward: object = None
 
     @property
     def positions(self) -> np.ndarray:
@@ -161,6 +166,42 @@ def template_head(info, spacing_mm: float = 7.0, *, bem: str | Path | None = Non
     return HeadModel(bem=bem_sol, src=src, trans=head_mri, to_mni=to_mni, kind="bem")
 
 
+def add_forward(head: HeadModel, info) -> HeadModel:
+    """Compute the forward solution of ``info``'s EEG channels once and keep it in ``head``.
+
+    Subjects recorded with the same montage then pick their channels from it
+    (:func:`mne.pick_channels_forward`) instead of computing the same forward again. If it
+    cannot be computed here, ``head.forward`` stays ``None`` and each subject computes (and,
+    failing, reports) its own.
+    """
+    import mne
+
+    try:
+        head.forward = mne.make_forward_solution(info, trans=head.trans, src=head.src, bem=head.bem, eeg=True,
+                                                 meg=False, verbose="error")
+    except Exception as exc:  # noqa: BLE001 - an optimisation only; subjects report the error themselves
+        from appeal.logs import logger
+
+        logger.debug("shared forward solution not computed: %s", exc)
+        head.forward = None
+    return head
+
+
+def _forward(head: HeadModel, info):
+    """The forward solution for ``info``: the shared one when every EEG electrode sits where it
+    was computed (the same numbers as computing it again), else a new one."""
+    import mne
+
+    fwd = head.forward
+    if fwd is not None and not info["bads"]:
+        at = {c["ch_name"]: c["loc"][:3] for c in fwd["info"]["chs"]}
+        eeg = [info["chs"][i] for i in mne.pick_types(info, eeg=True, exclude=())]
+        if all(c["ch_name"] in at and np.array_equal(at[c["ch_name"]], c["loc"][:3]) for c in eeg):
+            return mne.pick_channels_forward(fwd, [c["ch_name"] for c in eeg], ordered=True, verbose="error")
+    return mne.make_forward_solution(info, trans=head.trans, src=head.src, bem=head.bem, eeg=True, meg=False,
+                                     verbose="error")
+
+
 def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, method: str = "sLORETA",
                         snr: float = 3.0) -> dict:
     """Window-averaged source maps of one subject.
@@ -188,8 +229,7 @@ def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, me
     import mne
 
     ep = epochs.copy().set_eeg_reference("average", projection=True, verbose="error")
-    fwd = mne.make_forward_solution(ep.info, trans=head.trans, src=head.src, bem=head.bem, eeg=True, meg=False,
-                                    verbose="error")
+    fwd = _forward(head, ep.info)
     cov = mne.compute_covariance(ep, tmax=0.0, method="empirical", verbose="error")
     inv = mne.minimum_norm.make_inverse_operator(ep.info, fwd, cov, loose=1.0, depth=0.8, verbose="error")
     out = {}
