@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 __all__ = ["FLOW_BACKENDS", "DIS_SETTINGS", "compute_flow", "grey_u8", "grid", "warp_image", "sample_field",
-           "invert_displacement", "jacobian_det", "min_jacobian_det", "fix_foldovers"]
+           "invert_displacement", "jacobian_det", "fix_foldovers"]
 
 FLOW_BACKENDS = ("dis", "farneback")
 
@@ -190,11 +190,6 @@ def jacobian_det(d: np.ndarray) -> np.ndarray:
     det = gx[..., 0] * gy[..., 1]
     det -= gy[..., 0] * gx[..., 1]
     return det
-
-
-def min_jacobian_det(d: np.ndarray) -> float:
-    """The smallest Jacobian determinant of ``x ↦ x + d(x)`` (the fold-over check)."""
-    return float(jacobian_det(d).min())
 
 
 def fix_foldovers(d: np.ndarray, min_det: float = 0.1, max_iterations: int = 30) -> np.ndarray:
