@@ -19,50 +19,49 @@ __all__ = ["SurfaceIndex", "ClosestPoints", "closest_point_on_triangles", "bound
 
 def boundary_edge_mask(faces: np.ndarray) -> np.ndarray:
     """(F, 3) bool: the edge opposite corner ``k`` of face ``f`` has no neighbouring face."""
+    faces = np.asarray(faces, dtype=np.int64)
     e = np.stack([faces[:, [1, 2]], faces[:, [2, 0]], faces[:, [0, 1]]], axis=1).reshape(-1, 2)
-    key = np.sort(e, axis=1)
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return (counts[inv.ravel()] == 1).reshape(-1, 3)
+    base = int(faces.max()) + 1 if faces.size else 1
+    key = np.minimum(e[:, 0], e[:, 1]) * base + np.maximum(e[:, 0], e[:, 1])
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return (counts[inv] == 1).reshape(-1, 3)
 
 
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):
-    """Closest point of each ``p`` on triangle ``(a, b, c)`` (all (K, 3)); returns bary (K, 3)."""
-    ab, ac, ap = b - a, c - a, p - a
+    """Closest point of each ``p`` on triangle ``(a, b, c)`` (all (K, 3)); returns bary (K, 3).
+
+    Ericson's Voronoi-region test, evaluated for all rows at once: the two free barycentric
+    weights ``(v, w)`` are chosen region by region (vertex A, B, C, edge AB, AC, BC, inside)
+    with ``np.select``; degenerate triangles fall back to their first corner.
+    """
+    ab, ac = b - a, c - a
+    ap, bp, cp = p - a, p - b, p - c
     d1 = np.einsum("ij,ij->i", ab, ap)
     d2 = np.einsum("ij,ij->i", ac, ap)
-    bp = p - b
     d3 = np.einsum("ij,ij->i", ab, bp)
     d4 = np.einsum("ij,ij->i", ac, bp)
-    cp = p - c
     d5 = np.einsum("ij,ij->i", ab, cp)
     d6 = np.einsum("ij,ij->i", ac, cp)
     va = d3 * d6 - d5 * d4
     vb = d5 * d2 - d1 * d6
     vc = d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        denom = va + vb + vc
-        v = vb / denom
-        w = vc / denom
-    bary = np.stack([1 - v - w, v, w], axis=1)
-    done = np.zeros(len(p), dtype=bool)
-
-    def put(mask, vals):
-        nonlocal done
-        m = mask & ~done
-        bary[m] = vals[m] if vals.ndim == 2 else vals
-        done |= m
-
-    k = len(p)
-    put((d1 <= 0) & (d2 <= 0), np.tile([1.0, 0, 0], (k, 1)))
-    put((d3 >= 0) & (d4 <= d3), np.tile([0, 1.0, 0], (k, 1)))
-    put((d6 >= 0) & (d5 <= d6), np.tile([0, 0, 1.0], (k, 1)))
+    e43, e56 = d4 - d3, d5 - d6
+    regions = [
+        (d1 <= 0) & (d2 <= 0),  # vertex A
+        (d3 >= 0) & (d4 <= d3),  # vertex B
+        (d6 >= 0) & (d5 <= d6),  # vertex C
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),  # edge AB
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),  # edge AC
+        (va <= 0) & (e43 >= 0) & (e56 >= 0),  # edge BC
+    ]
     with np.errstate(divide="ignore", invalid="ignore"):
         t_ab = d1 / (d1 - d3)
         t_ac = d2 / (d2 - d6)
-        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-    put((vc <= 0) & (d1 >= 0) & (d3 <= 0), np.stack([1 - t_ab, t_ab, 0 * t_ab], axis=1))
-    put((vb <= 0) & (d2 >= 0) & (d6 <= 0), np.stack([1 - t_ac, 0 * t_ac, t_ac], axis=1))
-    put((va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0), np.stack([0 * t_bc, 1 - t_bc, t_bc], axis=1))
+        t_bc = e43 / (e43 + e56)
+        denom = va + vb + vc
+        v = np.select(regions, [0.0, 1.0, 0.0, t_ab, 0.0, 1.0 - t_bc], vb / denom)
+        w = np.select(regions, [0.0, 0.0, 1.0, 0.0, t_ac, t_bc], vc / denom)
+    bary = np.stack([1.0 - v - w, v, w], axis=1)
     bad = ~np.isfinite(bary).all(axis=1)
     bary[bad] = [1.0, 0.0, 0.0]  # degenerate triangle: use its first corner
     return bary
@@ -153,12 +152,19 @@ class SurfaceIndex:
         )
 
     def _query(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        k = min(self.k, len(self.vertices))
-        _, vi = self._vtree.query(p, k=min(self.k_vertices, k), workers=-1)
-        _, ci = self._ctree.query(p, k=min(self.k, self._n_faces), workers=-1)
-        vi = np.asarray(vi).reshape(len(p), -1)
-        ci = np.asarray(ci).reshape(len(p), -1)
-        cand = np.concatenate([self._vf[vi].reshape(len(p), -1), ci], axis=1)  # (Q, K), -1 = none
+        parts = []
+        kv = min(self.k_vertices, len(self.vertices))
+        if kv > 0:
+            _, vi = self._vtree.query(p, k=kv, workers=-1)
+            parts.append(self._vf[np.asarray(vi).reshape(len(p), -1)].reshape(len(p), -1))
+        kc = min(self.k, self._n_faces)
+        if kc > 0 or not parts:
+            _, ci = self._ctree.query(p, k=max(kc, 1), workers=-1)
+            parts.append(np.asarray(ci).reshape(len(p), -1))
+        # (Q, K) candidate triangles, -1 = none; neighbouring vertices share triangles, so
+        # duplicates in a row are dropped before the (costly) exact projections
+        cand = np.sort(np.concatenate(parts, axis=1), axis=1)
+        cand[:, 1:][cand[:, 1:] == cand[:, :-1]] = -1
         q_idx = np.repeat(np.arange(len(p)), cand.shape[1])
         f_idx = cand.ravel()
         keep = f_idx >= 0
@@ -171,7 +177,8 @@ class SurfaceIndex:
         counts = np.bincount(q_idx, minlength=len(p))
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
         mins = np.minimum.reduceat(d2, starts)
+        # first candidate of each query reaching its minimum (candidates are grouped by query)
         is_min = np.flatnonzero(d2 == np.repeat(mins, counts))
-        _, first = np.unique(q_idx[is_min], return_index=True)
-        sel = is_min[first]
+        qm = q_idx[is_min]
+        sel = is_min[np.concatenate([[True], qm[1:] != qm[:-1]])]
         return f_idx[sel], bary[sel]

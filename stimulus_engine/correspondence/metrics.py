@@ -9,9 +9,12 @@ from stimulus_engine.correspondence.closest import SurfaceIndex
 __all__ = ["surface_distances", "flipped_triangles", "against_target_triangles", "degenerate_triangles", "fit_metrics"]
 
 
-def surface_distances(points: np.ndarray, target_vertices: np.ndarray, target_faces: np.ndarray) -> np.ndarray:
+def surface_distances(
+    points: np.ndarray, target_vertices: np.ndarray, target_faces: np.ndarray, index: SurfaceIndex | None = None
+) -> np.ndarray:
     """Distance of each point to the target surface (exact point-triangle distance)."""
-    return SurfaceIndex(target_vertices, target_faces).query(points).distance
+    index = index if index is not None else SurfaceIndex(target_vertices, target_faces)
+    return index.query(points).distance
 
 
 def _face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -42,12 +45,17 @@ def flipped_triangles(vertices: np.ndarray, faces: np.ndarray, reference_vertice
 
 
 def against_target_triangles(
-    vertices: np.ndarray, faces: np.ndarray, target_vertices: np.ndarray, target_faces: np.ndarray
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    target_vertices: np.ndarray,
+    target_faces: np.ndarray,
+    index: SurfaceIndex | None = None,
 ) -> np.ndarray:
     """Triangles whose normal points against the target's normal at the closest point of their
     centroid (sensitive to scan noise; reported beside :func:`flipped_triangles`)."""
     n, _ = _face_normals(vertices, faces)
-    cp = SurfaceIndex(target_vertices, target_faces).query(vertices[faces].mean(axis=1))
+    index = index if index is not None else SurfaceIndex(target_vertices, target_faces)
+    cp = index.query(vertices[faces].mean(axis=1))
     return np.einsum("ij,ij->i", n, cp.normals) < 0
 
 
@@ -65,6 +73,7 @@ def fit_metrics(
     target_vertices: np.ndarray,
     target_faces: np.ndarray,
     reference_vertices: np.ndarray,
+    target_index: SurfaceIndex | None = None,
 ) -> dict:
     """Distances relative to the target's bounding-box diagonal, both ways, and fold-overs.
 
@@ -72,12 +81,14 @@ def fit_metrics(
     against the target surface (how well the source was fitted, as in thesis Table 3.1);
     ``hausdorff_sym_rel`` also includes target vertices against the deformed source (it is
     large when the target covers more than the source, e.g. a scan's neck).
+    ``target_index``: a :class:`SurfaceIndex` of the target already built (saves building it).
     """
     diag = float(np.linalg.norm(np.ptp(target_vertices, axis=0)))
-    d_st = surface_distances(vertices, target_vertices, target_faces)
+    index = target_index if target_index is not None else SurfaceIndex(target_vertices, target_faces)
+    d_st = surface_distances(vertices, target_vertices, target_faces, index)
     d_ts = surface_distances(target_vertices, vertices, faces)
     flipped = flipped_triangles(vertices, faces, reference_vertices)
-    against = against_target_triangles(vertices, faces, target_vertices, target_faces)
+    against = against_target_triangles(vertices, faces, target_vertices, target_faces, index)
     degenerate = degenerate_triangles(vertices, faces, reference_vertices)
     return {
         "hausdorff_rel": float(d_st.max() / diag),

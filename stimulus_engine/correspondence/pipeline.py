@@ -172,7 +172,8 @@ def correspond(
     logger.info("joint fairing: %d solves, %.2f s", fair.factorizations, seconds["fairing"])
 
     t = time.perf_counter()
-    bt_index = SurfaceIndex(fair.target, ft_c)
+    # the base meshes are smooth and well shaped: fewer closest-triangle candidates suffice
+    bt_index = SurfaceIndex(fair.target, ft_c, k=4, k_vertices=1)
     base = nonrigid_register(
         fair.source, fs, ls, voronoi_areas(fair.source, fs), bt_index,
         corr.source, corr_c.target.positions(fair.target), params.schedule, params.mu2, params.mu3,
@@ -194,7 +195,7 @@ def correspond(
         vs, fs, ls, voronoi_areas(vs, fs), t_index, corr.source, corr.target.positions(vt),
         ((w, max(1, params.final_iterations)),), params.final_fit_weight, w,
         Pruning(params.prune_distance_final * NORMALISED_DIAGONAL, params.prune_angle, True),
-        fixed_targets=(c_orig, base.valid),
+        fixed_targets=(c_orig, base.valid), ordering=base.ordering,
     )
     seconds["register_original"] = time.perf_counter() - t
 
@@ -207,7 +208,10 @@ def correspond(
         tf, tb, valid = crop_faces[cp.face], cp.bary, base.valid
     seconds["total"] = time.perf_counter() - t_all
     t = time.perf_counter()
-    metrics = fit_metrics(out_v, fs, vt0, ft, sim.apply(vs0))
+    # measured in the normalised frame (relative distances and fold-overs do not depend on it)
+    # with the target index already built
+    metrics = fit_metrics(final.vertices, fs, vt, ft, vs, target_index=t_index)
+    metrics["target_bbox_diagonal"] = float(np.linalg.norm(hi - lo))
     seconds["metrics"] = time.perf_counter() - t
     metrics["seconds"] = seconds["total"]
     metrics["valid_fraction"] = float(valid.mean())

@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from stimulus_engine.correspondence.closest import ClosestPoints, SurfaceIndex
 from stimulus_engine.correspondence.landmarks import SurfacePoints
 from stimulus_engine.correspondence.laplacian import bilaplacian
+from stimulus_engine.correspondence.ordering import nested_dissection
 from stimulus_engine.correspondence.solve import ReusableSolver
 
 __all__ = ["Pruning", "RegistrationResult", "vertex_normals", "prune_mask", "nonrigid_register"]
@@ -49,6 +50,7 @@ class RegistrationResult:
     factorizations: int = 0
     reuses: int = 0
     history: list[dict] = field(default_factory=list)
+    ordering: np.ndarray | None = None
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -88,6 +90,7 @@ def nonrigid_register(
     fixed_targets: tuple[np.ndarray, np.ndarray] | None = None,
     progress=None,
     reuse_mask: bool = True,
+    ordering: np.ndarray | None = None,
 ) -> RegistrationResult:
     """Deform ``start`` onto ``target`` (eq. 3.11-3.13).
 
@@ -118,6 +121,10 @@ def nonrigid_register(
         Decide the pruning mask at the first iteration of each stiffness stage and keep it for
         the stage, so that one factorisation serves the whole stage (closest points are still
         updated every iteration). False re-prunes (and refactorises) every iteration.
+    ordering : (N,) int array, optional
+        Fill-reducing ordering for the factorisations (the pattern is that of the
+        bi-Laplacian, whatever the weights); by default a nested dissection of ``start``,
+        returned in ``RegistrationResult.ordering`` for reuse.
     """
     v_hat = np.asarray(start, dtype=np.float64)
     n = len(v_hat)
@@ -127,7 +134,9 @@ def nonrigid_register(
     m = max(len(ref_source), 1)
     ref_h = (mu3 / m) * (cs.T @ cs)
     ref_rhs = (mu3 / m) * (cs.T @ ref_target)
-    solver = ReusableSolver()
+    if ordering is None:
+        ordering = nested_dissection(q, v_hat)
+    solver = ReusableSolver(ordering)
     v = v_hat.copy()
     res = RegistrationResult(v, None, np.zeros(n, dtype=bool))
     it = 0
@@ -167,4 +176,5 @@ def nonrigid_register(
     res.iterations = it
     res.factorizations = solver.factorizations
     res.reuses = solver.reuses
+    res.ordering = solver.ordering
     return res
