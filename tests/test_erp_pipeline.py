@@ -20,6 +20,20 @@ from appeal.cli import main
 DESIGN = SimulationDesign(n_subjects=8, trials_per_cell=8, sfreq=128, spacing_mm=12.0, seed=3)
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _one_blas_thread():
+    """One BLAS thread in this process (the subject workers get cores // workers from joblib).
+
+    The linear algebra here is small; on the shared 2-core machine two OpenBLAS threads
+    waiting for each other made the module take ~2x longer. Results do not depend on it.
+    """
+    import scipy.linalg  # noqa: F401 - load SciPy's BLAS too, so the limit covers it
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1):
+        yield
+
+
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     d = tmp_path_factory.mktemp("erp_study")
