@@ -182,3 +182,68 @@ def test_reusable_solver_counts():
 def test_correspondences_length_check():
     with pytest.raises(AppealInputError, match="same number"):
         Correspondences(SurfacePoints.from_vertices([0, 1]), SurfacePoints.from_vertices([0]))
+
+
+def _spd_grid_system(n=12):
+    from stimulus_engine.correspondence.laplacian import bilaplacian, cotangent_laplacian, voronoi_areas
+
+    v, f = grid(n, z=lambda x, y: 0.1 * np.sin(3 * x) * np.cos(2 * y))
+    lap = cotangent_laplacian(v, f)
+    h = (bilaplacian(lap, voronoi_areas(v, f)) + sp.identity(len(v))).tocsr()
+    return v, f, h
+
+
+def test_nested_dissection_is_a_permutation_and_solves_the_same():
+    from stimulus_engine.correspondence.ordering import nested_dissection
+    from stimulus_engine.correspondence.solve import factorize
+
+    v, _, h = _spd_grid_system()
+    order = nested_dissection(h, v, leaf=8)
+    np.testing.assert_array_equal(np.sort(order), np.arange(len(v)))
+    b = np.random.default_rng(0).normal(size=(len(v), 3))
+    x_nd = factorize(h, order).solve(b)
+    x_mmd = factorize(h).solve(b)
+    np.testing.assert_allclose(h @ x_nd, b, atol=1e-9)
+    np.testing.assert_allclose(x_nd, x_mmd, atol=1e-9)
+    # a factor's ordering can be handed to the next factorisation of the same pattern
+    f1 = factorize(h)
+    np.testing.assert_allclose(factorize(2 * h, f1.ordering).solve(b), x_mmd / 2, atol=1e-9)
+
+
+def test_pcg_on_a_nearby_factorisation():
+    from stimulus_engine.correspondence.solve import factorize, pcg
+
+    v, _, h = _spd_grid_system()
+    near = (h + sp.diags(np.linspace(0.0, 0.05, len(v)))).tocsr()  # a slightly different matrix
+    b = np.random.default_rng(1).normal(size=(len(v), 3))
+    x, it, ok = pcg(near, b, factorize(h).solve, rtol=1e-12, maxiter=50)
+    assert ok and 0 < it < 20
+    np.testing.assert_allclose(near @ x, b, atol=1e-9)
+    # far from the preconditioner: gives up early instead of iterating to maxiter
+    _, it_far, ok_far = pcg((h + 50 * sp.identity(len(v))).tocsr(), b, factorize(h).solve, rtol=1e-14, maxiter=6)
+    assert not ok_far and it_far <= 6
+    s = ReusableSolver()
+    s.solve(s.make_key(0), lambda: h, b)
+    x2 = s.solve(s.make_key(1), lambda: near, b, near=True)
+    assert (s.factorizations, s.pcg_solves) == (1, 1)
+    np.testing.assert_allclose(near @ x2, b, atol=1e-7)
+
+
+def test_untangle_removes_a_fold_on_a_plane():
+    from stimulus_engine.correspondence.metrics import flipped_triangles
+    from stimulus_engine.correspondence.untangle import untangle
+
+    v, f = grid(9)
+    folded = v.copy()
+    folded[40, :2] += [0.2, 0.17]  # the centre vertex pulled across its 1-ring
+    assert flipped_triangles(folded, f, v).sum() > 0
+    res = untangle(folded, f, v, lambda p: p * [1.0, 1.0, 0.0])
+    assert res.folds_before > 0 and res.folds_after == 0
+    assert flipped_triangles(res.vertices, f, v).sum() == 0
+    np.testing.assert_allclose(res.vertices[:, 2], 0.0, atol=1e-12)
+    # only the patch around the fold moved
+    np.testing.assert_array_equal(res.vertices[~res.moved], folded[~res.moved])
+    assert res.moved.sum() < len(v) / 2
+    # nothing to do on an unfolded mesh
+    same = untangle(v, f, v, lambda p: p)
+    assert same.rounds == 0 and not same.moved.any()

@@ -18,6 +18,7 @@ from stimulus_engine.correspondence.landmarks import Correspondences, SurfacePoi
 from stimulus_engine.correspondence.laplacian import fairing_operator, voronoi_areas
 from stimulus_engine.correspondence.metrics import fit_metrics
 from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
+from stimulus_engine.correspondence.untangle import untangle
 from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
 
 #: The weights of eq. 3.7-3.13 mix unitless curvature energies with squared distances, so
@@ -37,6 +38,9 @@ class CorrespondParams:
     bounding-box diagonal. ``crop_target``: before fairing, the target is cut down to the
     triangles within this distance of the aligned source (a scan's neck and hair that the
     source does not cover would otherwise float freely in the fairing); None keeps it whole.
+    ``untangle``: repair any fold-over left by the registration locally (the folded
+    triangles' vertices grown by ``untangle_rings`` rings, re-placed harmonically and
+    projected back onto the target; see :mod:`.untangle`).
     """
 
     lambda1: float = 0.1
@@ -54,6 +58,8 @@ class CorrespondParams:
     prune_distance_final: float = 0.02
     align: bool = True
     crop_target: float | None = 0.08
+    untangle: bool = True
+    untangle_rings: int = 2
 
 
 @dataclass
@@ -199,22 +205,38 @@ def correspond(
     )
     seconds["register_original"] = time.perf_counter() - t
 
-    out_v = final.vertices * diag + centre
+    t = time.perf_counter()
+    v_final = final.vertices
+    untangled = 0
+    if params.untangle:
+        ut = untangle(v_final, fs, vs, lambda p: t_index.query(p).points, rings=params.untangle_rings)
+        v_final, untangled = ut.vertices, int(ut.moved.sum())
+        if ut.rounds:
+            logger.info("untangling: %d -> %d fold-overs, %d vertices moved in %d rounds",
+                        ut.folds_before, ut.folds_after, untangled, ut.rounds)
+    seconds["untangle"] = time.perf_counter() - t
+
+    out_v = v_final * diag + centre
     faired_target = np.full_like(vt, np.nan)
     faired_target[crop_verts] = fair.target
     if final.closest is not None:
-        tf, tb, valid = final.closest.face, final.closest.bary, final.valid
+        tf, tb, valid = final.closest.face.copy(), final.closest.bary.copy(), final.valid
     else:
-        tf, tb, valid = crop_faces[cp.face], cp.bary, base.valid
+        tf, tb, valid = crop_faces[cp.face], cp.bary.copy(), base.valid
+    if untangled:
+        moved = ut.moved
+        cp_m = t_index.query(v_final[moved])
+        tf[moved], tb[moved] = cp_m.face, cp_m.bary
     seconds["total"] = time.perf_counter() - t_all
     t = time.perf_counter()
     # measured in the normalised frame (relative distances and fold-overs do not depend on it)
     # with the target index already built
-    metrics = fit_metrics(final.vertices, fs, vt, ft, vs, target_index=t_index)
+    metrics = fit_metrics(v_final, fs, vt, ft, vs, target_index=t_index)
     metrics["target_bbox_diagonal"] = float(np.linalg.norm(hi - lo))
     seconds["metrics"] = time.perf_counter() - t
     metrics["seconds"] = seconds["total"]
     metrics["valid_fraction"] = float(valid.mean())
+    metrics["untangled_vertices"] = untangled
     return CorrespondenceResult(
         vertices=out_v,
         faces=fs,

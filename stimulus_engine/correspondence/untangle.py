@@ -1,0 +1,136 @@
+"""Local untangling of fold-overs left by the registration.
+
+Where the source has geometry the target lacks (ICT's eye and mouth openings and deep
+nostrils against a scan with closed eyelids and shallow nostrils), the closest-point fit
+squeezes a patch of the source onto a smaller piece of the target and a few triangles fold
+over. :func:`untangle` repairs exactly those patches: the vertices of the folded triangles,
+grown by a few rings, are relaxed on the target surface with the rest of the mesh fixed:
+a few steps of Laplacian smoothing (each free vertex towards the mean of its neighbours,
+each free vertex of a boundary loop — a hole rim — towards the mean of its two rim
+neighbours), each followed by a projection back onto the target (closest point). Small
+steps keep the points near the surface, so the projection stays local; the relaxation
+converges towards a Tutte (harmonic) embedding of the patch, which has no fold-overs. If
+folds remain, the patch grows by one ring and the relaxation repeats.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from stimulus_engine.correspondence.laplacian import boundary_vertices
+from stimulus_engine.correspondence.metrics import degenerate_triangles, flipped_triangles
+
+__all__ = ["UntangleResult", "untangle", "vertex_adjacency"]
+
+
+@dataclass
+class UntangleResult:
+    """New vertices, the vertices moved, rounds run and fold-overs before/after."""
+
+    vertices: np.ndarray
+    moved: np.ndarray
+    rounds: int
+    folds_before: int
+    folds_after: int
+
+
+def vertex_adjacency(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
+    """Symmetric 0/1 vertex adjacency (edges of the triangles)."""
+    f = np.asarray(faces, dtype=np.int64)
+    i = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
+    j = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+    a = sp.csr_matrix((np.ones(len(i)), (i, j)), shape=(n_vertices, n_vertices))
+    a = ((a + a.T) > 0).astype(np.float64)
+    return a.tocsr()
+
+
+def _grow(mask: np.ndarray, adjacency: sp.csr_matrix, rings: int) -> np.ndarray:
+    m = mask.astype(np.float64)
+    for _ in range(rings):
+        m = np.maximum(m, (adjacency @ m > 0).astype(np.float64))
+    return m > 0
+
+
+def _bad_triangles(v: np.ndarray, faces: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    return flipped_triangles(v, faces, reference) | (
+        degenerate_triangles(v, faces, reference) & ~degenerate_triangles(reference, faces, reference)
+    )
+
+
+def untangle(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    reference: np.ndarray,
+    project: Callable[[np.ndarray], np.ndarray],
+    rings: int = 2,
+    max_rounds: int = 6,
+    steps: int = 10,
+    step: float = 0.5,
+) -> UntangleResult:
+    """Remove fold-overs of ``vertices`` (relative to the unfolded ``reference``) locally.
+
+    Parameters
+    ----------
+    vertices : (N, 3) array
+        The registered source.
+    faces : (F, 3) int array
+    reference : (N, 3) array
+        The undeformed source (what counts as a fold is decided against it, see
+        :func:`~stimulus_engine.correspondence.metrics.flipped_triangles`).
+    project : callable
+        Maps (K, 3) points onto the target surface (closest points).
+    rings : int
+        Rings added around the folded triangles' vertices in the first round.
+    max_rounds : int
+        Rounds, each with one more ring, until no fold is left.
+    steps, step : int, float
+        Relaxation steps per round and their size (fraction of the way to the mean).
+
+    Returns
+    -------
+    UntangleResult
+    """
+    v = np.array(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    n = len(v)
+    adjacency = vertex_adjacency(faces, n)
+    b, prv, nxt = boundary_vertices(faces, n)
+    # rows of the harmonic operator: interior vertices average their neighbours, hole-rim
+    # vertices average their two rim neighbours (the rim stays a faired curve)
+    lap = sp.diags(np.asarray(adjacency.sum(axis=1)).ravel()) - adjacency
+    if len(b):
+        rim = sp.csr_matrix(
+            (np.concatenate([np.full(len(b), 2.0), -np.ones(len(b)), -np.ones(len(b))]),
+             (np.concatenate([b, b, b]), np.concatenate([b, prv, nxt]))),
+            shape=(n, n),
+        )
+        interior = np.ones(n)
+        interior[b] = 0.0
+        lap = sp.diags(interior) @ lap + rim
+    lap = sp.csr_matrix(lap)
+    bad = _bad_triangles(v, faces, reference)
+    before = int(flipped_triangles(v, faces, reference).sum())
+    moved = np.zeros(n, dtype=bool)
+    rounds = 0
+    # per free vertex: the mean of its neighbours (or of its two rim neighbours) is
+    # ``v + smooth @ v`` with ``smooth = -D⁻¹ lap``
+    deg = lap.diagonal()
+    smooth = -(sp.diags(1.0 / np.maximum(deg, 1e-300)) @ lap)
+    while bad.any() and rounds < max_rounds:
+        seed = np.zeros(n, dtype=bool)
+        seed[faces[bad].ravel()] = True
+        free = _grow(seed, adjacency, rings + rounds)
+        ids = np.flatnonzero(free)
+        s_f = smooth[ids]
+        for _ in range(steps):
+            # relax towards the neighbours' mean, then back onto the target
+            v[ids] = project(v[ids] + step * (s_f @ v))
+        moved |= free
+        rounds += 1
+        bad = _bad_triangles(v, faces, reference)
+    after = int(flipped_triangles(v, faces, reference).sum())
+    return UntangleResult(v, moved, rounds, before, after)
