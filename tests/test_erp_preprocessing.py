@@ -54,15 +54,19 @@ def test_filter_channel_by_channel_equals_mne_default():
 
 
 def test_reject_absolute_blocks_equal_whole_array():
+    """Same epochs dropped as the whole-array rule on ``get_data(picks="eeg")`` (bad channels ignored)."""
     import mne
 
-    raw = _raw(n_times=20000)
+    raw = _raw(n_times=20000, bads=("E2",))
+    raw._data[2, 5000:9000] *= 100  # a channel left marked bad (not interpolated) must not reject epochs
     events = np.c_[np.arange(100, 19000, 120), np.zeros(158, int), np.ones(158, int)]
     epochs = mne.Epochs(raw, events, tmin=-0.1, tmax=0.3, baseline=None, picks=["eeg"], preload=True,
                         verbose="error")
-    data = epochs.get_data(copy=True)
+    data = epochs.get_data(picks="eeg")
+    assert data.shape[1] == 11
     threshold = float(np.median(np.abs(data).max(axis=(1, 2)))) * 1e6
     expected = np.flatnonzero(np.abs(data).max(axis=(1, 2)) > threshold * 1e-6)
+    data = epochs.get_data(copy=True)
     assert 0 < len(expected) < len(data)
     assert pp.reject_absolute(epochs, threshold) == len(expected)
     assert np.array_equal(epochs.get_data(), np.delete(data, expected, axis=0))

@@ -238,7 +238,7 @@ def reject_absolute(epochs, threshold_uV: float) -> int:
     import mne
 
     data = epochs.get_data(copy=False)  # the preloaded array itself, no copy
-    eeg = mne.pick_types(epochs.info, eeg=True, exclude=())
+    eeg = mne.pick_types(epochs.info, eeg=True, exclude="bads")  # as get_data(picks="eeg"): channels kept bad don't count
     peak = np.concatenate([np.abs(data[i:i + 64][:, eeg]).max(axis=(1, 2)) for i in range(0, len(data), 64)])
     bad = np.flatnonzero(peak > threshold_uV * 1e-6)
     if len(bad):
