@@ -72,9 +72,10 @@ def bilinear_lookup(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
     y1 = np.minimum(y0 + 1, h - 1)
     fx = (x - x0)[:, None]
     fy = (y - y0)[:, None]
-    img = image.astype(np.float64)
-    top = img[y0, x0] * (1 - fx) + img[y0, x1] * fx
-    bot = img[y1, x0] * (1 - fx) + img[y1, x1] * fx
+    # gather the four neighbours first, convert only them (not the whole image)
+    px = [image[yy, xx].astype(np.float64).reshape(len(uv), -1) for yy, xx in ((y0, x0), (y0, x1), (y1, x0), (y1, x1))]
+    top = px[0] * (1 - fx) + px[1] * fx
+    bot = px[2] * (1 - fx) + px[3] * fx
     return top * (1 - fy) + bot * fy
 
 
@@ -164,9 +165,9 @@ def transfer_texture(
     rows, cols, fid, bary = rasterize_uv(uv_s, fuv_s, w, h)
     pts = np.einsum("ij,ijk->ik", bary, np.asarray(deformed_source.vertices)[np.asarray(deformed_source.faces)[fid]])
     # pixels lie on the deformed source, i.e. on (or very near) the target: fewer candidates
-    cp = SurfaceIndex(target.vertices, target.faces, k=3, k_vertices=1).query(pts)
+    face, bary_t = SurfaceIndex(target.vertices, target.faces, k=3, k_vertices=1).closest(pts)
     uv_t, fuv_t = tgt_layout
-    tuv = np.einsum("ij,ijk->ik", cp.bary, uv_t[fuv_t[cp.face]])
+    tuv = np.einsum("ij,ijk->ik", bary_t, uv_t[fuv_t[face]])
     vals = bilinear_lookup(arr, tuv)
     out = np.zeros((h, w, arr.shape[2]))
     if background is not None:

@@ -130,13 +130,20 @@ class SurfaceIndex:
         self.vertices = np.asarray(vertices, dtype=np.float64)
         self._build()
 
-    def query(self, points: np.ndarray, chunk: int = 65536) -> ClosestPoints:
-        """Closest surface point for each of ``points`` (Q, 3)."""
+    def closest(self, points: np.ndarray, chunk: int = 65536) -> tuple[np.ndarray, np.ndarray]:
+        """Closest triangle and barycentric weights for each of ``points`` (Q, 3), in chunks."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         face = np.empty(len(p), dtype=np.int64)
         bary = np.empty((len(p), 3))
         for a in range(0, len(p), chunk):
             face[a : a + chunk], bary[a : a + chunk] = self._query(p[a : a + chunk])
+        return face, bary
+
+    def query(self, points: np.ndarray, chunk: int = 65536) -> ClosestPoints:
+        """Closest surface point for each of ``points`` (Q, 3), with distances, boundary flags
+        and normals."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        face, bary = self.closest(p, chunk)
         pts = np.einsum("ij,ijk->ik", bary, self._tri[face])
         eps = 1e-9
         on_edge = (bary < eps) & self.boundary[face]
