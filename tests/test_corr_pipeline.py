@@ -46,6 +46,19 @@ def test_stylised_pair_fits_without_foldovers(pair):
     assert set(res.seconds) >= {"fairing", "register_base", "register_original", "total"}
 
 
+# the long cartoon nose (x2.8) is not fully reached at its tip: Hausdorff 4.6 % measured
+# (median 0.001 %), an open limit noted in docs/correspondence.md; the point here is no folds
+@pytest.mark.parametrize("eyes, nose, max_hausdorff", [(2.4, 0.4, 0.01), (1.6, 2.8, 0.06)])
+def test_extreme_stylised_pairs_fit_without_foldovers(eyes, nose, max_hausdorff):
+    # more extreme than the pair (eyes x1.6, nose x0.6)
+    src, tgt, corr = synthetic_pair(700, 500, eyes=eyes, nose=nose, texture_size=32)
+    m = correspond(src, tgt, corr).metrics
+    assert m["flipped_triangles"] == 0
+    assert m["degenerate_triangles"] == 0
+    assert m["hausdorff_rel"] < max_hausdorff
+    assert m["median_dist_rel"] < 0.001
+
+
 def test_joint_fairing_makes_meshes_smooth_and_coincident(pair):
     src, tgt, corr, res = pair
     from stimulus_engine.correspondence.laplacian import bilaplacian, fairing_operator, voronoi_areas
