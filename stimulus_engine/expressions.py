@@ -91,6 +91,10 @@ class FaceRig:
     part_textures : dict of str to (H, W, 3) uint8 array
         Fixed albedos of other parts in the rig's UV layout (e.g. ``eye``: sclera, iris and pupil
         from :func:`stimulus_engine.eyes.eye_texture`); never stylised.
+    texture_maps : dict of str to uint8 array
+        Optional skin maps in the texture's layout: ``normal`` (H, W, 3) tangent-space and
+        ``specular`` (H, W) (see :mod:`stimulus_engine.materials`); e.g. a mesh character's own
+        maps re-laid by :func:`stimulus_engine.mesh_character.correspond_rig`.
     """
 
     name: str
@@ -107,6 +111,7 @@ class FaceRig:
     texture: np.ndarray | None = None
     texture_masks: dict[str, np.ndarray] = field(default_factory=dict)
     part_textures: dict[str, np.ndarray] = field(default_factory=dict)
+    texture_maps: dict[str, np.ndarray] = field(default_factory=dict)
 
     def landmark_points(self, vertices: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Landmark positions (mean of each vertex set) on ``vertices`` (default: the neutral)."""

@@ -10,7 +10,8 @@ is given), and writes:
     One row per image: ``file`` (relative to DIR), the factors ``character``, ``shape`` (level),
     ``stylisation`` (level index; photographs get the next index), ``material``, ``expression``
     (canonical), ``emotion`` (as written in the grid), ``lighting``, ``shading``; the input
-    hashes ``geometry_hash``, ``albedo_hash``, ``input_hash``; ``camera``; ``seconds``; ``status``.
+    hashes ``geometry_hash``, ``albedo_hash``, ``maps_hash`` (normal and specular maps, ``none``
+    without), ``input_hash``; ``camera``; ``seconds``; ``status``.
 ``DIR/landmarks.csv``
     3D landmarks of every (character, shape, expression) geometry (for neoteny measures).
 ``DIR/contact_sheet.png`` (+ ``contact_sheet_expressions.png``)
@@ -70,6 +71,8 @@ class RenderItem:
     height: int
     shadows: bool
     background: tuple
+    normal_png: str = ""
+    specular_png: str = ""
 
 
 # --------------------------------------------------------------------------------------------
@@ -108,14 +111,16 @@ def _character_rig(c: CharacterSpec, cache: Path, source: str) -> tuple[FaceRig,
     from dataclasses import replace
 
     m = c.mesh
-    h = _sha(GRID_VERSION, "mesh", base_hash, _file_sha(m.file), _file_sha(m.texture) if m.texture else None,
-             m.model_dump(mode="json", exclude={"file", "texture"}))
+    files = {"file": m.file, "texture": m.texture, "normal_map": m.normal_map, "specular_map": m.specular_map}
+    h = _sha(GRID_VERSION, "mesh", base_hash, *[_file_sha(f) if f else None for f in files.values()],
+             m.model_dump(mode="json", exclude=set(files)))
     p = cache / "mesh" / f"{h}.npz"
     if p.exists():
         d = np.load(p)
         masks = {k[5:]: d[k] for k in d.files if k.startswith("mask_")}
+        maps = {k[4:]: d[k] for k in d.files if k.startswith("map_")}
         rig = replace(base.with_vertices(d["vertices"], name=c.name),
-                      texture=d["texture"] if "texture" in d.files else None, texture_masks=masks)
+                      texture=d["texture"] if "texture" in d.files else None, texture_masks=masks, texture_maps=maps)
         return rig, h, base
     import io
 
@@ -136,15 +141,18 @@ def _character_rig(c: CharacterSpec, cache: Path, source: str) -> tuple[FaceRig,
         region = regions[m.region]
     mesh = load_mesh(m.file)
     texture = _load_texture(m.texture) if m.texture is not None else None
+    maps = {kind: _load_map(path, kind, None, f"{where}.{kind}_map")
+            for kind, path in (("normal", m.normal_map), ("specular", m.specular_map)) if path is not None}
     landmarks = {k: (list(v) if isinstance(v, tuple) else v) for k, v in m.landmarks.items()}
     logger.info("%s: corresponding %s onto %s", c.name, base.name, m.file)
     mc = correspond_rig(base, mesh, landmarks, region=region, texture=texture, texture_size=m.texture_size,
-                        name=c.name, where=where)
+                        name=c.name, where=where, maps=maps)
     logger.info("%s: correspondence metrics %s", c.name,
                 {k: round(v, 5) for k, v in mc.metrics.items() if isinstance(v, float)})
     buf = io.BytesIO()
     extra = {} if mc.rig.texture is None else {"texture": mc.rig.texture}
-    np.savez(buf, vertices=mc.rig.vertices, **extra, **{f"mask_{k}": v for k, v in mc.rig.texture_masks.items()})
+    np.savez(buf, vertices=mc.rig.vertices, **extra, **{f"mask_{k}": v for k, v in mc.rig.texture_masks.items()},
+             **{f"map_{k}": v for k, v in mc.rig.texture_maps.items()})
     p.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(p, buf.getvalue())
     return mc.rig, h, base
@@ -156,6 +164,23 @@ def _load_texture(path: Path) -> np.ndarray:
             return np.asarray(im.convert("RGB"))
     except OSError as exc:
         raise AppealInputError(f"{path}: cannot read the texture image ({exc})".splitlines()[0]) from None
+
+
+def _load_map(path: Path, kind: str, size: tuple[int, int] | None, where: str) -> np.ndarray:
+    """A normal or specular map file, checked (channels, size, tangent space) before any rendering."""
+    from stimulus_engine.materials import check_map
+
+    try:
+        with Image.open(path) as im:
+            arr = np.asarray(im if im.mode in ("L", "RGB", "RGBA", "LA", "I;16") else im.convert("RGB"))
+    except OSError as exc:
+        raise AppealInputError(f"{where}: {path}: cannot read the image ({exc})".splitlines()[0]) from None
+    if arr.ndim == 3 and arr.shape[2] == 2:  # LA
+        arr = arr[..., 0]
+    try:
+        return check_map(arr, kind, size)
+    except ValueError as exc:
+        raise AppealInputError(f"{where}: {path.name}: {exc}") from None
 
 
 def _albedo_source(c: CharacterSpec, rig: FaceRig, grid_name: str) -> tuple[np.ndarray, dict]:
@@ -228,7 +253,7 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
     landmarks : DataFrame
         Long table: character, shape, expression, landmark, x, y, z.
     """
-    from stimulus_engine.materials import albedo_hash, stylise_albedo
+    from stimulus_engine.materials import albedo_hash, maps_hash, rig_detail_maps, stylise_albedo, stylise_map
     from stimulus_engine.stylise import stylise
 
     cache = out / ".cache"
@@ -266,6 +291,51 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
             albedo_cache[key] = (p, h)
         return albedo_cache[key]
 
+    maps_cache: dict[tuple, tuple[str, str, str]] = {}
+
+    def maps_for(char: str, m: MaterialSpec) -> tuple[str, str, str]:
+        """(normal PNG or "", specular PNG or "", maps hash): the material's files, else the
+        albedo character's own maps, else painted by code (procedural_maps); stylised like the albedo."""
+        src = m.from_character or char
+        key = (src, m.name)
+        if key in maps_cache:
+            return maps_cache[key]
+        img, masks = albedo_src[src]
+        size = img.shape[:2]
+        own = rigs[src][0].texture_maps
+        painted = None
+        found = {}
+        for kind, path in (("normal", m.normal_map), ("specular", m.specular_map)):
+            if path is not None:
+                found[kind] = _load_map(path, kind, size, f"{source}: materials.{m.name}.{kind}_map")
+            elif kind in own:
+                found[kind] = own[kind]
+            elif m.procedural_maps:
+                if rigs[src][0].uv is None:
+                    raise AppealInputError(f"{source}: materials.{m.name}.procedural_maps: character '{src}' has no "
+                                           "UVs (expected a mesh with texture coordinates)")
+                if painted is None:
+                    painted = rig_detail_maps(rigs[src][0], size=size[0], seed=specs[src].texture_seed)
+                found[kind] = painted[0] if kind == "normal" else painted[1]
+            if kind in found and found[kind].shape[:2] != size:
+                raise AppealInputError(f"{source}: materials.{m.name}: the {kind} map of '{src}' is "
+                                       f"{found[kind].shape[1]} x {found[kind].shape[0]}, expected {size[1]} x {size[0]} "
+                                       "like its albedo")
+        out = {}
+        for kind, arr in found.items():
+            styl = stylise_map(arr, kind, m.style, masks if all(np.shape(v) == size for v in masks.values()) else {})
+            h = albedo_hash(styl)
+            path = cache / "maps" / f"{kind}_{h}.png"
+            if not path.exists():
+                from stimulus_engine.render import save_png
+
+                save_png(styl if styl.ndim == 3 else np.repeat(styl[..., None], 3, axis=2), path)
+            out[kind] = (str(path), styl)
+        maps_cache[key] = (out["normal"][0] if "normal" in out else "", out["specular"][0] if "specular" in out else "",
+                           maps_hash(out["normal"][1] if "normal" in out else None,
+                                     out["specular"][1] if "specular" in out else None))
+        return maps_cache[key]
+
     for c in grid.characters:
         rig, rig_hash, expr_rig = rigs[c.name]
         rig_npz = cache / "rigs" / f"{_sha(GRID_VERSION, rig_hash)}.npz"
@@ -297,17 +367,21 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
                 gp, gh = geom_cache[gkey]
                 for m in mat_list:
                     ap, ah = albedo_for(c.name, m)
+                    npng, spng, mh = maps_for(c.name, m)
                     for light in grid.lighting:
                         for shading in grid.shading:
                             fname = f"images/{c.name}_s{si}_{m.name}_{expr}_{light}_{shading}.png"
-                            ih = _sha(GRID_VERSION, gh, ah, light, shading, cam, r.model_dump())
+                            extra = () if mh == "none" else (mh,)  # hashes without maps as before
+                            ih = _sha(GRID_VERSION, gh, ah, light, shading, cam, r.model_dump(), *extra)
                             items.append(RenderItem(fname, str(out), str(rig_npz), str(gp), str(ap), light, shading,
-                                                    cam, r.width, r.height, r.shadows, tuple(r.background)))
+                                                    cam, r.width, r.height, r.shadows, tuple(r.background),
+                                                    npng, spng))
                             rows.append({"file": fname, "character": c.name, "shape": level, "stylisation": si,
                                          "material": m.name, "material_style": m.style,
                                          "material_from": m.from_character or c.name, "expression": canon,
                                          "emotion": expr, "lighting": light, "shading": shading,
-                                         "geometry_hash": gh, "albedo_hash": ah, "input_hash": ih,
+                                         "geometry_hash": gh, "albedo_hash": ah, "maps_hash": mh,
+                                         "input_hash": ih,
                                          "camera": _camera_text(cam), "width": r.width, "height": r.height})
     for p in grid.photographs:
         for expr in grid.expressions:
@@ -318,6 +392,7 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
                          "stylisation": len(grid.shapes), "material": "photograph", "material_style": "photograph",
                          "material_from": p.character, "expression": resolve_expression(expr), "emotion": expr,
                          "lighting": "photograph", "shading": "photograph", "geometry_hash": "", "albedo_hash": "",
+                         "maps_hash": "",
                          "input_hash": ih, "camera": f"photo:{Path(src).name}", "width": r.width, "height": r.height,
                          "_photo": str(src)})
     return pd.DataFrame(rows), items, pd.DataFrame(lm_rows)
@@ -351,6 +426,19 @@ def _albedo_image(path: str) -> np.ndarray:
         return np.asarray(im.convert("RGB"))
 
 
+def _map_image(path: str, kind: str) -> np.ndarray | None:
+    """A prepared map from the cache (specular maps are stored as grey RGB), or None."""
+    if not path:
+        return None
+    img = _albedo_image(path)
+    return img if kind == "normal" else _grey(path)
+
+
+@functools.lru_cache(maxsize=16)
+def _grey(path: str) -> np.ndarray:
+    return np.ascontiguousarray(_albedo_image(path)[..., 0])
+
+
 def render_item(item: RenderItem) -> float:
     """Render one grid image to ``item.out_dir/item.file``; returns the seconds it took."""
     from stimulus_engine.materials import rig_render_parts
@@ -359,7 +447,9 @@ def render_item(item: RenderItem) -> float:
     t0 = time.perf_counter()
     rig = _rig_static(item.rig_npz)
     v = np.load(item.geometry_npy).astype(np.float64)
-    parts = rig_render_parts(rig, v, _albedo_image(item.albedo_png), shading=item.shading)
+    parts = rig_render_parts(rig, v, _albedo_image(item.albedo_png), shading=item.shading,
+                             normal_map=_map_image(item.normal_png, "normal"),
+                             specular_map=_map_image(item.specular_png, "specular"))
     pos, target, yfov, up = item.camera
     cam = CameraSpec(tuple(pos), tuple(target), yfov, tuple(up))
     img = render_mesh(parts, width=item.width, height=item.height, lighting=item.lighting, camera=cam,

@@ -48,11 +48,15 @@ class MeshSpec(StudyModel):
     ``[x, y, z]``. ``texture`` is the mesh's albedo in *its own* UV layout (default: the mesh
     file's own texture, if any); it is re-laid into the rig's layout. ``region``: the part of
     the rig to correspond — default all skin; ``front`` (skin in front of the ears) for a
-    face-only mesh; or an ICT region name (``narrow_face``, ``face``).
+    face-only mesh; or an ICT region name (``narrow_face``, ``face``). ``normal_map`` (RGB,
+    tangent space) and ``specular_map`` (greyscale, white = shiny), in the mesh's UV layout,
+    are re-laid into the rig's layout like the texture and become the character's maps.
     """
 
     file: InputFile
     texture: InputFile | None = None
+    normal_map: InputFile | None = None
+    specular_map: InputFile | None = None
     landmarks: dict[str, int | tuple[float, float, float]] = Field(min_length=6)
     region: str | None = None
     texture_size: int = Field(1024, ge=64, le=4096)
@@ -86,11 +90,22 @@ class CharacterSpec(StudyModel):
 
 
 class MaterialSpec(StudyModel):
-    """An albedo style, optionally with the albedo taken from another character of the grid."""
+    """An albedo style, optionally with the albedo taken from another character of the grid, and
+    optional normal and specular maps on the skin.
+
+    ``normal_map`` (RGB tangent-space, OpenGL convention) and ``specular_map`` (greyscale,
+    white = shiny, mid-grey = as without a map) are files in the albedo's UV layout and size;
+    ``procedural_maps: true`` paints a skin-pore normal map and a specular map by code where no
+    file is given. Without either, a mesh character's own (transferred) maps are used. Maps are
+    stylised with the albedo (blurred for ``blur25``/``blur50``, flat for ``flat``).
+    """
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
     style: Literal["original", "blur25", "blur50", "bilateral", "flat"] = "original"
     from_character: str | None = None
+    normal_map: InputFile | None = None
+    specular_map: InputFile | None = None
+    procedural_maps: bool = False
 
 
 class PhotoSpec(StudyModel):

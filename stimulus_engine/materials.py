@@ -11,8 +11,22 @@ Albedo stylisation (thesis ch. 5 & §6.3, material levels 1a …):
 ``flat``  a "cartoon" albedo: every region becomes its mean colour.
 
 :data:`MATERIAL_LEVELS` orders them as a five-step material-stylisation axis (0 = original …
-4 = flat). Shaders: ``pbr`` (metallic-roughness) and ``phong`` (specular-glossiness, a
-Phong-like look with a sharper highlight).
+4 = flat). Shaders: ``pbr`` (metallic-roughness, pyrender's shader) and ``phong``
+(specular-glossiness with an energy-normalised Blinn-Phong BRDF: a sharper, brighter highlight;
+pyrender 0.1.45 has no shader for it, see :func:`stimulus_engine.render._pyrender.phong_fragment_shader`).
+
+Optional maps on the skin, in the albedo's UV layout (:data:`MAP_KINDS`):
+
+``normal``  tangent-space normal map, RGB (OpenGL convention: R = +u, G = +v, B out of the
+    surface; flat = (128, 128, 255)); pyrender builds the tangent frame per pixel from the UV
+    derivatives, so no tangents are needed on the mesh.
+``specular``  greyscale specularity ``s`` (white = shiny, mid-grey = the look without a map).
+    With ``pbr`` it sets the roughness ``r = r_skin · (1.4 − 0.8 s)`` (0.87 … 0.37 for skin;
+    a metallic-roughness texture); with ``phong`` the specular level ``0.16 s`` and the
+    glossiness ``g_skin + 0.3 (s − 0.5)``.
+
+:func:`stylise_map` stylises the maps with the albedo's operator, so a blurred or flat material
+is blurred or flat in every channel; :func:`rig_detail_maps` paints both maps by code.
 """
 
 from __future__ import annotations
@@ -26,13 +40,19 @@ import trimesh
 from stimulus_engine.expressions import FaceRig
 
 __all__ = [
+    "FLAT_NORMAL",
+    "MAP_KINDS",
     "MATERIAL_LEVELS",
     "MATERIAL_STYLES",
     "SHADINGS",
     "bake_surface_points",
+    "check_map",
+    "maps_hash",
     "rig_albedo",
+    "rig_detail_maps",
     "rig_render_parts",
     "stylise_albedo",
+    "stylise_map",
 ]
 
 #: Albedo stylisations.
@@ -41,6 +61,10 @@ MATERIAL_STYLES: tuple[str, ...] = ("original", "blur25", "blur50", "bilateral",
 MATERIAL_LEVELS: dict[int, str] = dict(enumerate(MATERIAL_STYLES))
 #: Shader models.
 SHADINGS: tuple[str, ...] = ("pbr", "phong")
+#: Texture maps a material may carry besides its albedo.
+MAP_KINDS: tuple[str, ...] = ("normal", "specular")
+#: The tangent-space normal map value of an unperturbed surface.
+FLAT_NORMAL: tuple[int, int, int] = (128, 128, 255)
 
 #: Colours of the untextured parts (linear RGB, alpha). ``mouth`` is the mouth socket (dark, it
 #: is mostly in shadow inside a real mouth), ``tongue`` gums and tongue.
@@ -49,6 +73,9 @@ _PART_COLOURS = {
     "mouth": (0.10, 0.025, 0.03, 1.0), "tongue": (0.30, 0.08, 0.09, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0),
     "skin": (0.8, 0.62, 0.52, 1.0), "eye": (0.9, 0.88, 0.85, 1.0),
 }
+#: Specular level of the ``phong`` shader (Blinn-Phong without Fresnel: a skin-like sheen; the
+#: 0.22 first chosen here made ICT faces look like wet plastic).
+_PHONG_SPECULAR = 0.08
 #: PBR roughness per part (wet eyes and teeth are glossy; the default is the skin's).
 _PART_ROUGHNESS = {"eye": 0.18, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
 
@@ -116,6 +143,69 @@ def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] 
                 mean = (f * w[..., None]).sum(axis=(0, 1)) / w.sum()
                 out += w[..., None] * mean
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+def check_map(image: np.ndarray, kind: str, size: tuple[int, int] | None = None) -> np.ndarray:
+    """Validate a normal or specular map and return it as uint8 (normal (H, W, 3), specular (H, W)).
+
+    Parameters
+    ----------
+    image : array
+        As read from the file: (H, W), (H, W, 1), (H, W, 3) or (H, W, 4).
+    kind : {"normal", "specular"}
+    size : (height, width), optional
+        The albedo's size; the map must match it (it shares the albedo's UV layout).
+
+    Raises
+    ------
+    ValueError
+        One line saying what was expected (wrong channels, size, or an object-space normal map).
+    """
+    a = np.asarray(image)
+    if a.dtype != np.uint8:
+        if a.dtype.kind not in "ui" or a.max(initial=0) > 255:
+            raise ValueError(f"expected an 8-bit image (got {a.dtype.name} values)")
+        a = a.astype(np.uint8)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[..., 0]
+    if kind == "normal":
+        if a.ndim != 3 or a.shape[2] not in (3, 4):
+            raise ValueError("expected an RGB tangent-space normal map (got "
+                             f"{'a greyscale image' if a.ndim == 2 else f'{a.shape[2]} channels'})")
+        a = a[..., :3]
+        if a[..., 2].mean() < 160:
+            raise ValueError(f"expected a tangent-space normal map, mostly blue (mean blue {a[..., 2].mean():.0f} "
+                             "of 255; an object-space or height map?)")
+    elif kind == "specular":
+        if a.ndim == 3:
+            if a.shape[2] == 4:
+                a = a[..., :3]
+            if a.shape[2] != 3 or not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 0], a[..., 2])):
+                raise ValueError("expected a greyscale specular map (white = shiny; got colour channels that differ)")
+            a = a[..., 0]
+    else:
+        raise ValueError(f"unknown map kind '{kind}' (expected one of: {', '.join(MAP_KINDS)})")
+    if size is not None and tuple(a.shape[:2]) != tuple(size):
+        raise ValueError(f"expected {size[1]} x {size[0]} pixels like the albedo it belongs to "
+                         f"(got {a.shape[1]} x {a.shape[0]})")
+    return np.ascontiguousarray(a)
+
+
+def stylise_map(image: np.ndarray, kind: str, style: str, masks: dict[str, np.ndarray] | None = None) -> np.ndarray:
+    """Stylise a normal or specular map with the albedo's operator (:func:`stylise_albedo`).
+
+    Normal maps are stylised as vectors (the RGB codes are filtered, then renormalised), so a
+    blurred material has softened pores and ``flat`` leaves one mean normal per region (≈ flat).
+    """
+    if style == "original":
+        return np.asarray(image, np.uint8).copy()
+    if kind == "specular":
+        g = np.asarray(image, np.uint8)
+        return stylise_albedo(np.repeat(g[..., None], 3, axis=2), style, masks)[..., 0].copy()
+    out = stylise_albedo(image, style, masks).astype(np.float64) / 255 * 2 - 1
+    out[..., 2] = np.maximum(out[..., 2], 1e-3)
+    out /= np.linalg.norm(out, axis=-1, keepdims=True)
+    return np.clip(np.rint((out + 1) / 2 * 255), 0, 255).astype(np.uint8)
 
 
 def bake_surface_points(rig: FaceRig, size: int, part: str = "skin") -> tuple[np.ndarray, np.ndarray]:
@@ -186,10 +276,58 @@ def rig_albedo(rig: FaceRig, *, size: int = 1024, seed: int = 0) -> tuple[np.nda
     return _painted(rig.name, id(rig), int(size), int(seed), _Ref((rig,)))
 
 
-_MATERIALS: dict[tuple, tuple[object, object]] = {}
+@functools.lru_cache(maxsize=8)
+def _detail(rig_id: int, size: int, seed: int, rig_ref: tuple) -> tuple[np.ndarray, np.ndarray]:
+    from stimulus_engine.procedural_head import paint_detail_maps_at
+
+    rig = rig_ref[0]
+    pts, valid = bake_surface_points(rig, size)
+    albedo, masks = rig_albedo(rig, size=size, seed=seed)
+    masks = masks if all(np.shape(m) == (size, size) for m in masks.values()) else {}
+    return paint_detail_maps_at(pts, valid, rig.landmark_points(), masks, seed)
 
 
-def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float = 0.62) -> object:
+def rig_detail_maps(rig: FaceRig, *, size: int | None = None, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A skin-pore normal map and a specular map painted by code in the rig's UV layout.
+
+    Pores are small pits of 3D noise at the 3D point of every texel (mild: about 3° RMS tilt),
+    so they have the same size everywhere on the face whatever the UV stretch; the specular
+    map makes forehead, nose, chin and lips shinier than the cheeks, and hair and brows matt
+    (:func:`stimulus_engine.procedural_head.paint_detail_maps_at`).
+
+    Parameters
+    ----------
+    rig : FaceRig
+        Needs UVs.
+    size : int, optional
+        Map size (default: the rig's texture size, else 1024).
+    seed : int
+        Pore pattern (and the painted albedo's seed where the rig has no texture, for the masks).
+
+    Returns
+    -------
+    normal : (size, size, 3) uint8
+    specular : (size, size) uint8
+    """
+    if rig.uv is None or rig.face_uv is None:
+        raise ValueError(f"rig '{rig.name}' has no UVs (normal and specular maps need them)")
+    if size is None:
+        size = rig.texture.shape[0] if rig.texture is not None else 1024
+    return _detail(id(rig), int(size), int(seed), _Ref((rig,)))
+
+
+def maps_hash(normal: np.ndarray | None, specular: np.ndarray | None) -> str:
+    """Short content hash of a material's normal and specular maps (``none`` without maps)."""
+    if normal is None and specular is None:
+        return "none"
+    return f"{albedo_hash(normal)[:8]}{albedo_hash(specular)[:8]}"
+
+
+_MATERIALS: dict[tuple, tuple[tuple, object]] = {}
+
+
+def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float = 0.62,
+              normal: np.ndarray | None = None, specular: np.ndarray | None = None) -> object:
     """A pyrender material; cached per (shading, colour, texture array, roughness) in this process.
 
     Reusing the same material (and so the same ``pyrender.Texture``) for every image that wears
@@ -198,28 +336,46 @@ def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | Non
     of the per-image time on llvmpipe. The key holds the array's id and the entry the array
     itself, so a new array that reuses a freed id never hits a stale material.
     """
-    key = (shading, tuple(colour), None if texture is None else id(texture), float(roughness))
+    arrays = (texture, normal, specular)
+    key = (shading, tuple(colour), float(roughness)) + tuple(None if a is None else id(a) for a in arrays)
     hit = _MATERIALS.get(key)
-    if hit is not None and hit[0] is texture:
+    if hit is not None and all(x is a for x, a in zip(hit[0], arrays)):
         return hit[1]
-    mat = _new_material(shading, colour, texture, roughness)
+    mat = _new_material(shading, colour, texture, roughness, normal, specular)
     if len(_MATERIALS) > 32:
         _MATERIALS.clear()
-    _MATERIALS[key] = (texture, mat)
+    _MATERIALS[key] = (arrays, mat)
     return mat
 
 
-def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float) -> object:
+def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float,
+                  normal: np.ndarray | None = None, specular: np.ndarray | None = None) -> object:
     from stimulus_engine.render._pyrender import pyrender
 
-    tex = None if texture is None else pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGB")
+    def tex(a: np.ndarray | None, channels: str = "RGB") -> object:
+        return None if a is None else pyrender.Texture(source=np.ascontiguousarray(a), source_channels=channels)
+
+    base = (1.0, 1.0, 1.0, 1.0) if texture is not None else colour
+    s = None if specular is None else np.asarray(specular, np.float64) / 255.0
     if shading == "pbr":
-        return pyrender.MetallicRoughnessMaterial(baseColorFactor=colour if tex is None else (1.0, 1.0, 1.0, 1.0),
-                                                  baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=roughness)
+        mr = None
+        if s is not None:  # pyrender reads roughness from R and metallic from G (× the factors)
+            r = np.rint(255 * np.clip(roughness * (1.4 - 0.8 * s), 0, 1))
+            mr = np.stack([r, np.full_like(r, 255), np.zeros_like(r)], axis=-1).astype(np.uint8)
+        return pyrender.MetallicRoughnessMaterial(baseColorFactor=base, baseColorTexture=tex(texture),
+                                                  metallicFactor=0.0, roughnessFactor=1.0 if s is not None else roughness,
+                                                  normalTexture=tex(normal), metallicRoughnessTexture=tex(mr))
     if shading == "phong":
-        return pyrender.SpecularGlossinessMaterial(diffuseFactor=colour if tex is None else (1.0, 1.0, 1.0, 1.0),
-                                                   diffuseTexture=tex, specularFactor=(0.22, 0.22, 0.22),
-                                                   glossinessFactor=min(0.95, 1.17 - roughness))
+        gloss = min(0.95, 1.17 - roughness)
+        sg, level = None, _PHONG_SPECULAR
+        if s is not None:  # specular level 2 s × the default, glossiness g_skin ± 0.15 (mid-grey = no map)
+            level = 2 * _PHONG_SPECULAR
+            a = np.clip(gloss + 0.3 * (s - 0.5), 0, 1)
+            sg = np.rint(255 * np.stack([s] * 3 + [a], axis=-1)).astype(np.uint8)
+            gloss = 1.0
+        return pyrender.material.SpecularGlossinessMaterial(
+            diffuseFactor=base, diffuseTexture=tex(texture), specularFactor=(level,) * 3, glossinessFactor=gloss,
+            normalTexture=tex(normal), specularGlossinessTexture=tex(sg, "RGBA"))
     raise ValueError(f"unknown shading '{shading}' (expected one of: {', '.join(SHADINGS)})")
 
 
@@ -249,7 +405,8 @@ def _split_parts(rig: FaceRig, textured_skin: bool) -> list:
 
 
 def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | None, *,
-                     shading: str = "pbr") -> list:
+                     shading: str = "pbr", normal_map: np.ndarray | None = None,
+                     specular_map: np.ndarray | None = None) -> list:
     """Render parts (skin with texture, eyes, teeth, mouth, lashes) for ``vertices`` of ``rig``.
 
     Skin vertices are split where the UV layout has seams (normals are computed on the welded
@@ -263,21 +420,27 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
     albedo : (H, W, 3) uint8 array or None
         Skin texture (None = plain skin colour).
     shading : {"pbr", "phong"}
+    normal_map : (H, W, 3) uint8 array, optional
+        Tangent-space normal map of the skin (see :func:`check_map`).
+    specular_map : (H, W) uint8 array, optional
+        Specularity of the skin, white = shiny.
     """
     from stimulus_engine.render import RenderPart
 
     v = np.asarray(vertices, np.float64)
-    if albedo is not None and (rig.uv is None or rig.face_uv is None):
+    maps = normal_map is not None or specular_map is not None
+    if (albedo is not None or maps) and (rig.uv is None or rig.face_uv is None):
         raise ValueError(f"rig '{rig.name}' has no UVs but a texture was asked for")
     normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
     parts = []
-    for name, uniq, tri, textured in _split_parts(rig, albedo is not None):
+    for name, uniq, tri, textured in _split_parts(rig, albedo is not None or maps):
         mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=normals[uniq[:, 0]], process=False)
         if textured:
             mesh.visual = trimesh.visual.TextureVisuals(uv=rig.uv[uniq[:, 1]])
         tex = (albedo if name == "skin" else rig.part_textures[name]) if textured else None
+        skin = name == "skin" and textured
         mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex,
-                        _PART_ROUGHNESS.get(name, 0.62))
+                        _PART_ROUGHNESS.get(name, 0.62), normal_map if skin else None, specular_map if skin else None)
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name))
     return parts
 

@@ -123,7 +123,7 @@ def _carry_along(v0: np.ndarray, known: np.ndarray, new_known: np.ndarray, fallo
 def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, object], *,
                    region: np.ndarray | None = None, texture: np.ndarray | None = None,
                    texture_size: int = 1024, params: object | None = None, name: str | None = None,
-                   where: str = "mesh") -> MeshCharacter:
+                   where: str = "mesh", maps: Mapping[str, np.ndarray] | None = None) -> MeshCharacter:
     """Correspond ``rig`` onto a user mesh and return the mesh as a character in the rig's topology.
 
     Parameters
@@ -151,6 +151,12 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
         Name of the new rig.
     where : str
         Prefix of error messages (e.g. ``grid.yaml: characters.toon.mesh``).
+    maps : mapping, optional
+        ``normal`` (H, W, 3) tangent-space and/or ``specular`` (H, W) uint8 maps in the mesh's
+        UV layout; re-laid into the rig's layout like the texture (``rig.texture_maps``; flat
+        normal and mid-grey specular where the mesh does not cover the rig). A tangent-space
+        normal map stays right only where both layouts orient u and v alike on the surface
+        (u to the subject's left, v up, not mirrored); see docs/stimuli.md.
 
     Raises
     ------
@@ -159,7 +165,7 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
     """
     from stimulus_engine.correspondence import CorrespondParams, Correspondences, SurfacePoints, correspond
     from stimulus_engine.correspondence.landmarks import parse_points
-    from stimulus_engine.materials import rig_albedo
+    from stimulus_engine.materials import FLAT_NORMAL, rig_albedo
     from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
     from stimulus_engine.texture_transfer import transfer_texture
 
@@ -227,35 +233,50 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
     if image is None:
         own = texture_image(mesh)
         image = None if own is None else np.asarray(own.convert("RGB"))
-    if image is not None:
+    maps = {k: np.asarray(v, np.uint8) for k, v in (maps or {}).items()}
+    if image is not None or maps:
         if mesh_uv_layout(mesh) is None:
-            raise AppealInputError(f"{where}: texture: the mesh has no UVs, so its texture cannot be transferred "
-                                   "(expected a mesh with texture coordinates)")
+            what = "texture" if image is not None else f"{next(iter(maps))}_map"
+            raise AppealInputError(f"{where}: {what}: the mesh has no UVs, so its {what.replace('_', ' ')} cannot be "
+                                   "transferred (expected a mesh with texture coordinates)")
         if rig.uv is None:
             raise AppealInputError(f"{where}: the rig has no UVs to carry a texture")
-        from stimulus_engine.correspondence import deformed_mesh
-
-        deformed = deformed_mesh(source, res.vertices)
-        rgba = np.concatenate([np.asarray(image, np.uint8)[..., :3],
-                               np.full(np.asarray(image).shape[:2] + (1,), 255, np.uint8)], axis=2)
-        moved = np.asarray(transfer_texture(deformed, mesh, rgba, size=(texture_size, texture_size),
-                                            background=(0, 0, 0, 0)))
-        # the painted albedo of the new shape fills what the region does not cover
-        base = out.with_vertices(new_v)
-        base.texture = None
-        painted, masks = rig_albedo(base, size=texture_size)
-        # only texels on triangles that matched the mesh (the rest of the region was smeared
-        # over the mesh's border); a soft edge of a few texels
         from scipy.ndimage import gaussian_filter
 
+        from stimulus_engine.correspondence import deformed_mesh
         from stimulus_engine.texture_transfer import rasterize_uv
 
+        deformed = deformed_mesh(source, res.vertices)
+        # only texels on triangles that matched the mesh (the rest of the region was smeared
+        # over the mesh's border); a soft edge of a few texels
         uv_s, fuv_s = mesh_uv_layout(source)
         rows, cols, fid, _ = rasterize_uv(uv_s, fuv_s, texture_size, texture_size)
         good = np.zeros((texture_size, texture_size))
         good[rows, cols] = ok[np.asarray(source.faces)[fid]].all(axis=1)
         good = gaussian_filter(good, sigma=texture_size / 512)
-        a = moved[..., 3:4].astype(np.float64) / 255.0 * good[..., None]
+
+        def relay(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """``img`` (mesh layout) in the rig's layout, and the weight of the transferred texels."""
+            img = np.asarray(img, np.uint8)
+            img = np.repeat(img[..., None], 3, axis=2) if img.ndim == 2 else img[..., :3]
+            rgba = np.concatenate([img, np.full(img.shape[:2] + (1,), 255, np.uint8)], axis=2)
+            moved = np.asarray(transfer_texture(deformed, mesh, rgba, size=(texture_size, texture_size),
+                                                background=(0, 0, 0, 0)))
+            return moved, moved[..., 3:4].astype(np.float64) / 255.0 * good[..., None]
+
+        defaults = {"normal": np.array(FLAT_NORMAL, np.float64), "specular": np.full(3, 128.0)}
+        relaid = {}
+        for kind, img in maps.items():
+            moved, w = relay(img)
+            m = np.clip(np.rint(defaults[kind] * (1 - w) + moved[..., :3] * w), 0, 255).astype(np.uint8)
+            relaid[kind] = m if kind == "normal" else m[..., 0].copy()
+        out = replace(out, texture_maps=relaid)
+    if image is not None:
+        moved, a = relay(image)
+        # the painted albedo of the new shape fills what the region does not cover
+        base = out.with_vertices(new_v)
+        base.texture = None
+        painted, masks = rig_albedo(base, size=texture_size)
         # tone-match the painted rest of the head to the user's skin (per-channel gain over
         # the transferred texels, lips and brows left out)
         skin_w = a[..., 0] * (1 - sum((np.clip(m, 0, 1) for m in masks.values()), np.zeros(a.shape[:2])).clip(0, 1))

@@ -20,7 +20,7 @@ import numpy as np
 from stimulus_engine.expressions import FaceRig
 from stimulus_engine.eyes import eye_texture, eyeball_uv
 
-__all__ = ["paint_albedo_at", "procedural_head"]
+__all__ = ["paint_albedo_at", "paint_detail_maps_at", "procedural_head"]
 
 _PARTS = ("skin", "eye", "teeth", "mouth", "lashes", "hidden")
 
@@ -125,6 +125,100 @@ def paint_albedo_at(pts: np.ndarray, anchors: dict[str, np.ndarray], colours: di
         col[~valid] = skin
     img = np.clip(col * 255, 0, 255).astype(np.uint8)
     return img, {"lips": lips.astype(np.float32), "brows": brows.astype(np.float32), "hair": hair.astype(np.float32)}
+
+
+def _noise3(pts: np.ndarray, cell: float, seed: int) -> np.ndarray:
+    """Smooth 3D value noise in 0..1 at ``pts`` (lattice spacing ``cell``; hashed lattice values)."""
+    q = pts / cell
+    i0 = np.floor(q).astype(np.int64)
+    f = q - i0
+    f = f * f * (3 - 2 * f)
+    out = np.zeros(len(pts))
+    primes = np.array([73856093, 19349663, 83492791], np.uint64)
+    for corner in range(8):
+        o = np.array([(corner >> k) & 1 for k in range(3)])
+        key = ((i0 + o).astype(np.uint64) * primes).sum(axis=1) ^ np.uint64(seed * 2654435761 % 2**32)
+        key = (key * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(40)  # well-mixed top 24 bits
+        w = np.prod(np.where(o == 1, f, 1 - f), axis=1)
+        out += w * (key.astype(np.float64) / 2**24)
+    return out
+
+
+def paint_detail_maps_at(pts: np.ndarray, valid: np.ndarray, landmarks: dict[str, np.ndarray],
+                         masks: dict[str, np.ndarray] | None = None, seed: int = 0, *,
+                         pore_tilt: float = 0.06) -> tuple[np.ndarray, np.ndarray]:
+    """Paint a skin-pore normal map and a specular map at 3D points (one per texel) of a face.
+
+    Parameters
+    ----------
+    pts : (H, W, 3) array
+        The neutral-face 3D point of every texel (texture row 0 = UV v 1).
+    valid : (H, W) bool array
+        Texels on the surface.
+    landmarks : dict of str to (3,) arrays
+        The rig's landmark points (``face_left``/``face_right``, ``brow_left``/``brow_right``,
+        ``forehead_top``, ``nasion``, ``nose_tip``, ``chin``, ``mouth_left``/``mouth_right``).
+    masks : dict of (H, W) arrays, optional
+        ``lips``, ``brows``, ``hair`` of the albedo (lips shiny; no pores under hair and brows).
+    seed : int
+        Pore pattern.
+    pore_tilt : float
+        RMS tilt of the pore normals in radians (mild: 0.06 ≈ 3.4°).
+
+    Returns
+    -------
+    normal : (H, W, 3) uint8
+        Tangent-space normal map (OpenGL convention: R = +u, G = +v, B = out of the surface;
+        flat = (128, 128, 255)); pores are small pits of 3D noise, so their size does not depend
+        on how the UV layout stretches the skin.
+    specular : (H, W) uint8
+        Specularity, white = shiny, mid-grey = skin as without a map: forehead, nose, chin and
+        lips shinier than the cheeks, brows and hair matt.
+    """
+    h, w = valid.shape
+    width = float(np.linalg.norm(landmarks["face_left"] - landmarks["face_right"]))
+    masks = masks or {}
+    z = np.zeros((h, w))
+    hair = np.clip(masks.get("hair", z) + masks.get("brows", z), 0, 1)
+    lips = np.clip(masks.get("lips", z), 0, 1)
+    p = pts[valid]
+    pores = np.zeros((h, w))
+    pores[valid] = (-_smoothstep(0.55, 0.85, _noise3(p, width / 140, seed))
+                    + 0.35 * _noise3(p, width / 45, seed + 1))
+    pores *= (1 - hair) * (1 - 0.7 * lips)
+    # world-space slopes along +u (columns) and +v (rows upwards): the tangent-space gradient
+    step_u = np.linalg.norm(np.gradient(pts, axis=1), axis=2)
+    step_v = np.linalg.norm(np.gradient(pts, axis=0), axis=2)
+    inner = valid.copy()
+    inner[1:-1, 1:-1] &= valid[:-2, 1:-1] & valid[2:, 1:-1] & valid[1:-1, :-2] & valid[1:-1, 2:]
+    inner[[0, -1], :] = False
+    inner[:, [0, -1]] = False
+    su = np.where(inner, np.gradient(pores, axis=1) / np.maximum(step_u, 1e-12), 0.0)
+    sv = np.where(inner, -np.gradient(pores, axis=0) / np.maximum(step_v, 1e-12), 0.0)
+    rms = float(np.sqrt(np.mean(su[inner] ** 2 + sv[inner] ** 2))) if inner.any() else 0.0
+    k = pore_tilt / rms if rms > 0 else 0.0
+    # at most ~20° (texels where the UV layout collapses, e.g. near a sphere's poles, would
+    # otherwise give a few huge slopes)
+    mag = np.maximum(np.hypot(su, sv) * k, 1e-12)
+    k = k * np.minimum(1.0, 0.35 / mag)
+    n = np.stack([-k * su, -k * sv, np.ones((h, w))], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    normal = np.clip(np.rint((n * 0.5 + 0.5) * 255), 0, 255).astype(np.uint8)
+
+    def bump(centre: np.ndarray, sigma: float) -> np.ndarray:
+        d2 = np.sum((pts - centre) ** 2, axis=-1)
+        return np.exp(-d2 / (2 * (sigma * width) ** 2))
+
+    brow_mid = (landmarks["brow_left"] + landmarks["brow_right"]) / 2
+    forehead = brow_mid + 0.45 * (landmarks["forehead_top"] - brow_mid)
+    mouth = (landmarks["mouth_left"] + landmarks["mouth_right"]) / 2
+    bridge = (landmarks["nasion"] + landmarks["nose_tip"]) / 2
+    spec = (0.42 + 0.25 * bump(forehead, 0.22) + 0.40 * bump(landmarks["nose_tip"], 0.08)
+            + 0.25 * bump(bridge, 0.07) + 0.15 * bump(landmarks["chin"], 0.10) - 0.08 * bump(mouth, 0.25))
+    spec = np.clip(spec, 0, 0.9) * (1 - lips) + 0.8 * lips
+    spec = spec * (1 - 0.8 * hair) * (1 + 0.3 * pores)
+    spec[~valid] = 0.5
+    return normal, np.clip(np.rint(spec * 255), 0, 255).astype(np.uint8)
 
 
 def _paint_texture(p: dict, size: int, rng: np.random.Generator) -> tuple[np.ndarray, dict[str, np.ndarray]]:
