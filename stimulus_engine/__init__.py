@@ -44,8 +44,17 @@ from stimulus_engine.expressions import (  # noqa: E402
     expression_weights,
     load_ict_rig,
 )
-from stimulus_engine.materials import MATERIAL_LEVELS, rig_albedo, rig_render_parts, stylise_albedo  # noqa: E402
+from stimulus_engine.materials import (  # noqa: E402
+    MATERIAL_LEVELS,
+    rig_albedo,
+    rig_detail_maps,
+    rig_render_parts,
+    stylise_albedo,
+    stylise_map,
+)
 from stimulus_engine.stylise import StyliseParams, stylise, stylise_rig  # noqa: E402
 from stimulus_engine.procedural_head import procedural_head  # noqa: E402
+from stimulus_engine.eyes import eye_texture, eyeball_uv  # noqa: E402
+from stimulus_engine.mesh_character import MeshCharacter, correspond_rig, front_region  # noqa: E402
 from stimulus_engine.neoteny import neoteny_measures, neoteny_table  # noqa: E402
 from stimulus_engine.grid import run_grid  # noqa: E402
