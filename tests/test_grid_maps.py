@@ -216,3 +216,16 @@ def test_grid_map_errors_are_one_line_and_before_rendering(tmp_path, capsys):
     with pytest.raises(StudyFileError) as exc:
         load_study_file(p, GridFile)
     assert any("normal_map" in line and "file not found" in line for line in exc.value.lines), exc.value.lines
+
+
+def test_wrap_gaussian_equals_scipy_gaussian_filter():
+    from scipy.ndimage import gaussian_filter
+
+    from stimulus_engine.materials import _gaussian_wrap
+
+    rng = np.random.default_rng(1)
+    for shape in [(40, 56, 3), (33, 33)]:
+        a = rng.random(shape) * 255
+        for sigma in (0.3, 1.29, 2.225, 6.0):  # incl. the blur25/blur50 sigmas at 1024 px
+            ref = gaussian_filter(a, sigma=(sigma, sigma, 0)[: a.ndim], mode="wrap")
+            assert np.abs(_gaussian_wrap(a, sigma) - ref).max() < 1e-9
