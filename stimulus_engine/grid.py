@@ -183,7 +183,35 @@ def _load_map(path: Path, kind: str, size: tuple[int, int] | None, where: str) -
         raise AppealInputError(f"{where}: {path.name}: {exc}") from None
 
 
-def _albedo_source(c: CharacterSpec, rig: FaceRig, grid_name: str) -> tuple[np.ndarray, dict]:
+def _npz_cached(path: Path, compute: object) -> dict[str, np.ndarray]:
+    """``compute()`` (a dict of arrays), kept in ``path`` so a re-run (``--resume``) reads it back."""
+    import io
+
+    if path.exists():
+        with np.load(path) as d:
+            return {k: d[k] for k in d.files}
+    out = compute()  # type: ignore[operator]
+    buf = io.BytesIO()
+    np.savez(buf, **out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, buf.getvalue())
+    return out
+
+
+def _painted_albedo(rig: FaceRig, rig_hash: str, seed: int, cache: Path) -> tuple[np.ndarray, dict]:
+    """The albedo painted by code on a rig without texture, cached in ``cache/painted``."""
+    from stimulus_engine.materials import rig_albedo
+
+    def paint() -> dict[str, np.ndarray]:
+        img, masks = rig_albedo(rig, seed=seed)
+        return {"albedo": img, **{f"mask_{k}": v for k, v in masks.items()}}
+
+    d = _npz_cached(cache / "painted" / f"{_sha(GRID_VERSION, rig_hash, 'albedo', seed)}.npz", paint)
+    return d["albedo"], {k[5:]: v for k, v in d.items() if k.startswith("mask_")}
+
+
+def _albedo_source(c: CharacterSpec, rig: FaceRig, grid_name: str, rig_hash: str = "",
+                   cache: Path | None = None) -> tuple[np.ndarray, dict]:
     from stimulus_engine.materials import rig_albedo
 
     if c.texture is not None:
@@ -194,6 +222,8 @@ def _albedo_source(c: CharacterSpec, rig: FaceRig, grid_name: str) -> tuple[np.n
     if rig.uv is None and rig.texture is None:
         raise AppealInputError(f"{grid_name}: characters.{c.name}: the mesh has no UVs, so no albedo texture can be "
                                "painted (expected a mesh with texture coordinates)")
+    if rig.texture is None and cache is not None:
+        return _painted_albedo(rig, rig_hash, c.texture_seed, cache)
     return rig_albedo(rig, seed=c.texture_seed)
 
 
@@ -259,7 +289,7 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
     cache = out / ".cache"
     rigs: dict[str, tuple[FaceRig, str, FaceRig]] = {c.name: _character_rig(c, cache, source) for c in grid.characters}
     specs = {c.name: c for c in grid.characters}
-    albedo_src = {c.name: _albedo_source(c, rigs[c.name][0], source) for c in grid.characters}
+    albedo_src = {c.name: _albedo_source(c, rigs[c.name][0], source, rigs[c.name][1], cache) for c in grid.characters}
     mats = grid.material_specs()
     for m in mats:
         if m.from_character is None:
@@ -315,7 +345,12 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
                     raise AppealInputError(f"{source}: materials.{m.name}.procedural_maps: character '{src}' has no "
                                            "UVs (expected a mesh with texture coordinates)")
                 if painted is None:
-                    painted = rig_detail_maps(rigs[src][0], size=size[0], seed=specs[src].texture_seed)
+                    seed = specs[src].texture_seed
+                    painted = _npz_cached(
+                        cache / "painted" / f"{_sha(GRID_VERSION, rigs[src][1], 'maps', seed, size)}.npz",
+                        lambda: dict(zip(("normal", "specular"), rig_detail_maps(rigs[src][0], size=size[0],
+                                                                                seed=seed))))
+                    painted = (painted["normal"], painted["specular"])
                 found[kind] = painted[0] if kind == "normal" else painted[1]
             if kind in found and found[kind].shape[:2] != size:
                 raise AppealInputError(f"{source}: materials.{m.name}: the {kind} map of '{src}' is "

@@ -179,3 +179,21 @@ def test_thesis_expressions_are_clearly_different_from_neutral(shared_data):
     assert corner("happiness") > 0.5 and corner("sadness") < -0.3
     inner_brow = moved("sadness", "brow_left")[1] - (apply_expression(rig, "sadness") - v0)[lm["brow_left"][-1], 1]
     assert inner_brow > 0.1  # sad brows are oblique: the inner end rises more than the outer
+
+
+def test_deformation_transfer_reuses_its_factorisation_bit_identically():
+    from stimulus_engine import expressions as ex
+    from stimulus_engine.procedural_head import procedural_head
+    from stimulus_engine.stylise import stylise
+
+    rig = procedural_head(seed=4, texture_size=64, resolution=32)
+    targets = [stylise(rig, s) for s in (0.25, 0.5, 1.0)]
+    ex._DT_SYSTEMS.clear()
+    cached = [ex.apply_expression(rig, "surprise", target=t) for t in targets]
+    assert len(ex._DT_SYSTEMS) == 1  # one factorisation for all three levels
+    fresh = []
+    for t in targets:
+        ex._DT_SYSTEMS.clear()
+        fresh.append(ex.apply_expression(rig, "surprise", target=t))
+    assert all(np.array_equal(a, b) for a, b in zip(cached, fresh))
+    assert not np.allclose(cached[0], cached[2])
