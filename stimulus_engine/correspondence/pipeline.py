@@ -175,7 +175,10 @@ def correspond(
         params.fairing_iterations, ls, lt,
     )
     seconds["fairing"] = time.perf_counter() - t
-    logger.info("joint fairing: %d solves, %.2f s", fair.factorizations, seconds["fairing"])
+    logger.info(
+        "joint fairing: %d factorisations, %d CG solves (%d iterations), %.2f s",
+        fair.factorizations, fair.pcg_solves, fair.pcg_iterations, seconds["fairing"],
+    )
 
     t = time.perf_counter()
     # the base meshes are smooth and well shaped: fewer closest-triangle candidates suffice
