@@ -247,3 +247,35 @@ def test_untangle_removes_a_fold_on_a_plane():
     # nothing to do on an unfolded mesh
     same = untangle(v, f, v, lambda p: p)
     assert same.rounds == 0 and not same.moved.any()
+
+
+def test_untangle_membrane_where_the_target_lacks_the_geometry():
+    """A patch the target squeezes onto a line (as james's closed lips squeeze ICT's inner
+    lips). With the on-surface rounds switched off (max_rounds=0; on this small plane they can
+    slide the vertices out of the disc), the membrane fallback alone leaves only vertices of
+    the squeezed disc off the surface, everything else on it, and no bad triangle."""
+    from stimulus_engine.correspondence.metrics import degenerate_triangles, flipped_triangles
+    from stimulus_engine.correspondence.untangle import untangle
+
+    v, f = grid(13)
+
+    def project(p):
+        q = p * [1.0, 1.0, 0.0]
+        inside = np.linalg.norm(q[:, :2] - 0.5, axis=1) < 0.2
+        q[inside, 1] = 0.5  # the disc has no surface of its own: only its middle line
+        return q
+
+    squeezed = project(v)
+    bad = lambda x: flipped_triangles(x, f, v) | degenerate_triangles(x, f, v)  # noqa: E731
+    assert bad(squeezed).sum() > 0
+    res = untangle(squeezed, f, v, project, max_rounds=0)
+    assert res.rounds > 0 and res.folds_after == 0 and not bad(res.vertices).any()
+    off = np.zeros(len(v), dtype=bool)
+    off[res.off_surface] = True
+    # some vertices stay off, all of them relaxed ones around the disc, fewer than were relaxed
+    assert off.any() and (off <= res.moved).all() and off.sum() < res.moved.sum()
+    assert np.linalg.norm(v[off, :2] - 0.5, axis=1).max() < 0.4
+    np.testing.assert_allclose(project(res.vertices[~off]), res.vertices[~off], atol=1e-12)
+    # without the fallback the squeeze stays
+    stuck = untangle(squeezed, f, v, project, max_rounds=0, membrane_rounds=0)
+    assert bad(stuck.vertices).any() and len(stuck.off_surface) == 0

@@ -40,7 +40,9 @@ class CorrespondParams:
     source does not cover would otherwise float freely in the fairing); None keeps it whole.
     ``untangle``: repair any fold-over left by the registration locally (the folded
     triangles' vertices grown by ``untangle_rings`` rings, re-placed harmonically and
-    projected back onto the target; see :mod:`.untangle`).
+    projected back onto the target; where that still folds — a hole rim squeezed onto a
+    closed surface — relaxed as a membrane off the target, re-projected wherever that folds
+    nothing; see :mod:`.untangle`). ``metrics["off_surface_vertices"]`` counts those left off.
     """
 
     lambda1: float = 0.1
@@ -210,13 +212,13 @@ def correspond(
 
     t = time.perf_counter()
     v_final = final.vertices
-    untangled = 0
+    untangled, off_surface = 0, np.zeros(0, dtype=np.int64)
     if params.untangle:
         ut = untangle(v_final, fs, vs, lambda p: t_index.query(p).points, rings=params.untangle_rings)
-        v_final, untangled = ut.vertices, int(ut.moved.sum())
+        v_final, untangled, off_surface = ut.vertices, int(ut.moved.sum()), ut.off_surface
         if ut.rounds:
-            logger.info("untangling: %d -> %d fold-overs, %d vertices moved in %d rounds",
-                        ut.folds_before, ut.folds_after, untangled, ut.rounds)
+            logger.info("untangling: %d -> %d fold-overs, %d vertices moved in %d rounds, %d left off the target",
+                        ut.folds_before, ut.folds_after, untangled, ut.rounds, len(off_surface))
     seconds["untangle"] = time.perf_counter() - t
 
     out_v = v_final * diag + centre
@@ -230,6 +232,10 @@ def correspond(
         moved = ut.moved
         cp_m = t_index.query(v_final[moved])
         tf[moved], tb[moved] = cp_m.face, cp_m.bary
+    if len(off_surface):
+        # membrane vertices spanning what the target lacks: carried by their neighbours
+        valid = valid.copy()
+        valid[off_surface] = False
     seconds["total"] = time.perf_counter() - t_all
     t = time.perf_counter()
     # measured in the normalised frame (relative distances and fold-overs do not depend on it)
@@ -240,6 +246,7 @@ def correspond(
     metrics["seconds"] = seconds["total"]
     metrics["valid_fraction"] = float(valid.mean())
     metrics["untangled_vertices"] = untangled
+    metrics["off_surface_vertices"] = int(len(off_surface))
     return CorrespondenceResult(
         vertices=out_v,
         faces=fs,

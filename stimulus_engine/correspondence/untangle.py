@@ -16,7 +16,7 @@ folds remain, the patch grows by one ring and the relaxation repeats.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -29,13 +29,15 @@ __all__ = ["UntangleResult", "untangle", "vertex_adjacency"]
 
 @dataclass
 class UntangleResult:
-    """New vertices, the vertices moved, rounds run and fold-overs before/after."""
+    """New vertices, the vertices moved, rounds run, fold-overs before/after and the vertices
+    left off the target surface by the membrane fallback."""
 
     vertices: np.ndarray
     moved: np.ndarray
     rounds: int
     folds_before: int
     folds_after: int
+    off_surface: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
 def vertex_adjacency(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
@@ -70,6 +72,8 @@ def untangle(
     max_rounds: int = 6,
     steps: int = 10,
     step: float = 0.5,
+    membrane_rounds: int = 12,
+    membrane_steps: int = 300,
 ) -> UntangleResult:
     """Remove fold-overs of ``vertices`` (relative to the unfolded ``reference``) locally.
 
@@ -89,6 +93,11 @@ def untangle(
         Rounds, each with one more ring, until no fold is left.
     steps, step : int, float
         Relaxation steps per round and their size (fraction of the way to the mean).
+    membrane_rounds, membrane_steps : int
+        The fallback where folds survive the rounds on the surface: rounds (one more ring
+        each) of ``membrane_steps`` relaxation steps *without* projection (a membrane spanning
+        what the target lacks), after which every relaxed vertex whose projection creates no
+        fold is put back onto the target. 0 rounds: no fallback.
 
     Returns
     -------
@@ -112,25 +121,69 @@ def untangle(
         interior[b] = 0.0
         lap = sp.diags(interior) @ lap + rim
     lap = sp.csr_matrix(lap)
-    bad = _bad_triangles(v, faces, reference)
-    before = int(flipped_triangles(v, faces, reference).sum())
-    moved = np.zeros(n, dtype=bool)
-    rounds = 0
     # per free vertex: the mean of its neighbours (or of its two rim neighbours) is
     # ``v + smooth @ v`` with ``smooth = -D⁻¹ lap``
     deg = lap.diagonal()
     smooth = -(sp.diags(1.0 / np.maximum(deg, 1e-300)) @ lap)
+    before = int(flipped_triangles(v, faces, reference).sum())
+    moved = np.zeros(n, dtype=bool)
+    v, rounds = _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_rounds, steps, step, moved)
+    membrane = np.zeros(n, dtype=bool)
+    if _bad_triangles(v, faces, reference).any() and membrane_rounds:
+        # the patch cannot lie on the target without folding (a hole rim squeezed onto a
+        # closed surface): relax it as a membrane, off the surface ...
+        v_m, r_m = _relax_rounds(
+            v, faces, reference, adjacency, smooth, None, rings, membrane_rounds, membrane_steps, step, membrane
+        )
+        rounds += r_m
+        # ... then put back onto the target every vertex whose projection folds nothing
+        moved |= membrane
+        v, membrane = _reproject_where_flat(v_m, faces, reference, adjacency, membrane, project)
+    after = int(flipped_triangles(v, faces, reference).sum())
+    return UntangleResult(v, moved, rounds, before, after, np.flatnonzero(membrane))
+
+
+def _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_rounds, steps, step, moved):
+    """Rounds of relaxation of the bad triangles' vertices grown by ``rings`` (+1 per round);
+    each step projected onto the target by ``project`` (None: left where it lands). Marks the
+    relaxed vertices in ``moved``; returns the new vertices and the rounds run."""
+    v = v.copy()
+    bad = _bad_triangles(v, faces, reference)
+    rounds = 0
     while bad.any() and rounds < max_rounds:
-        seed = np.zeros(n, dtype=bool)
+        seed = np.zeros(len(v), dtype=bool)
         seed[faces[bad].ravel()] = True
-        free = _grow(seed, adjacency, rings + rounds)
-        ids = np.flatnonzero(free)
+        ids = np.flatnonzero(_grow(seed, adjacency, rings + rounds))
         s_f = smooth[ids]
         for _ in range(steps):
-            # relax towards the neighbours' mean, then back onto the target
-            v[ids] = project(v[ids] + step * (s_f @ v))
-        moved |= free
+            # relax towards the neighbours' mean (then back onto the target)
+            p = v[ids] + step * (s_f @ v)
+            v[ids] = p if project is None else project(p)
+        moved[ids] = True
         rounds += 1
         bad = _bad_triangles(v, faces, reference)
-    after = int(flipped_triangles(v, faces, reference).sum())
-    return UntangleResult(v, moved, rounds, before, after)
+    return v, rounds
+
+
+def _reproject_where_flat(v, faces, reference, adjacency, candidates, project, max_iter=20):
+    """Project the ``candidates`` onto the target, except where that makes a new bad triangle:
+    the vertices of such triangles (grown by one ring) stay where they are. Returns the new
+    vertices and the mask of the vertices left off the surface."""
+    base_bad = _bad_triangles(v, faces, reference)
+    on = v.copy()
+    ids = np.flatnonzero(candidates)
+    on[ids] = project(v[ids])
+    off = np.zeros(len(v), dtype=bool)
+    trial = on
+    for _ in range(max_iter):
+        trial = np.where(off[:, None], v, on)
+        new_bad = _bad_triangles(trial, faces, reference) & ~base_bad
+        if not new_bad.any():
+            break
+        seed = np.zeros(len(v), dtype=bool)
+        seed[faces[new_bad].ravel()] = True
+        grow = _grow(seed, adjacency, 1) & candidates & ~off
+        if not grow.any():
+            break
+        off |= grow
+    return trial, off
