@@ -21,6 +21,7 @@ from stimulus_engine import (
 )
 from stimulus_engine.correspondence import CorrespondParams, Correspondences, SurfacePoints, joint_fairing
 from stimulus_engine.correspondence.datasets import ict_james_pair
+from stimulus_engine.correspondence.landmarks import boundary_loops
 from stimulus_engine.correspondence.synthetic import synthetic_pair
 from stimulus_engine.mesh_io import load_mesh, save_mesh
 
@@ -189,18 +190,28 @@ def test_non_manifold_rejected():
 
 @pytest.mark.slow
 def test_ict_face_onto_james(shared_data):
-    """Real data: ICT narrow face region -> james scan with 16 landmarks, 52 held out."""
+    """Real data: ICT narrow face region -> james scan, thesis defaults (5 fairing solves).
+
+    16 landmarks plus ICT's eye and mouth rims tied to james's eyelid and inner-lip landmark
+    curves; the 34 landmarks used for neither (jaw, brows, nose, outer lips) are held out."""
     src, james, corr, (held_src, held_t) = ict_james_pair(shared_data)
-    assert len(corr) == 16 and len(held_src) == 52
-    # partial overlap: one fairing solve (see docs/correspondence.md)
-    res = correspond(src, james, corr, CorrespondParams(fairing_iterations=1))
+    n_rim = sum(len(lp) for lp in boundary_loops(src.faces)[1:])  # mouth + 2 eye loops
+    assert len(corr) == 16 + n_rim and len(held_src) == 34
+    res = correspond(src, james, corr)
     m = res.metrics
     assert m["median_dist_rel"] <= 0.002
     assert m["hausdorff_rel"] <= 0.01
-    # no fold-overs: the inner-lip/eyelid rims james lacks are left as a small membrane
+    # no fold-overs, and the rims lie on james's closed lids and lips (no membrane left off)
     assert m["flipped_triangles"] == 0 and m["degenerate_triangles"] == 0
-    assert 0 < m["off_surface_vertices"] < 100
-    err = np.linalg.norm(res.vertices[held_src] - held_t, axis=1) / m["target_bbox_diagonal"]
+    assert m["off_surface_vertices"] == 0
+    diag = m["target_bbox_diagonal"]
+    rim = slice(16, None)
+    gap = np.linalg.norm(corr.source.subset(rim).positions(res.vertices) - corr.target.subset(rim).positions(james.vertices), axis=1)
+    # measured (rims.py in the follow-up notes): median 0.2 %, max 2.1 % (mouth corners, moved by
+    # the untangling); without the rim curves the eye openings gape (gaps of several %)
+    assert np.median(gap) / diag <= 0.003 and gap.max() / diag <= 0.03
+    err = np.linalg.norm(res.vertices[held_src] - held_t, axis=1) / diag
     assert err.mean() <= 0.02
     tex = transfer_texture(deformed_mesh(src, res.vertices), james, size=(128, 128))
     assert tex.size == (128, 128)
+

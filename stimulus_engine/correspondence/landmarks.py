@@ -12,6 +12,10 @@ a 3D point ``[x, y, z]`` that is snapped to the closest surface point (it must l
 Boundary loops (Fig. 3.5): from one or more corresponding points on a source and a target
 boundary loop, every other source loop vertex gets the target loop point at the same relative
 arc length (piecewise between consecutive anchors), a point on a target boundary edge.
+Where the target has no hole (a scan's closed lips and eyelids against a model's mouth and eye
+openings), :func:`rim_to_curve_correspondences` maps a source boundary loop the same way onto
+a closed curve drawn on the target surface through given points (e.g. the lip or eyelid
+landmarks), :func:`surface_polyline`.
 
 68-point landmark sets come in different orders; :func:`reorder_landmarks` converts between
 them using the table in ``stimulus_engine/data/landmark_orderings.json``.
@@ -37,6 +41,8 @@ __all__ = [
     "load_pairs_file",
     "boundary_loops",
     "boundary_correspondences",
+    "rim_to_curve_correspondences",
+    "surface_polyline",
     "nearest_boundary_vertices",
     "landmark_orderings",
     "reorder_landmarks",
@@ -341,6 +347,146 @@ def boundary_correspondences(
     if not sv:
         raise AppealInputError("boundary anchors: expected at least one (source, target) vertex pair")
     return Correspondences(SurfacePoints(sv, sw), SurfacePoints(tv, tw))
+
+
+def surface_polyline(
+    vertices: np.ndarray, faces: np.ndarray, points: np.ndarray, samples: int = 8, closed: bool = True,
+    index=None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A curve on the surface through ``points``: each chord split into ``samples`` pieces and
+    every sample snapped to the closest surface point.
+
+    Parameters
+    ----------
+    vertices, faces : arrays
+        The surface.
+    points : (P, 3) array
+        The knots, in order (they are snapped too).
+    samples : int
+        Pieces per chord (>= 1).
+    closed : bool
+        Also join the last knot to the first.
+    index : SurfaceIndex, optional
+        A prebuilt closest-point index of the surface.
+
+    Returns
+    -------
+    curve : (P * samples (+1 if open), 3) array
+        Snapped sample positions; knot ``k`` is ``curve[k * samples]``.
+    arc : same length
+        Cumulative arc length along the snapped samples (0 at knot 0); for a closed curve
+        the total length is ``arc[-1] + |curve[0] - curve[-1]|``.
+    """
+    from stimulus_engine.correspondence.closest import SurfaceIndex
+
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(p) < 2:
+        raise AppealInputError(f"curve: expected at least 2 points (got {len(p)})")
+    if samples < 1:
+        raise AppealInputError(f"curve: samples: expected an integer >= 1 (got {samples})")
+    nxt = np.roll(p, -1, axis=0) if closed else p[1:]
+    start = p if closed else p[:-1]
+    t = np.arange(samples) / samples
+    dense = (start[:, None, :] + t[None, :, None] * (nxt - start)[:, None, :]).reshape(-1, 3)
+    if not closed:
+        dense = np.vstack([dense, p[-1:]])
+    idx = index if index is not None else SurfaceIndex(vertices, faces)
+    curve = idx.query(dense).points
+    seg = np.linalg.norm(np.diff(curve, axis=0), axis=1)
+    return curve, np.concatenate([[0.0], np.cumsum(seg)])
+
+
+def rim_to_curve_correspondences(
+    source_vertices: np.ndarray,
+    source_faces: np.ndarray,
+    target_vertices: np.ndarray,
+    target_faces: np.ndarray,
+    source_anchors,
+    target_points: np.ndarray,
+    samples: int = 8,
+    step: int = 1,
+    index=None,
+) -> Correspondences:
+    """Map a source boundary loop onto a closed curve on the target surface (Fig. 3.5 for a
+    target without the hole).
+
+    The curve runs through ``target_points`` in the given order (closed, snapped to the
+    surface: :func:`surface_polyline`). Anchor ``k`` (a source boundary vertex) corresponds
+    to ``target_points[k]``; the source loop vertices between consecutive anchors (in the loop
+    direction in which the anchors appear in the given order) get the curve point at the same
+    fraction of the arc length between the corresponding knots.
+
+    Parameters
+    ----------
+    source_anchors : sequence of int
+        P >= 2 source vertices on one boundary loop, in the curve's order (either direction
+        along the loop).
+    target_points : (P, 3) array
+        The curve's knots on (or within snapping distance of) the target surface.
+    samples : int
+        Pieces per chord of the snapped curve.
+    step : int
+        Use every ``step``-th loop vertex (the anchors are always used).
+    index : SurfaceIndex, optional
+        A prebuilt closest-point index of the target.
+
+    Returns
+    -------
+    Correspondences
+        Source loop vertices -> points on target triangles.
+    """
+    from stimulus_engine.correspondence.closest import SurfaceIndex
+
+    anchors = [int(a) for a in source_anchors]
+    tp = np.asarray(target_points, dtype=np.float64).reshape(-1, 3)
+    if len(anchors) != len(tp):
+        raise AppealInputError(
+            f"rim anchors: expected as many source anchors as curve points (got {len(anchors)} and {len(tp)})"
+        )
+    if len(anchors) < 2 or len(set(anchors)) != len(anchors):
+        raise AppealInputError(f"rim anchors: expected at least 2 distinct source vertices (got {anchors})")
+    loops = boundary_loops(source_faces)
+    of = {int(v): i for i, lp in enumerate(loops) for v in lp}
+    missing = [a for a in anchors if a not in of]
+    if missing:
+        raise AppealInputError(f"rim anchors: source vertex {missing[0]} is not on a boundary loop")
+    if len({of[a] for a in anchors}) != 1:
+        raise AppealInputError("rim anchors: expected all source anchors on one boundary loop")
+    loop = loops[of[anchors[0]]]
+    pos = {int(v): i for i, v in enumerate(loop)}
+    k = np.array([pos[a] for a in anchors])
+    n = len(loop)
+    # the loop direction in which the anchors appear in the given order
+    fwd = np.mod(np.diff(np.append(k, k[0])), n)
+    if fwd.sum() != n:
+        loop = loop[::-1]
+        pos = {int(v): i for i, v in enumerate(loop)}
+        k = np.array([pos[a] for a in anchors])
+        fwd = np.mod(np.diff(np.append(k, k[0])), n)
+        if fwd.sum() != n:
+            raise AppealInputError("rim anchors: the anchors are not in order along their boundary loop")
+    loop = np.roll(loop, -k[0])
+    k = np.mod(k - k[0], n)
+    s_par, s_tot = _loop_params(np.asarray(source_vertices, dtype=np.float64), loop)
+    idx = index if index is not None else SurfaceIndex(target_vertices, target_faces)
+    curve, arc = surface_polyline(target_vertices, target_faces, tp, samples, closed=True, index=idx)
+    t_tot = arc[-1] + float(np.linalg.norm(curve[0] - curve[-1]))
+    knots = np.append(arc[:: samples], t_tot)
+    s_knots = np.append(s_par[k], s_tot)
+    keep = np.zeros(n, dtype=bool)
+    keep[::step] = True
+    keep[k] = True
+    seg = np.searchsorted(s_knots, s_par, side="right") - 1
+    frac = (s_par - s_knots[seg]) / (s_knots[seg + 1] - s_knots[seg])
+    at = knots[seg] + frac * (knots[seg + 1] - knots[seg])
+    closed_curve = np.vstack([curve, curve[:1]])
+    closed_arc = np.append(arc, t_tot)
+    where = np.column_stack([np.interp(at, closed_arc, closed_curve[:, d]) for d in range(3)])
+    cp = idx.query(where[keep])
+    return Correspondences(
+        SurfacePoints.from_vertices(loop[keep]),
+        SurfacePoints.from_faces(np.asarray(target_faces), cp.face, cp.bary),
+    )
 
 
 # --------------------------------------------------------------------------------------------
