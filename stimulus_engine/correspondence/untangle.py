@@ -11,6 +11,18 @@ neighbours), each followed by a projection back onto the target (closest point).
 steps keep the points near the surface, so the projection stays local; the relaxation
 converges towards a Tutte (harmonic) embedding of the patch, which has no fold-overs. If
 folds remain, the patch grows by one ring and the relaxation repeats.
+
+Where the source overhangs the target (the top and sides of a rig's face region beyond
+a face mask's border) a fold is of another kind: its vertices had no closest-point match
+(pruned: too far, normals apart, or on the target's border) and lie off the target, placed
+by the smoothness term alone, which extrapolates the fitted part's compression until it folds.
+Pressing them onto the target would collapse them onto its border, and growing the repair into
+the fitted part would move what the fit (and the user's landmarks) decided. Given the
+``fitted`` vertices, :func:`untangle` therefore first re-places each such overhang on its own:
+the patch grows only through unfitted vertices, and its displacement from the source becomes
+the harmonic extension (cotangent weights of the source) of the displacements around it, with
+every fitted vertex held. The overhang follows the fitted border smoothly and keeps the
+source's shape; the fitted part does not move.
 """
 
 from __future__ import annotations
@@ -20,8 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
 
-from stimulus_engine.correspondence.laplacian import boundary_vertices
+from stimulus_engine.correspondence.laplacian import boundary_vertices, cotangent_laplacian
 from stimulus_engine.correspondence.metrics import degenerate_triangles, flipped_triangles
 
 __all__ = ["UntangleResult", "untangle", "vertex_adjacency"]
@@ -50,11 +63,14 @@ def vertex_adjacency(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
     return a.tocsr()
 
 
-def _grow(mask: np.ndarray, adjacency: sp.csr_matrix, rings: int) -> np.ndarray:
-    m = mask.astype(np.float64)
+def _grow(mask: np.ndarray, adjacency: sp.csr_matrix, rings: int, within: np.ndarray | None = None) -> np.ndarray:
+    """``mask`` grown by ``rings`` rings (through the ``within`` vertices only, if given)."""
+    m = mask > 0
     for _ in range(rings):
-        m = np.maximum(m, (adjacency @ m > 0).astype(np.float64))
-    return m > 0
+        m = m | (adjacency @ m.astype(np.float64) > 0)
+        if within is not None:
+            m &= within
+    return m
 
 
 def _bad_triangles(v: np.ndarray, faces: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -74,6 +90,8 @@ def untangle(
     step: float = 0.5,
     membrane_rounds: int = 12,
     membrane_steps: int = 300,
+    fitted: np.ndarray | None = None,
+    overhang_distance: float = 0.0,
 ) -> UntangleResult:
     """Remove fold-overs of ``vertices`` (relative to the unfolded ``reference``) locally.
 
@@ -98,6 +116,15 @@ def untangle(
         each) of ``membrane_steps`` relaxation steps *without* projection (a membrane spanning
         what the target lacks), after which every relaxed vertex whose projection creates no
         fold is put back onto the target. 0 rounds: no fallback.
+    fitted : (N,) bool array, optional
+        Vertices whose place the fit decided (a kept closest-point match, a landmark). Bad
+        triangles with no fitted vertex and a vertex farther than ``overhang_distance`` from
+        the target (an overhang) are repaired first, off the target, moving unfitted vertices
+        only (``membrane_rounds`` rounds, one more ring each); the on-surface rounds and their
+        fallback then take whatever is still bad. None: no overhang repair.
+    overhang_distance : float
+        How far from the target (in the meshes' units) a vertex lies off it (the pipeline uses
+        its final pruning distance: nothing farther could have been matched).
 
     Returns
     -------
@@ -127,7 +154,17 @@ def untangle(
     smooth = -(sp.diags(1.0 / np.maximum(deg, 1e-300)) @ lap)
     before = int(flipped_triangles(v, faces, reference).sum())
     moved = np.zeros(n, dtype=bool)
-    v, rounds = _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_rounds, steps, step, moved)
+    overhang = np.zeros(n, dtype=bool)
+    rounds = 0
+    if fitted is not None:
+        # the overhang: re-placed off the target through unfitted vertices only
+        v, rounds = _extend_displacement(
+            v, faces, reference, adjacency, np.asarray(fitted, dtype=bool), project, overhang_distance, rings,
+            membrane_rounds, overhang,
+        )
+        moved |= overhang
+    v, r = _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_rounds, steps, step, moved)
+    rounds += r
     membrane = np.zeros(n, dtype=bool)
     if _bad_triangles(v, faces, reference).any() and membrane_rounds:
         # the patch cannot lie on the target without folding (a hole rim squeezed onto a
@@ -140,7 +177,7 @@ def untangle(
         moved |= membrane
         v, membrane = _reproject_where_flat(v_m, faces, reference, adjacency, membrane, project)
     after = int(flipped_triangles(v, faces, reference).sum())
-    return UntangleResult(v, moved, rounds, before, after, np.flatnonzero(membrane))
+    return UntangleResult(v, moved, rounds, before, after, np.flatnonzero(membrane | overhang))
 
 
 def _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_rounds, steps, step, moved):
@@ -162,6 +199,46 @@ def _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_ro
         moved[ids] = True
         rounds += 1
         bad = _bad_triangles(v, faces, reference)
+    return v, rounds
+
+
+def _extend_displacement(v, faces, reference, adjacency, fitted, project, distance, rings, max_rounds, moved,
+                         eps=1e-8):
+    """Re-place the overhang (see the module docstring): seeds are the bad triangles with no
+    ``fitted`` vertex and a vertex more than ``distance`` from the target; the patch, their
+    vertices grown by ``rings`` (+1 per round) through unfitted vertices only, takes the
+    harmonic extension of the displacement ``v - reference`` (cotangent Laplacian of the
+    reference zero on the patch, every vertex outside it held). Rounds go on while a triangle
+    with an unfitted vertex is bad, except the bad triangles that were no seeds to begin with
+    (they are on the target: the on-surface repair's). Marks the re-placed vertices in
+    ``moved``; returns the new vertices and the rounds run."""
+    free = ~fitted
+    bad0 = _bad_triangles(v, faces, reference)
+    bad = bad0 & free[faces].all(axis=1)
+    if not bad.any():
+        return v, 0
+    cand = np.unique(faces[bad])
+    off = np.zeros(len(v), dtype=bool)
+    off[cand] = np.linalg.norm(project(v[cand]) - v[cand], axis=1) > distance
+    bad &= off[faces].any(axis=1)
+    counted = free[faces].any(axis=1) & ~(bad0 & ~bad)
+    v = v.copy()
+    d = v - reference
+    lap = -cotangent_laplacian(reference, faces)
+    rounds = 0
+    while bad.any() and rounds < max_rounds:
+        seed = np.zeros(len(v), dtype=bool)
+        seed[faces[bad].ravel()] = True
+        patch = _grow(seed, adjacency, rings + rounds, free)
+        ids, rest = np.flatnonzero(patch), np.flatnonzero(~patch)
+        rows = lap[ids]
+        # eps keeps a patch that touches no held vertex (a detached overhang) where it is
+        a = sp.csc_matrix(rows[:, ids] + eps * sp.identity(len(ids)))
+        d[ids] = spsolve(a, eps * d[ids] - rows[:, rest] @ d[rest]).reshape(len(ids), -1)
+        v[ids] = reference[ids] + d[ids]
+        moved[ids] = True
+        rounds += 1
+        bad = _bad_triangles(v, faces, reference) & counted
     return v, rounds
 
 
