@@ -214,7 +214,11 @@ def correspond(
     v_final = final.vertices
     untangled, off_surface = 0, np.zeros(0, dtype=np.int64)
     if params.untangle:
-        ut = untangle(v_final, fs, vs, lambda p: t_index.query(p).points, rings=params.untangle_rings)
+        # matched vertices and landmarks are held where a fold lies off the target (an overhang)
+        fitted = final.valid.copy()
+        fitted[corr.source.vertices[corr.source.weights > 0]] = True
+        ut = untangle(v_final, fs, vs, lambda p: t_index.query(p).points, rings=params.untangle_rings,
+                      fitted=fitted, overhang_distance=params.prune_distance_final * NORMALISED_DIAGONAL)
         v_final, untangled, off_surface = ut.vertices, int(ut.moved.sum()), ut.off_surface
         if ut.rounds:
             logger.info("untangling: %d -> %d fold-overs, %d vertices moved in %d rounds, %d left off the target",
