@@ -91,11 +91,6 @@ def test_mesh_character_expressions_maps_and_material_swap(mesh_grid):
     assert len(list((out / ".cache" / "mesh").glob("*.npz"))) == 1
 
 
-@pytest.mark.xfail(strict=True, reason="known regression, issue 4: untangling the 10 fold-overs where the procedural "
-                   "head's front region overhangs the MediaPipe mask moves 400-630 vertices incl. the eye landmarks; "
-                   "mouth/eye ratio 0.5523 -> 0.610, nose 0.362 -> 0.343 (MediaPipe: 0.5525, 0.4635); passes with "
-                   "untangle=False. Next: repair the overhang without growing into fitted areas, or crop the rig "
-                   "region to the mask")
 def test_mesh_character_takes_the_mesh_proportions(mesh_grid):
     _, _, out, _ = mesh_grid
     lm = pd.read_csv(out / "landmarks.csv").set_index(["character", "expression", "landmark"])[["x", "y", "z"]]
