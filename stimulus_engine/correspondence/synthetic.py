@@ -14,7 +14,7 @@ import trimesh
 from PIL import Image
 from scipy.spatial import Delaunay
 
-__all__ = ["face_height", "synthetic_face", "synthetic_landmarks", "synthetic_pair", "LANDMARK_NAMES"]
+__all__ = ["face_height", "face_points", "synthetic_face", "synthetic_landmarks", "synthetic_pair", "LANDMARK_NAMES"]
 
 _RX, _RY = 0.8, 1.0
 _EYE_X, _EYE_Y = 0.32, 0.22
@@ -24,8 +24,15 @@ def _g(x, y, cx, cy, sx, sy):
     return np.exp(-((x - cx) ** 2) / (2 * sx**2) - ((y - cy) ** 2) / (2 * sy**2))
 
 
-def face_height(x: np.ndarray, y: np.ndarray, eyes: float = 1.0, nose: float = 1.0) -> np.ndarray:
-    """Height z(x, y) of the synthetic face; ``eyes``/``nose`` scale those features' size."""
+def _ridge(x: np.ndarray, y: np.ndarray, n: float, hook: float) -> np.ndarray:
+    """The nose ridge and tip: a Gaussian, steeper below its crest when ``hook`` > 0."""
+    sy = np.where(y < -0.02, 0.20 * n * (1.0 - 0.7 * hook), 0.20 * n)
+    return 0.28 * n * np.exp(-(x**2) / (2 * (0.07 * n) ** 2) - ((y + 0.02) ** 2) / (2 * sy**2))
+
+
+def face_height(x: np.ndarray, y: np.ndarray, eyes: float = 1.0, nose: float = 1.0, nose_hook: float = 0.0) -> np.ndarray:
+    """Height z(x, y) of the synthetic face; ``eyes``/``nose`` scale those features' size,
+    ``nose_hook`` makes the underside of the nose steep (see :func:`face_points`)."""
     r2 = (x / _RX) ** 2 + (y / _RY) ** 2
     z = 0.45 * np.sqrt(np.clip(1.0 - 0.8 * r2, 0.0, None))
     z += 0.05 * _g(x, y, 0.0, 0.42, 0.5, 0.06)  # brow ridge
@@ -35,11 +42,29 @@ def face_height(x: np.ndarray, y: np.ndarray, eyes: float = 1.0, nose: float = 1
         z -= 0.10 * _g(x, y, ex, _EYE_Y, 1.3 * s, s)  # socket
         z += 0.07 * _g(x, y, ex, _EYE_Y, 0.8 * s, 0.6 * s)  # eyeball
     n = nose
-    z += 0.28 * n * _g(x, y, 0.0, -0.02, 0.07 * n, 0.20 * n)  # nose ridge and tip
+    z += _ridge(x, y, n, nose_hook)  # nose ridge and tip
     z += 0.06 * n * _g(x, y, 0.0, -0.16 * n, 0.14 * n, 0.05 * n)  # nostril wings
     z += 0.05 * _g(x, y, 0.0, -0.44, 0.22, 0.035) - 0.03 * _g(x, y, 0.0, -0.49, 0.20, 0.012)  # lips
     z += 0.05 * _g(x, y, 0.0, -0.78, 0.18, 0.08)  # chin
     return z
+
+
+def face_points(
+    x: np.ndarray, y: np.ndarray, eyes: float = 1.0, nose: float = 1.0, nose_hook: float = 0.0
+) -> np.ndarray:
+    """3D points (N, 3) of the face at parameters (x, y).
+
+    ``nose_hook`` in [0, 1] makes a hooked cartoon nose: the ridge below its crest gets
+    steeper (its width in y shrinks by ``1 - 0.7 nose_hook``) and every point of the ridge
+    moves down (-y) by ``nose_hook`` times its ridge height. From ``nose_hook`` ≈ 0.65 on,
+    the steep underside turns to face downwards and overhangs the nostril wings and upper lip
+    (like the tip and columella of a real nose, or the ear of the thesis's Fig. 3.2): the
+    surface is no longer a height field over (x, y). It stays embedded (points with the same
+    x and z keep their order in y).
+    """
+    z = face_height(x, y, eyes, nose, nose_hook)
+    yy = y - nose_hook * _ridge(x, y, nose, nose_hook) if nose_hook else y
+    return np.column_stack([x, yy, z])
 
 
 #: Names of :func:`synthetic_landmarks` rows.
@@ -49,7 +74,7 @@ LANDMARK_NAMES = (
 )
 
 
-def synthetic_landmarks(eyes: float = 1.0, nose: float = 1.0) -> np.ndarray:
+def synthetic_landmarks(eyes: float = 1.0, nose: float = 1.0, nose_hook: float = 0.0) -> np.ndarray:
     """16 feature points (x, y, z) of the face with these proportions (:data:`LANDMARK_NAMES`)."""
     e = 0.12 * eyes
     xy = np.array([
@@ -58,7 +83,7 @@ def synthetic_landmarks(eyes: float = 1.0, nose: float = 1.0) -> np.ndarray:
         [-0.22, -0.47], [0.22, -0.47], [0.0, -0.41], [0.0, -0.80], [-_EYE_X, 0.42], [_EYE_X, 0.42],
         [-0.45, -0.15], [0.45, -0.15], [0.0, 0.70],
     ])
-    return np.column_stack([xy, face_height(xy[:, 0], xy[:, 1], eyes, nose)])
+    return face_points(xy[:, 0], xy[:, 1], eyes, nose, nose_hook)
 
 
 def _texture(size: int, eyes: float, nose: float) -> Image.Image:
@@ -86,6 +111,7 @@ def synthetic_face(
     tessellation: str = "grid",
     seed: int = 0,
     texture_size: int = 256,
+    nose_hook: float = 0.0,
 ) -> trimesh.Trimesh:
     """A textured face mesh (open, disc topology) with about ``n_vertices`` vertices.
 
@@ -94,6 +120,8 @@ def synthetic_face(
     tessellation : {"grid", "jitter"}
         A regular grid clipped to the face outline, or jittered random points (a different
         triangulation of the same kind of surface).
+    nose_hook : float
+        Hook the nose down over the upper lip (see :func:`face_points`; 0 = none).
     """
     rng = np.random.default_rng(seed)
     area = np.pi * _RX * _RY
@@ -129,11 +157,11 @@ def synthetic_face(
     on_ring = np.zeros(len(pts), dtype=bool)
     on_ring[-n_ring:] = True
     tri = tri[~on_ring[tri].all(axis=1)]
-    z = face_height(pts[:, 0], pts[:, 1], eyes, nose)
-    v = np.column_stack([pts, z])
-    # orient faces towards +z
-    n = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
-    tri[n[:, 2] < 0] = tri[n[:, 2] < 0][:, ::-1]
+    v = face_points(pts[:, 0], pts[:, 1], eyes, nose, nose_hook)
+    # orient faces towards +z in the (x, y) parameter plane (the same as in 3D without a droop)
+    e1, e2 = pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]]
+    back = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
+    tri[back] = tri[back][:, ::-1]
     used = np.unique(tri)
     remap = np.full(len(v), -1)
     remap[used] = np.arange(len(used))
@@ -141,7 +169,8 @@ def synthetic_face(
     uv = np.column_stack([pts[:, 0] / (2 * _RX) + 0.5, pts[:, 1] / (2 * _RY) + 0.5])
     mat = trimesh.visual.material.SimpleMaterial(image=_texture(texture_size, eyes, nose))
     mesh = trimesh.Trimesh(v, tri, visual=trimesh.visual.TextureVisuals(uv=uv, material=mat), process=False)
-    mesh.metadata["source_path"] = f"synthetic_face(eyes={eyes}, nose={nose}, {tessellation})"
+    droop = f", nose_hook={nose_hook}" if nose_hook else ""
+    mesh.metadata["source_path"] = f"synthetic_face(eyes={eyes}, nose={nose}{droop}, {tessellation})"
     return mesh
 
 
@@ -152,10 +181,13 @@ def synthetic_pair(
     nose: float = 0.6,
     seed: int = 0,
     texture_size: int = 256,
+    nose_hook: float = 0.0,
 ):
     """Source (grid, plain proportions) and stylised target (jittered, ``eyes``/``nose`` scaled)
     with their correspondences: the 16 feature points plus boundary-loop pairs filled from
     four anchors (top, bottom, left, right of the outline).
+
+    ``nose_hook`` hooks the target's nose down over its upper lip (:func:`face_points`).
 
     Returns
     -------
@@ -170,10 +202,10 @@ def synthetic_pair(
     )
 
     src = synthetic_face(n_source, 1.0, 1.0, "grid", seed, texture_size)
-    tgt = synthetic_face(n_target, eyes, nose, "jitter", seed + 1, texture_size)
+    tgt = synthetic_face(n_target, eyes, nose, "jitter", seed + 1, texture_size, nose_hook)
     corr = Correspondences(
         parse_points(synthetic_landmarks(1.0, 1.0), src, "source landmarks", snap_tolerance=0.1),
-        parse_points(synthetic_landmarks(eyes, nose), tgt, "target landmarks", snap_tolerance=0.1),
+        parse_points(synthetic_landmarks(eyes, nose, nose_hook), tgt, "target landmarks", snap_tolerance=0.1),
     )
     ends = np.array([[0, _RY, 0], [0, -_RY, 0], [_RX, 0, 0], [-_RX, 0, 0]], dtype=float)
     a = nearest_boundary_vertices(src.vertices, src.faces, ends)
