@@ -26,7 +26,7 @@ from stimulus_engine.correspondence.laplacian import (
     fairing_operator,
     voronoi_areas,
 )
-from stimulus_engine.correspondence.solve import ReusableSolver
+from stimulus_engine.correspondence.solve import ReusableSolver, available_backends
 
 
 def grid(n=6, z=None):
@@ -103,6 +103,33 @@ def test_closest_point_on_triangle_regions():
     bary = closest_point_on_triangles(pts, *(np.repeat(t, len(pts), 0) for t in (a, b, c)))
     want = np.array([[0.6, 0.2, 0.2], [1, 0, 0], [0, 1, 0], [0, 0.5, 0.5], [0.5, 0.5, 0]])
     np.testing.assert_allclose(bary, want, atol=1e-12)
+
+
+def test_projection_kernel_matches_trimesh_on_random_triangles():
+    from stimulus_engine.correspondence.closest import project_to_triangles
+
+    rng = np.random.default_rng(3)
+    tri = rng.normal(size=(2000, 3, 3))
+    tri[:5, 2] = tri[:5, 1]  # a few degenerate (collinear) triangles
+    p = rng.normal(size=(2000, 3)) * 2
+    want = trimesh.triangles.closest_point(tri, p)
+    ab, ac = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    dots = [np.einsum("ij,ij->i", x, y) for x, y in ((ab, ab), (ab, ac), (ac, ac))]
+    v, w, d2 = project_to_triangles(p - tri[:, 0], ab, ac, *dots)
+    got = tri[:, 0] + v[:, None] * ab + w[:, None] * ac
+    ok = slice(5, None)  # trimesh's answer on degenerate triangles is not defined the same way
+    np.testing.assert_allclose(got[ok], want[ok], atol=1e-9)
+    np.testing.assert_allclose(np.sqrt(d2), np.linalg.norm(got - p, axis=1), atol=1e-7)
+    assert ((v >= -1e-12) & (w >= -1e-12) & (v + w <= 1 + 1e-12)).all()
+
+
+def test_edge_face_counts():
+    from stimulus_engine.correspondence.closest import edge_face_counts
+
+    f = np.array([[0, 1, 2], [2, 1, 3], [1, 2, 4]])  # edge 1-2 shared by three triangles
+    c = edge_face_counts(f)
+    assert c[0, 0] == c[1, 2] == c[2, 2] == 3  # the edge 1-2, opposite corners 0, 2, 2
+    assert (np.sort(c.ravel()) == [1, 1, 1, 1, 1, 1, 3, 3, 3]).all()
 
 
 def test_surface_index_matches_trimesh():
@@ -222,11 +249,58 @@ def test_pcg_on_a_nearby_factorisation():
     # far from the preconditioner: gives up early instead of iterating to maxiter
     _, it_far, ok_far = pcg((h + 50 * sp.identity(len(v))).tocsr(), b, factorize(h).solve, rtol=1e-14, maxiter=6)
     assert not ok_far and it_far <= 6
-    s = ReusableSolver()
+    s = ReusableSolver(backend="superlu")
     s.solve(s.make_key(0), lambda: h, b)
     x2 = s.solve(s.make_key(1), lambda: near, b, near=True)
     assert (s.factorizations, s.pcg_solves) == (1, 1)
     np.testing.assert_allclose(near @ x2, b, atol=1e-7)
+
+
+@pytest.mark.parametrize("backend", available_backends())
+def test_direct_solvers_agree_and_refactorise(backend):
+    from stimulus_engine.correspondence.solve import factorize
+
+    v, _, h = _spd_grid_system()
+    b = np.random.default_rng(2).normal(size=(len(v), 3))
+    f = factorize(h, backend=backend)
+    assert f.backend == backend
+    x = f.solve(b)
+    np.testing.assert_allclose(h @ x, b, atol=1e-9)
+    np.testing.assert_allclose(f.solve(b[:, 0]), x[:, 0], atol=1e-12)  # one right-hand side
+    # same pattern, new values: refactorised (CHOLMOD: numerically, in place)
+    h2 = (h + sp.diags(np.linspace(1.0, 2.0, len(v)))).tocsr()
+    f2 = f.refactor(h2)
+    np.testing.assert_allclose(h2 @ f2.solve(b), b, atol=1e-9)
+    # another pattern: a new factor
+    h3 = (h + sp.diags(np.ones(len(v) - 1), 1) + sp.diags(np.ones(len(v) - 1), -1)).tocsr()
+    np.testing.assert_allclose(h3 @ f2.refactor(h3).solve(b), b, atol=1e-9)
+    # the solver that reuses factorisations refactorises a near matrix exactly with CHOLMOD
+    s = ReusableSolver(backend=backend)
+    s.solve(s.make_key(0), lambda: h, b)
+    x2 = s.solve(s.make_key(1), lambda: h2, b, near=True)
+    np.testing.assert_allclose(h2 @ x2, b, atol=1e-7)
+    assert s.factorizations + s.pcg_solves == 2
+
+
+def test_sparse_solver_choice(monkeypatch):
+    from stimulus_engine.correspondence.solve import default_backend
+
+    monkeypatch.setenv("APPEAL_SPARSE_SOLVER", "superlu")
+    assert default_backend() == "superlu"
+    monkeypatch.setenv("APPEAL_SPARSE_SOLVER", "umfpack")
+    with pytest.raises(AppealInputError, match="APPEAL_SPARSE_SOLVER: unknown sparse solver 'umfpack'; expected one of"):
+        default_backend()
+    monkeypatch.delenv("APPEAL_SPARSE_SOLVER")
+    assert default_backend() == available_backends()[0]
+
+
+def test_cholmod_not_positive_definite():
+    if "cholmod" not in available_backends():
+        pytest.skip("cvxopt is not installed")
+    from stimulus_engine.correspondence.solve import factorize
+
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        factorize(sp.diags([1.0, -1.0, 2.0]).tocsc(), backend="cholmod")
 
 
 def test_untangle_removes_a_fold_on_a_plane():

@@ -8,11 +8,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
 from stimulus_engine.correspondence.alignment import Similarity, umeyama
-from stimulus_engine.correspondence.closest import SurfaceIndex
+from stimulus_engine.correspondence.closest import SurfaceIndex, edge_face_counts, edge_keys
 from stimulus_engine.correspondence.fairing import joint_fairing
 from stimulus_engine.correspondence.landmarks import Correspondences, SurfacePoints
 from stimulus_engine.correspondence.laplacian import fairing_operator, voronoi_areas
@@ -34,8 +35,12 @@ __all__ = ["NORMALISED_DIAGONAL", "CorrespondParams", "CorrespondenceResult", "c
 class CorrespondParams:
     """Weights and iteration counts (defaults: thesis §3.2.2-3.2.3).
 
-    Distances (``prune_distance_*``, ``crop_target``) are relative to the target's
-    bounding-box diagonal. ``crop_target``: before fairing, the target is cut down to the
+    Distances (``prune_distance_*``, ``crop_target``, ``converge_tolerance``) are relative to
+    the target's bounding-box diagonal. ``schedule``: (μ1, at most this many ICP iterations)
+    per stiffness stage; a stage ends early (after two iterations) once no vertex moves more
+    than ``converge_tolerance`` (the thesis: "typically converges after three to four
+    iterations"; 0 always runs the full count). Likewise ``fairing_iterations`` is the most
+    area updates of the joint fairing, which stops once they move no vertex more than that. ``crop_target``: before fairing, the target is cut down to the
     triangles within this distance of the aligned source (a scan's neck and hair that the
     source does not cover would otherwise float freely in the fairing); None keeps it whole.
     ``untangle``: repair any fold-over left by the registration locally (the folded
@@ -50,6 +55,7 @@ class CorrespondParams:
     lambda3: float = 1.0
     fairing_iterations: int = 5
     schedule: tuple[tuple[float, int], ...] = ((10.0, 4), (1.0, 3), (0.1, 3))
+    converge_tolerance: float = 2e-4
     mu2: float = 1.0
     mu3: float = 10.0
     final_fit_weight: float = 300.0
@@ -93,21 +99,23 @@ def _check_mesh(mesh: trimesh.Trimesh, role: str) -> None:
     name = mesh.metadata.get("source_path", role)
     if len(mesh.faces) == 0:
         raise AppealInputError(f"{name}: {role} mesh has no triangles")
-    edges = np.sort(mesh.edges, axis=1)
-    _, counts = np.unique(edges, axis=0, return_counts=True)
+    counts = edge_face_counts(mesh.faces)
     if (counts > 2).any():
+        n_bad = len(np.unique(edge_keys(mesh.faces)[counts > 2]))
         raise AppealInputError(
-            f"{name}: {role} mesh is non-manifold ({int((counts > 2).sum())} edges shared by more "
+            f"{name}: {role} mesh is non-manifold ({n_bad} edges shared by more "
             "than two triangles); expected a manifold surface"
         )
 
 
-def _crop(vt: np.ndarray, ft: np.ndarray, vs: np.ndarray, fs: np.ndarray, radius: float, keep_vertices: np.ndarray):
-    """Target faces near the source surface (plus those around ``keep_vertices``).
+def _crop(vt: np.ndarray, ft: np.ndarray, vs: np.ndarray, radius: float, keep_vertices: np.ndarray):
+    """Target faces near the source (plus those around ``keep_vertices``): faces whose three
+    vertices lie within ``radius`` of a source vertex (the source's edges are far shorter
+    than the radius, so this is the distance to its surface up to an edge length).
 
     Returns ``(face_ids, vertex_ids)`` of the kept part (vertex ids sorted)."""
-    d = SurfaceIndex(vs, fs).query(vt).distance
-    near = d <= radius
+    d, _ = cKDTree(vs).query(vt, distance_upper_bound=radius)
+    near = np.isfinite(d)
     near[keep_vertices] = True
     face_ids = np.flatnonzero(near[ft].all(axis=1))
     vertex_ids = np.unique(ft[face_ids])
@@ -160,7 +168,7 @@ def correspond(
     vt = (vt0 - centre) / diag
     # crop the target to the source's neighbourhood; ``vt_c``/``ft_c`` index the kept part
     if params.crop_target is not None:
-        crop_faces, crop_verts = _crop(vt, ft, vs, fs, params.crop_target * NORMALISED_DIAGONAL, np.unique(corr.target.vertices))
+        crop_faces, crop_verts = _crop(vt, ft, vs, params.crop_target * NORMALISED_DIAGONAL, np.unique(corr.target.vertices))
     else:
         crop_faces, crop_verts = np.arange(len(ft)), np.arange(len(vt))
     remap = np.full(len(vt), -1, dtype=np.int64)
@@ -174,7 +182,7 @@ def correspond(
     t = time.perf_counter()
     fair = joint_fairing(
         vs, fs, vt_c, ft_c, corr_c, params.lambda1, params.lambda2, params.lambda3,
-        params.fairing_iterations, ls, lt,
+        params.fairing_iterations, ls, lt, tolerance=params.converge_tolerance * NORMALISED_DIAGONAL,
     )
     seconds["fairing"] = time.perf_counter() - t
     logger.info(
@@ -189,6 +197,7 @@ def correspond(
         fair.source, fs, ls, voronoi_areas(fair.source, fs), bt_index,
         corr.source, corr_c.target.positions(fair.target), params.schedule, params.mu2, params.mu3,
         Pruning(params.prune_distance_base * NORMALISED_DIAGONAL, params.prune_angle, True),
+        tolerance=params.converge_tolerance * NORMALISED_DIAGONAL,
     )
     seconds["register_base"] = time.perf_counter() - t
     logger.info(
@@ -249,6 +258,8 @@ def correspond(
     seconds["metrics"] = time.perf_counter() - t
     metrics["seconds"] = seconds["total"]
     metrics["valid_fraction"] = float(valid.mean())
+    metrics["fairing_solves"] = len(fair.energies)
+    metrics["registration_iterations"] = base.iterations + final.iterations
     metrics["untangled_vertices"] = untangled
     metrics["off_surface_vertices"] = int(len(off_surface))
     return CorrespondenceResult(

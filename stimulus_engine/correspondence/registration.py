@@ -91,6 +91,7 @@ def nonrigid_register(
     progress=None,
     reuse_mask: bool = True,
     ordering: np.ndarray | None = None,
+    tolerance: float = 0.0,
 ) -> RegistrationResult:
     """Deform ``start`` onto ``target`` (eq. 3.11-3.13).
 
@@ -123,8 +124,9 @@ def nonrigid_register(
         updated every iteration). False re-prunes (and refactorises) every iteration.
     ordering : (N,) int array, optional
         Fill-reducing ordering for the factorisations (the pattern is that of the
-        bi-Laplacian, whatever the weights); by default a nested dissection of ``start``,
-        returned in ``RegistrationResult.ordering`` for reuse.
+        bi-Laplacian, whatever the weights); by default a nested dissection of ``start`` with
+        SuperLU and CHOLMOD's own (AMD) otherwise, returned in ``RegistrationResult.ordering``
+        for reuse.
     """
     v_hat = np.asarray(start, dtype=np.float64)
     n = len(v_hat)
@@ -134,9 +136,9 @@ def nonrigid_register(
     m = max(len(ref_source), 1)
     ref_h = (mu3 / m) * (cs.T @ cs)
     ref_rhs = (mu3 / m) * (cs.T @ ref_target)
-    if ordering is None:
-        ordering = nested_dissection(q, v_hat)
     solver = ReusableSolver(ordering)
+    if solver.ordering is None and solver.backend == "superlu":
+        solver.ordering = nested_dissection(q, v_hat)
     v = v_hat.copy()
     res = RegistrationResult(v, None, np.zeros(n, dtype=bool))
     it = 0
@@ -166,12 +168,16 @@ def nonrigid_register(
             def build(q_w=q_w, wfit=wfit):
                 return q_w + sp.diags(wfit) + ref_h
 
-            v = solver.solve(key, build, q_rhs + wfit[:, None] * c + ref_rhs)
-            res.history.append({"mu1": mu1, "valid": int(valid.sum())})
+            v_new = solver.solve(key, build, q_rhs + wfit[:, None] * c + ref_rhs)
+            move = float(np.sqrt(np.einsum("ij,ij->i", v_new - v, v_new - v).max())) if n else 0.0
+            v = v_new
+            res.history.append({"mu1": mu1, "valid": int(valid.sum()), "max_move": move})
             res.closest, res.valid = cp, valid
             it += 1
             if progress is not None:
                 progress(f"μ1={mu1:g} valid={int(valid.sum())}/{n}")
+            if k >= 1 and move < tolerance:
+                break
     res.vertices = v
     res.iterations = it
     res.factorizations = solver.factorizations
