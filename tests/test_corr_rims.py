@@ -59,6 +59,18 @@ def test_surface_polyline_snaps_and_measures():
     np.testing.assert_allclose(open_arc[-1], 3 * side, atol=1e-12)
 
 
+def test_surface_polyline_smooth_spline_and_corners():
+    v, f = flat_grid()
+    curve, _ = surface_polyline(v, f, SQUARE, samples=2, smooth=True)
+    np.testing.assert_allclose(curve[::2], SQUARE, atol=1e-12)  # through the knots
+    # uniform Catmull-Rom mid-segment: -p0/16 + 9 p1/16 + 9 p2/16 - p3/16 (worked by hand)
+    np.testing.assert_allclose(curve[1], [1.25, 1.25, 0.0], atol=1e-12)
+    # a corner at every knot: each piece stays on its chord (x + y = 2 on the first)
+    sharp, _ = surface_polyline(v, f, SQUARE, samples=4, smooth=True, corners=range(4))
+    np.testing.assert_allclose(sharp[:4, 0] + sharp[:4, 1], 2.0, atol=1e-12)
+    assert not np.allclose(sharp[1], [1.5, 0.5, 0.0])  # but not evenly spaced like the chords
+
+
 def test_surface_polyline_rejects_bad_input():
     v, f = flat_grid()
     with pytest.raises(AppealInputError, match="at least 2 points"):

@@ -74,6 +74,7 @@ def ict_james_pair(
     subset: np.ndarray = LANDMARK_SUBSET_16,
     rims: bool = True,
     rim_step: int = 1,
+    rim_smooth: bool = True,
 ) -> tuple[trimesh.Trimesh, trimesh.Trimesh, Correspondences, tuple[np.ndarray, np.ndarray]]:
     """ICT neutral face ``region`` (source) and james (target) with landmark correspondences.
 
@@ -90,6 +91,9 @@ def ict_james_pair(
         curves (:data:`RIM_CURVES`), one correspondence per ``rim_step``-th rim vertex.
     rim_step : int
         Use every ``rim_step``-th rim vertex (the anchors always).
+    rim_smooth : bool
+        Curves through the landmarks as Catmull-Rom splines with corners at the eye and mouth
+        corners (False: straight chords between the landmarks).
 
     Returns
     -------
@@ -121,6 +125,7 @@ def ict_james_pair(
             anchors = _rim_anchors(vs, src.faces, vs[lm_src[c]])
             corr = corr.concat(rim_to_curve_correspondences(
                 vs, src.faces, james.vertices, james.faces, anchors, lm_t[c], step=rim_step, index=index,
+                smooth=rim_smooth, corners=(0, len(c) // 2),
             ))
             used |= set(curve)
     held = np.setdiff1d(np.arange(68), np.fromiter(used, dtype=np.int64))

@@ -349,12 +349,30 @@ def boundary_correspondences(
     return Correspondences(SurfacePoints(sv, sw), SurfacePoints(tv, tw))
 
 
+def _catmull_rom(p: np.ndarray, t: np.ndarray, closed: bool, corners) -> np.ndarray:
+    """Samples (len(segments), len(t), 3) of the uniform Catmull-Rom spline through ``p``; at
+    ``corners`` (and the ends of an open curve) the tangent is one-sided (a cusp)."""
+    n = len(p)
+    sharp = np.zeros(n, dtype=bool)
+    sharp[list(corners)] = True
+    if not closed:
+        sharp[[0, -1]] = True
+    i = np.arange(n if closed else n - 1)
+    p1, p2 = p[i], p[(i + 1) % n]
+    p0 = np.where(sharp[i][:, None], p1, p[(i - 1) % n])
+    p3 = np.where(sharp[(i + 1) % n][:, None], p2, p[(i + 2) % n])
+    t = t[None, :, None]
+    return 0.5 * (2 * p1[:, None] + (p2 - p0)[:, None] * t + (2 * p0 - 5 * p1 + 4 * p2 - p3)[:, None] * t**2
+                  + (3 * p1 - p0 - 3 * p2 + p3)[:, None] * t**3)
+
+
 def surface_polyline(
     vertices: np.ndarray, faces: np.ndarray, points: np.ndarray, samples: int = 8, closed: bool = True,
-    index=None,
+    index=None, smooth: bool = False, corners=(),
 ) -> tuple[np.ndarray, np.ndarray]:
-    """A curve on the surface through ``points``: each chord split into ``samples`` pieces and
-    every sample snapped to the closest surface point.
+    """A curve on the surface through ``points``: each chord (or, with ``smooth``, each piece
+    of a Catmull-Rom spline through the points) split into ``samples`` pieces and every sample
+    snapped to the closest surface point.
 
     Parameters
     ----------
@@ -368,6 +386,10 @@ def surface_polyline(
         Also join the last knot to the first.
     index : SurfaceIndex, optional
         A prebuilt closest-point index of the surface.
+    smooth : bool
+        A uniform Catmull-Rom spline through the points instead of straight chords.
+    corners : sequence of int
+        With ``smooth``: points where the curve keeps a corner (eye and mouth corners).
 
     Returns
     -------
@@ -384,10 +406,13 @@ def surface_polyline(
         raise AppealInputError(f"curve: expected at least 2 points (got {len(p)})")
     if samples < 1:
         raise AppealInputError(f"curve: samples: expected an integer >= 1 (got {samples})")
-    nxt = np.roll(p, -1, axis=0) if closed else p[1:]
-    start = p if closed else p[:-1]
     t = np.arange(samples) / samples
-    dense = (start[:, None, :] + t[None, :, None] * (nxt - start)[:, None, :]).reshape(-1, 3)
+    if smooth:
+        dense = _catmull_rom(p, t, closed, corners).reshape(-1, 3)
+    else:
+        nxt = np.roll(p, -1, axis=0) if closed else p[1:]
+        start = p if closed else p[:-1]
+        dense = (start[:, None, :] + t[None, :, None] * (nxt - start)[:, None, :]).reshape(-1, 3)
     if not closed:
         dense = np.vstack([dense, p[-1:]])
     idx = index if index is not None else SurfaceIndex(vertices, faces)
@@ -406,6 +431,8 @@ def rim_to_curve_correspondences(
     samples: int = 8,
     step: int = 1,
     index=None,
+    smooth: bool = False,
+    corners=(),
 ) -> Correspondences:
     """Map a source boundary loop onto a closed curve on the target surface (Fig. 3.5 for a
     target without the hole).
@@ -429,6 +456,8 @@ def rim_to_curve_correspondences(
         Use every ``step``-th loop vertex (the anchors are always used).
     index : SurfaceIndex, optional
         A prebuilt closest-point index of the target.
+    smooth, corners
+        The curve's shape between the points (see :func:`surface_polyline`).
 
     Returns
     -------
@@ -469,7 +498,8 @@ def rim_to_curve_correspondences(
     k = np.mod(k - k[0], n)
     s_par, s_tot = _loop_params(np.asarray(source_vertices, dtype=np.float64), loop)
     idx = index if index is not None else SurfaceIndex(target_vertices, target_faces)
-    curve, arc = surface_polyline(target_vertices, target_faces, tp, samples, closed=True, index=idx)
+    curve, arc = surface_polyline(target_vertices, target_faces, tp, samples, closed=True, index=idx,
+                                  smooth=smooth, corners=corners)
     t_tot = arc[-1] + float(np.linalg.norm(curve[0] - curve[-1]))
     knots = np.append(arc[:: samples], t_tot)
     s_knots = np.append(s_par[k], s_tot)
