@@ -8,7 +8,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
@@ -108,14 +107,14 @@ def _check_mesh(mesh: trimesh.Trimesh, role: str) -> None:
         )
 
 
-def _crop(vt: np.ndarray, ft: np.ndarray, vs: np.ndarray, radius: float, keep_vertices: np.ndarray):
-    """Target faces near the source (plus those around ``keep_vertices``): faces whose three
-    vertices lie within ``radius`` of a source vertex (the source's edges are far shorter
-    than the radius, so this is the distance to its surface up to an edge length).
+def _crop(vt: np.ndarray, ft: np.ndarray, vs: np.ndarray, fs: np.ndarray, radius: float, keep_vertices: np.ndarray):
+    """Target faces near the source surface (plus those around ``keep_vertices``).
 
     Returns ``(face_ids, vertex_ids)`` of the kept part (vertex ids sorted)."""
-    d, _ = cKDTree(vs).query(vt, distance_upper_bound=radius)
-    near = np.isfinite(d)
+    # the distance to the source's *surface*: a coarse source's vertices are too far apart
+    # for the distance to the nearest vertex (a MediaPipe-sized mesh lost its border)
+    d = SurfaceIndex(vs, fs).query(vt).distance
+    near = d <= radius
     near[keep_vertices] = True
     face_ids = np.flatnonzero(near[ft].all(axis=1))
     vertex_ids = np.unique(ft[face_ids])
@@ -168,7 +167,7 @@ def correspond(
     vt = (vt0 - centre) / diag
     # crop the target to the source's neighbourhood; ``vt_c``/``ft_c`` index the kept part
     if params.crop_target is not None:
-        crop_faces, crop_verts = _crop(vt, ft, vs, params.crop_target * NORMALISED_DIAGONAL, np.unique(corr.target.vertices))
+        crop_faces, crop_verts = _crop(vt, ft, vs, fs, params.crop_target * NORMALISED_DIAGONAL, np.unique(corr.target.vertices))
     else:
         crop_faces, crop_verts = np.arange(len(ft)), np.arange(len(vt))
     remap = np.full(len(vt), -1, dtype=np.int64)
