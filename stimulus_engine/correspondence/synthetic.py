@@ -169,8 +169,8 @@ def synthetic_face(
     uv = np.column_stack([pts[:, 0] / (2 * _RX) + 0.5, pts[:, 1] / (2 * _RY) + 0.5])
     mat = trimesh.visual.material.SimpleMaterial(image=_texture(texture_size, eyes, nose))
     mesh = trimesh.Trimesh(v, tri, visual=trimesh.visual.TextureVisuals(uv=uv, material=mat), process=False)
-    droop = f", nose_hook={nose_hook}" if nose_hook else ""
-    mesh.metadata["source_path"] = f"synthetic_face(eyes={eyes}, nose={nose}{droop}, {tessellation})"
+    hook = f", nose_hook={nose_hook}" if nose_hook else ""
+    mesh.metadata["source_path"] = f"synthetic_face(eyes={eyes}, nose={nose}{hook}, {tessellation})"
     return mesh
 
 
