@@ -38,7 +38,11 @@ def _landmark_pairs(spec: str, src, tgt):
 Examples:
   appeal stimuli correspond src.obj tgt.obj --landmarks pairs.json --out corr/
   appeal stimuli correspond head.obj.gz scan.obj --landmarks '{"source": [12, 40, 99], "target": [[0,1,2], 17, {"face": 3, "bary": [0.2,0.3,0.5]}]}' --out corr/ --json metrics.json
-  appeal stimuli correspond src.obj cartoon.ply --landmarks pairs.json --lambda1 10 --out corr/ --force   # extreme pair""")
+  appeal stimuli correspond src.obj cartoon.ply --landmarks pairs.json --lambda1 10 --out corr/ --force   # extreme pair
+
+\b
+Sparse solver: CHOLMOD (pip install 'appeal-lab[fast]'; make installs it) when available, else
+SciPy's SuperLU; APPEAL_SPARSE_SOLVER=superlu|cholmod chooses.""")
 @click.argument("source", type=click.Path(path_type=Path))
 @click.argument("target", type=click.Path(path_type=Path))
 @click.option("--landmarks", "landmarks", required=True, metavar="PAIRS",
@@ -48,7 +52,8 @@ Examples:
               help='Optional boundary-loop anchors as JSON [[src_vertex, tgt_vertex], ...]; every other vertex '
                    'of those source loops is matched by relative arc length (thesis Fig. 3.5).')
 @click.option("--lambda1", type=float, default=0.1, show_default=True, help="Fairing smoothness (10 for extreme pairs).")
-@click.option("--fairing-iterations", type=int, default=5, show_default=True, help="Joint-fairing solves (Voronoi areas updated).")
+@click.option("--fairing-iterations", type=int, default=5, show_default=True,
+              help="Most joint-fairing solves (Voronoi areas updated; fewer once nothing moves).")
 @click.option("--no-sheet", is_flag=True, help="Skip the contact-sheet PNG (rendering).")
 @click.option("--json", "json_out", type=click.Path(path_type=Path), default=None, metavar="METRICS",
               help="Also write the metrics to this JSON file.")
