@@ -8,6 +8,7 @@ import scipy.sparse as sp
 import trimesh
 
 from appeal.errors import AppealInputError
+from meshes import grid
 from stimulus_engine.correspondence import (
     Correspondences,
     SurfacePoints,
@@ -27,17 +28,6 @@ from stimulus_engine.correspondence.laplacian import (
     voronoi_areas,
 )
 from stimulus_engine.correspondence.solve import ReusableSolver, available_backends
-
-
-def grid(n=6, z=None):
-    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
-    v = np.column_stack([x.ravel(), y.ravel(), np.zeros(n * n) if z is None else z(x.ravel(), y.ravel())])
-    f = []
-    for i in range(n - 1):
-        for j in range(n - 1):
-            a = i * n + j
-            f += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
-    return v, np.array(f)
 
 
 def test_cotangent_laplacian_right_triangle():

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from appeal.errors import AppealInputError
+from meshes import grid
 from stimulus_engine.correspondence.datasets import _rim_anchors
 from stimulus_engine.correspondence.landmarks import (
     boundary_loops,
@@ -30,15 +31,7 @@ def holed_plane(n: int = 16, a: float = 1.0, b: float = 1.0, rings: int = 3, wid
 
 
 def flat_grid(half: float = 3.0, n: int = 13):
-    x = np.linspace(-half, half, n)
-    xx, yy = np.meshgrid(x, x)
-    v = np.column_stack([xx.ravel(), yy.ravel(), np.zeros(n * n)])
-    f = []
-    for i in range(n - 1):
-        for j in range(n - 1):
-            a = i * n + j
-            f += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
-    return v, np.asarray(f)
+    return grid(n, lo=-half, hi=half)
 
 
 SQUARE = np.array([[2.0, 0, 0], [0, 2.0, 0], [-2.0, 0, 0], [0, -2.0, 0]])  # a diamond, CCW
