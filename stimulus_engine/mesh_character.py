@@ -26,6 +26,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from appeal.errors import AppealInputError
+from appeal.logs import logger
 from stimulus_engine.expressions import FaceRig
 
 __all__ = ["MeshCharacter", "correspond_rig", "front_region", "rig_skin_mesh", "source_landmark_names"]
@@ -55,12 +56,16 @@ class MeshCharacter:
         The correspondence's fit metrics (distances relative to the mesh's bbox diagonal).
     transferred : (H, W) bool array or None
         Texels of ``rig.texture`` that came from the user's texture (the rest is painted).
+    left_out : tuple of str
+        Landmark pairs not used because their rig point is also another landmark's aimed
+        elsewhere (a coarse rig's landmarks can share a vertex).
     """
 
     rig: FaceRig
     region: np.ndarray
     metrics: dict = field(default_factory=dict)
     transferred: np.ndarray | None = None
+    left_out: tuple[str, ...] = ()
 
 
 def source_landmark_names(rig: FaceRig) -> list[str]:
@@ -120,6 +125,131 @@ def _carry_along(v0: np.ndarray, known: np.ndarray, new_known: np.ndarray, fallo
     return out
 
 
+def _shared_points(sv: np.ndarray, sw: np.ndarray, target_pos: np.ndarray, tol: float) -> tuple[np.ndarray, list[int]]:
+    """Pairs to keep, and pairs to drop because their rig point is also another landmark's.
+
+    A coarse rig can put two landmarks on one vertex (the procedural head at low resolution:
+    both inner eye corners on the nose ridge, the top and bottom of the mouth on one lip
+    vertex). One point cannot sit on two places, and pulling it towards both (or their mean)
+    crumples the face, so such pairs are left out; pairs with the same point *and* the same
+    target (within ``tol``) are kept once.
+    """
+    groups: dict[tuple, list[int]] = {}
+    for k in range(len(sv)):
+        groups.setdefault(tuple(sorted(zip(sv[k].tolist(), np.round(sw[k], 9).tolist()))), []).append(k)
+    keep, drop = [], []
+    for g in groups.values():
+        if np.linalg.norm(target_pos[g] - target_pos[g].mean(axis=0), axis=1).max() <= tol:
+            keep.append(g[0])
+        else:
+            drop += g
+    return np.array(sorted(keep), np.int64), sorted(drop)
+
+
+def _vertex_rings(faces: np.ndarray, n: int):
+    """Sparse vertex adjacency (n × n, bool) of a triangle list."""
+    import scipy.sparse as sp
+
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    a = sp.coo_matrix((np.ones(len(e), bool), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    return (a + a.T).astype(bool)
+
+
+def _landmark_warp(rig_points: np.ndarray, mesh_points: np.ndarray):
+    """Thin-plate spline from rig landmarks to their mesh points (a callable on (n, 3) arrays):
+    every landmark lands on its point, the face between them follows smoothly."""
+    from scipy.interpolate import RBFInterpolator
+
+    return RBFInterpolator(rig_points, mesh_points, kernel="thin_plate_spline")
+
+
+def mask_crop(rig: FaceRig, region: np.ndarray, mesh: trimesh.Trimesh, to_mesh) -> np.ndarray:
+    """The part of ``region`` that corresponds to an open mesh (a face mask such as MediaPipe's).
+
+    Region vertices are moved into the mesh's frame with ``to_mesh`` (a callable on (n, 3)
+    arrays, e.g. the landmark thin-plate spline) and kept where their closest point on the mesh
+    lies inside it, not on its border (or within 0.1 % of its diagonal of the mesh: a landmark
+    on the outline); the kept set is closed and opened by one vertex ring, holes are filled, and
+    the largest piece is kept, so the result is one disk whose border loop follows the mesh's
+    outline.
+
+    Returns the kept rig vertex ids (a subset of ``region``).
+    """
+    from scipy.sparse.csgraph import connected_components
+
+    from stimulus_engine.correspondence.closest import SurfaceIndex
+    from stimulus_engine.correspondence.landmarks import boundary_loops
+
+    sub, vid = rig_skin_mesh(rig, np.asarray(region, np.int64))
+    f = np.asarray(sub.faces, np.int64)
+    n = len(vid)
+    mv = np.asarray(mesh.vertices, float)
+    cp = SurfaceIndex(mv, np.asarray(mesh.faces, np.int64)).query(to_mesh(np.asarray(sub.vertices, float)))
+    on = np.asarray(cp.distance) < 1e-3 * float(np.linalg.norm(np.ptp(mv, axis=0)))
+    inside = ~np.asarray(cp.on_boundary, bool) | on
+    adj = _vertex_rings(f, n)
+    grow = lambda m: m | (adj @ m.astype(np.int64) > 0)  # noqa: E731
+    keep = ~grow(~grow(inside)) & (inside | ~on)  # closing: fill one-ring notches
+    keep = grow(~grow(~keep)) | (keep & on)  # opening: drop one-ring spikes (not the landmarks)
+    # holes: pieces of the dropped part that do not reach the region's own border
+    border = np.zeros(n, bool)
+    for loop in boundary_loops(f):
+        border[loop] = True
+    drop = np.flatnonzero(~keep)
+    if drop.size:
+        _, lab = connected_components(adj[drop][:, drop], directed=False)
+        outside = np.unique(lab[border[drop]])
+        keep[drop[~np.isin(lab, outside)]] = True
+    # the largest piece (by faces)
+    fk = keep[f].all(axis=1)
+    _, lab = connected_components(_vertex_rings(f[fk], n), directed=False)
+    used = np.unique(f[fk])
+    big = np.bincount(lab[used]).argmax()
+    keep = np.zeros(n, bool)
+    keep[used[lab[used] == big]] = True
+    return vid[keep]
+
+
+def _outline_pairs(source: trimesh.Trimesh, mesh: trimesh.Trimesh, to_mesh, up: np.ndarray,
+                   anchor_targets: np.ndarray):
+    """Boundary correspondences (thesis Fig. 3.5) tying the source's outer border loop to the
+    mesh's outer border loop by relative arc length between anchors: the mesh loop vertices
+    at the landmarks' targets that lie on it (``anchor_targets``, mesh frame) plus the loop's
+    top end (along ``up``, unless an anchor is near it), each paired with the source loop
+    vertex whose ``to_mesh`` image is nearest."""
+    from stimulus_engine.correspondence.landmarks import boundary_correspondences, boundary_loops
+
+    s_loop = boundary_loops(np.asarray(source.faces))[0]
+    t_loop = boundary_loops(np.asarray(mesh.faces))[0]
+    tp = np.asarray(mesh.vertices, float)[t_loop]
+    size = float(np.linalg.norm(np.ptp(tp, axis=0)))
+    on = [int(np.argmin(np.linalg.norm(tp - a, axis=1))) for a in anchor_targets]
+    on = [k for k, a in zip(on, anchor_targets) if np.linalg.norm(tp[k] - a) < 1e-3 * size]
+    top = int(np.argmax(tp @ up))
+    ends = sorted(set(on) | ({top} if all(np.linalg.norm(tp[k] - tp[top]) > 0.2 * size for k in on) else set()))
+    if len(ends) < 3:  # too few on the outline: its four ends
+        side = np.cross(up, tp.mean(axis=0) - np.asarray(mesh.vertices, float).mean(axis=0))
+        ends = sorted({top, int(np.argmin(tp @ up)), int(np.argmin(tp @ side)), int(np.argmax(tp @ side))})
+    s_img = to_mesh(np.asarray(source.vertices, float)[s_loop])
+    anchors = [(int(s_loop[np.argmin(np.linalg.norm(s_img - tp[e], axis=1))]), int(t_loop[e])) for e in ends]
+    return boundary_correspondences(np.asarray(source.vertices), np.asarray(source.faces),
+                                    np.asarray(mesh.vertices), np.asarray(mesh.faces), anchors)
+
+
+def _socket_similarity(v0: np.ndarray, new_v: np.ndarray, ball: np.ndarray, skin: np.ndarray):
+    """Similarity (rotation, uniform scale, translation) of the skin around an eyeball: the
+    skin vertices within 1.6 ball radii of its centre, from their old to their new places."""
+    from stimulus_engine.correspondence import umeyama
+
+    c = v0[ball].mean(axis=0)
+    r = float(np.linalg.norm(v0[ball] - c, axis=1).max())
+    d = np.linalg.norm(v0[skin] - c, axis=1)
+    near = skin[d < 1.6 * r]
+    if len(near) < 6:
+        near = skin[np.argsort(d)[:12]]
+    return umeyama(v0[near], new_v[near])
+
+
 def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, object], *,
                    region: np.ndarray | None = None, texture: np.ndarray | None = None,
                    texture_size: int = 1024, params: object | None = None, name: str | None = None,
@@ -163,8 +293,8 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
     AppealInputError
         Unknown landmark names, too few pairs, points off the mesh, texture without UVs.
     """
-    from stimulus_engine.correspondence import CorrespondParams, Correspondences, SurfacePoints, correspond
-    from stimulus_engine.correspondence.landmarks import parse_points
+    from stimulus_engine.correspondence import CorrespondParams, Correspondences, SurfacePoints, correspond, umeyama
+    from stimulus_engine.correspondence.landmarks import boundary_loops, parse_points
     from stimulus_engine.materials import FLAT_NORMAL, rig_albedo
     from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
     from stimulus_engine.texture_transfer import transfer_texture
@@ -176,23 +306,54 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
                                f"(expected one of: {', '.join(usable)})")
     if len(landmarks) < 6:
         raise AppealInputError(f"{where}: landmarks: need at least 6 pairs (got {len(landmarks)})")
-    source, vid = rig_skin_mesh(rig, region)
-    local = np.full(len(rig.vertices), -1)
-    local[vid] = np.arange(len(vid))
+    region = np.asarray(rig.skin if region is None else region, np.int64)
     names = list(landmarks)
+    outside = [n for n in names if not np.isin(rig.landmarks[n], region).all()]
+    if outside:
+        raise AppealInputError(f"{where}: landmarks: '{outside[0]}' is outside the corresponded region of the rig")
+    target_pts = parse_points([landmarks[n] for n in names], mesh, f"{where}: landmarks")
     sv = np.zeros((len(names), 3), np.int64)
     sw = np.zeros((len(names), 3))
     for k, n in enumerate(names):
-        idx = local[rig.landmarks[n]]
-        if (idx < 0).any():
-            raise AppealInputError(f"{where}: landmarks: '{n}' is outside the corresponded region of the rig")
+        idx = np.asarray(rig.landmarks[n], np.int64)
         sv[k, :len(idx)] = idx
         sv[k, len(idx):] = idx[0]
         sw[k, :len(idx)] = 1.0 / len(idx)
-    target_pts = parse_points([landmarks[n] for n in names], mesh, f"{where}: landmarks")
-    corr = Correspondences(SurfacePoints(sv, sw), target_pts)
+    mesh_v, mesh_f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+    aim = target_pts.positions(mesh_v)
+    keep, drop = _shared_points(sv, sw, aim, 1e-3 * float(np.linalg.norm(np.ptp(mesh_v, axis=0))))
+    if drop:
+        logger.warning("%s: landmarks %s share their rig point with another landmark aimed elsewhere: left out",
+                       where, ", ".join(names[k] for k in drop))
+    if len(keep) < 6:
+        raise AppealInputError(f"{where}: landmarks: need at least 6 pairs on distinct rig points (got {len(keep)})")
+    left_out = tuple(names[k] for k in drop)
+    names = [names[k] for k in keep]
+    sv, sw, aim, target_pts = sv[keep], sw[keep], aim[keep], target_pts.subset(keep)
+    rig_pts = np.einsum("mk,mkd->md", sw, rig.vertices[sv])
+    open_mesh = bool(boundary_loops(mesh_f))
+    if open_mesh:  # a mask: only the part of the rig region it covers, its border tied to the mesh's
+        to_mesh = _landmark_warp(rig_pts, aim)
+        region = mask_crop(rig, region, mesh, to_mesh)
+        missing = [n for n, pts in zip(names, sv) if not np.isin(pts, region).all()]
+        if missing:
+            raise AppealInputError(f"{where}: landmarks: '{missing[0]}' does not lie on the mesh once the rig is "
+                                   "warped onto it by the landmarks (expected points on the mesh's face)")
+    source, vid = rig_skin_mesh(rig, region)
+    local = np.full(len(rig.vertices), -1)
+    local[vid] = np.arange(len(vid))
+    corr = Correspondences(SurfacePoints(local[sv], sw), target_pts)
+    if open_mesh and boundary_loops(np.asarray(source.faces)):
+        sim = umeyama(rig_pts, aim)
+        up = sim.apply(np.array([[0.0, 1.0, 0.0]]))[0] - sim.apply(np.zeros((1, 3)))[0]
+        corr = corr.concat(_outline_pairs(source, mesh, to_mesh, up / np.linalg.norm(up), aim))
+    params = params or CorrespondParams()
+    if open_mesh:
+        # the mask is the region's whole counterpart (its border vertices are tied), so it is
+        # not cut down to the source's neighbourhood (the cut can lose tied border vertices)
+        params = replace(params, crop_target=None)
     try:
-        res = correspond(source, mesh, corr, params or CorrespondParams())
+        res = correspond(source, mesh, corr, params)
     except (RuntimeError, np.linalg.LinAlgError) as exc:  # e.g. a singular fairing system
         raise AppealInputError(f"{where}: the correspondence failed ({exc}); try a smaller rig region "
                                "(e.g. region: narrow_face for ICT) or more landmarks") from None
@@ -202,31 +363,26 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
     lm_old = rig.landmark_points()
     width = float(np.linalg.norm(lm_old["face_left"] - lm_old["face_right"]))
     # vertices without a closest-point match (beyond the mesh's border, e.g. the forehead above
-    # a scan's cut) only follow the smoothness term: they are carried along like the rest
+    # a scan's cut) only follow the smoothness term: they are carried along like the rest;
+    # the correspondence points (landmarks, the border tied to the mesh's) are placed
     ok = np.asarray(res.valid, bool)
-    new_v = _carry_along(v0, vid[ok], region_new[ok], falloff=0.35 * width)
+    placed = ok.copy()
+    placed[np.unique(corr.source.vertices)] = True
+    new_v = _carry_along(v0, vid[placed], region_new[placed], falloff=0.35 * width)
     # the mouth's inside (teeth, gums, tongue, socket) moves rigidly with the lips around it
     inner = np.isin(rig.face_part, [rig.part_names.index(p) for p in ("teeth", "mouth", "tongue")
                                     if p in rig.part_names])
     inner_v = np.unique(rig.faces[inner])
     if inner_v.size:
-        from stimulus_engine.correspondence import umeyama
-
         mouth = (lm_old["mouth_left"] + lm_old["mouth_right"]) / 2
         half = float(np.linalg.norm(lm_old["mouth_left"] - lm_old["mouth_right"]))
         near = vid[np.linalg.norm(v0[vid] - mouth, axis=1) < 1.2 * half]
         if len(near) >= 4:
             new_v[inner_v] = umeyama(v0[near], new_v[near]).apply(v0[inner_v])
-    # eyeballs: rigid, translated with their surroundings and scaled with the eye width
-    lm_new = rig.landmark_points(new_v)
-    for ball, side in zip(rig.rigid_sets, ("left", "right")):
-        c_old = v0[ball].mean(axis=0)
-        c_new = new_v[ball].mean(axis=0)
-        s = 1.0
-        outer, inner = f"eye_{side}_outer", f"eye_{side}_inner"
-        if outer in lm_old and inner in lm_old:
-            s = float(np.linalg.norm(lm_new[outer] - lm_new[inner]) / np.linalg.norm(lm_old[outer] - lm_old[inner]))
-        new_v[ball] = c_new + s * (v0[ball] - c_old)
+    # eyeballs: rigid, moved and scaled uniformly with the skin of their socket
+    skin = np.asarray(rig.skin, np.int64)
+    for ball in rig.rigid_sets:
+        new_v[ball] = _socket_similarity(v0, new_v, np.asarray(ball), skin).apply(v0[ball])
     out = rig.with_vertices(new_v, name=name or f"{rig.name}_on_mesh")
     transferred = None
     image = texture
@@ -287,4 +443,5 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
         albedo = np.clip(np.rint(painted * (1 - a) + moved[..., :3] * a), 0, 255).astype(np.uint8)
         out = replace(out, texture=albedo, texture_masks=dict(masks))
         transferred = a[..., 0] > 0.5
-    return MeshCharacter(rig=out, region=vid, metrics=dict(res.metrics), transferred=transferred)
+    return MeshCharacter(rig=out, region=vid, metrics=dict(res.metrics), transferred=transferred,
+                         left_out=left_out)

@@ -23,15 +23,18 @@ MP_LANDMARKS = ("{nose_tip: 4, chin: 152, eye_right_outer: 33, eye_right_inner: 
                 "face_right: 234, face_left: 454, nasion: 168, subnasale: 2, nose_right: 98, nose_left: 327}")
 
 
+# procedural head seed 2: at resolution 32 seed 1 puts both inner eye corners on one nose-ridge
+# vertex (and mouth_top/bottom on one lip vertex), so its eye-corner ratios do not measure the
+# eyes; mesh_character leaves such pairs out (tests/test_grid_mesh_character.py)
 def _text(data: Path, landmarks: str = MP_LANDMARKS, region: str = "front", maps: str = "") -> str:
     mp = data / "meshes" / "mediapipe-canonical"
     return f"""kind: grid
 name: meshgrid
 characters:
   - name: head
-    procedural: {{seed: 1, texture_size: 128, resolution: 32}}
+    procedural: {{seed: 2, texture_size: 128, resolution: 32}}
   - name: mp
-    procedural: {{seed: 1, texture_size: 128, resolution: 32}}
+    procedural: {{seed: 2, texture_size: 128, resolution: 32}}
     mesh:
       file: {mp / 'canonical_face_model.obj'}
       texture: {mp / 'canonical_face_model_uv_visualization.png'}
@@ -106,6 +109,7 @@ def test_mesh_character_takes_the_mesh_proportions(mesh_grid):
     (mouth_mp, nose_mp), (mouth_head, nose_head) = ratios("mp"), ratios("head")
     assert abs(mouth_mp - 0.5525) < 0.01 and abs(mouth_head - 0.5525) > 0.05
     assert abs(nose_mp - 0.4635) < abs(nose_head - 0.4635) - 0.05  # the nose moves towards MediaPipe's
+    assert abs(nose_mp - 0.4635) < 0.03  # and nearly reaches it (0.4431; the head's own is 0.5466)
 
 
 def test_mesh_character_errors_are_one_line_and_early(tmp_path, shared_data, capsys):
