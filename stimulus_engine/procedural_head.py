@@ -334,8 +334,10 @@ def _cached(seed: int, texture_size: int, resolution: int) -> FaceRig:
     pool = skin[v[skin, 2] > 0]
 
     def at(x: float, y: float) -> np.ndarray:  # the front-most skin vertex near (x, y)
-        cand = pool[np.linalg.norm(v[pool, :2] - np.array([x, y]), axis=1) < 0.6]
-        cand = cand if len(cand) else pool
+        d = np.linalg.norm(v[pool, :2] - np.array([x, y]), axis=1)
+        # within 0.6 units, or (coarse meshes, where that can be empty) the nearest in x/y:
+        # falling back to the whole face would put the landmark on the nose
+        cand = pool[d < max(0.6, 1.5 * float(d.min()))]
         return _nearest(v, (x, y, v[cand, 2].max()), cand)
 
     m = p["mouth"]

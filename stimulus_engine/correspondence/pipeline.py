@@ -115,8 +115,10 @@ def _crop(vt: np.ndarray, ft: np.ndarray, vs: np.ndarray, fs: np.ndarray, radius
     # for the distance to the nearest vertex (a MediaPipe-sized mesh lost its border)
     d = SurfaceIndex(vs, fs).query(vt).distance
     near = d <= radius
-    near[keep_vertices] = True
-    face_ids = np.flatnonzero(near[ft].all(axis=1))
+    # a kept vertex keeps all its triangles (a landmark or tied vertex must not lose its surface)
+    keep = np.zeros(len(vt), dtype=bool)
+    keep[keep_vertices] = True
+    face_ids = np.flatnonzero(near[ft].all(axis=1) | keep[ft].any(axis=1))
     vertex_ids = np.unique(ft[face_ids])
     return face_ids, vertex_ids
 
