@@ -146,15 +146,6 @@ def _shared_points(sv: np.ndarray, sw: np.ndarray, target_pos: np.ndarray, tol: 
     return np.array(sorted(keep), np.int64), sorted(drop)
 
 
-def _vertex_rings(faces: np.ndarray, n: int):
-    """Sparse vertex adjacency (n × n, bool) of a triangle list."""
-    import scipy.sparse as sp
-
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    a = sp.coo_matrix((np.ones(len(e), bool), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
-    return (a + a.T).astype(bool)
-
-
 def _landmark_warp(rig_points: np.ndarray, mesh_points: np.ndarray):
     """Thin-plate spline from rig landmarks to their mesh points (a callable on (n, 3) arrays):
     every landmark lands on its point, the face between them follows smoothly."""
@@ -179,6 +170,7 @@ def mask_crop(rig: FaceRig, region: np.ndarray, mesh: trimesh.Trimesh, to_mesh) 
 
     from stimulus_engine.correspondence.closest import SurfaceIndex
     from stimulus_engine.correspondence.landmarks import boundary_loops
+    from stimulus_engine.correspondence.untangle import vertex_adjacency
 
     sub, vid = rig_skin_mesh(rig, np.asarray(region, np.int64))
     f = np.asarray(sub.faces, np.int64)
@@ -187,7 +179,7 @@ def mask_crop(rig: FaceRig, region: np.ndarray, mesh: trimesh.Trimesh, to_mesh) 
     cp = SurfaceIndex(mv, np.asarray(mesh.faces, np.int64)).query(to_mesh(np.asarray(sub.vertices, float)))
     on = np.asarray(cp.distance) < 1e-3 * float(np.linalg.norm(np.ptp(mv, axis=0)))
     inside = ~np.asarray(cp.on_boundary, bool) | on
-    adj = _vertex_rings(f, n)
+    adj = vertex_adjacency(f, n)
     grow = lambda m: m | (adj @ m.astype(np.int64) > 0)  # noqa: E731
     keep = ~grow(~grow(inside)) & (inside | ~on)  # closing: fill one-ring notches
     keep = grow(~grow(~keep)) | (keep & on)  # opening: drop one-ring spikes (not the landmarks)
@@ -202,7 +194,7 @@ def mask_crop(rig: FaceRig, region: np.ndarray, mesh: trimesh.Trimesh, to_mesh) 
         keep[drop[~np.isin(lab, outside)]] = True
     # the largest piece (by faces)
     fk = keep[f].all(axis=1)
-    _, lab = connected_components(_vertex_rings(f[fk], n), directed=False)
+    _, lab = connected_components(vertex_adjacency(f[fk], n), directed=False)
     used = np.unique(f[fk])
     big = np.bincount(lab[used]).argmax()
     keep = np.zeros(n, bool)

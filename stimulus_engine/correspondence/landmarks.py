@@ -481,19 +481,15 @@ def rim_to_curve_correspondences(
         raise AppealInputError(f"rim anchors: source vertex {missing[0]} is not on a boundary loop")
     if len({of[a] for a in anchors}) != 1:
         raise AppealInputError("rim anchors: expected all source anchors on one boundary loop")
-    loop = loops[of[anchors[0]]]
-    pos = {int(v): i for i, v in enumerate(loop)}
-    k = np.array([pos[a] for a in anchors])
-    n = len(loop)
+    n = len(loops[of[anchors[0]]])
     # the loop direction in which the anchors appear in the given order
-    fwd = np.mod(np.diff(np.append(k, k[0])), n)
-    if fwd.sum() != n:
-        loop = loop[::-1]
+    for loop in (loops[of[anchors[0]]], loops[of[anchors[0]]][::-1]):
         pos = {int(v): i for i, v in enumerate(loop)}
         k = np.array([pos[a] for a in anchors])
-        fwd = np.mod(np.diff(np.append(k, k[0])), n)
-        if fwd.sum() != n:
-            raise AppealInputError("rim anchors: the anchors are not in order along their boundary loop")
+        if np.mod(np.diff(np.append(k, k[0])), n).sum() == n:
+            break
+    else:
+        raise AppealInputError("rim anchors: the anchors are not in order along their boundary loop")
     loop = np.roll(loop, -k[0])
     k = np.mod(k - k[0], n)
     s_par, s_tot = _loop_params(np.asarray(source_vertices, dtype=np.float64), loop)

@@ -39,8 +39,9 @@ class CorrespondParams:
     per stiffness stage; a stage ends early (after two iterations) once no vertex moves more
     than ``converge_tolerance`` (the thesis: "typically converges after three to four
     iterations"; 0 always runs the full count). Likewise ``fairing_iterations`` is the most
-    area updates of the joint fairing, which stops once they move no vertex more than that. ``crop_target``: before fairing, the target is cut down to the
-    triangles within this distance of the aligned source (a scan's neck and hair that the
+    area updates of the joint fairing, which stops once they move no vertex more than that.
+    ``crop_target``: before fairing, the target is cut down to the triangles within this
+    distance of the aligned source (a scan's neck and hair that the
     source does not cover would otherwise float freely in the fairing); None keeps it whole.
     ``untangle``: repair any fold-over left by the registration locally (the folded
     triangles' vertices grown by ``untangle_rings`` rings, re-placed harmonically and
