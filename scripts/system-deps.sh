@@ -6,7 +6,9 @@
 set -euo pipefail
 PKGS=(xvfb xauth libosmesa6 libgl1 libglu1-mesa libegl1 libjack-jackd2-0 libasound2 libportaudio2
       libusb-1.0-0 libxkbcommon-x11-0 libxcursor1 libxinerama1 libxrandr2 libxxf86vm1 libxi6
-      libglib2.0-0 libdbus-1-3 libnss3 fontconfig fonts-dejavu-core "$@")
+      libglib2.0-0 libdbus-1-3 libnss3 fontconfig fonts-dejavu-core
+      libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-render-util0 libxcb-xkb1 libxcb-shape0
+      libxcb-cursor0 libxcb-xinerama0 libxcb-randr0 libxkbcommon0 xdotool "$@")
 if ! command -v dpkg-query >/dev/null 2>&1; then
   echo "system-deps: not a Debian system; install the equivalents of: ${PKGS[*]}" >&2
   exit 0
