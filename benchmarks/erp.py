@@ -48,7 +48,7 @@ def plain_mne(path, events_map: dict, components: dict, bads=(), *, highpass=0.1
 
     raw = mne.io.read_raw_bdf(path, preload=True, verbose="error")
     events = mne.find_events(raw, stim_channel="Status", shortest_event=1, mask=0xFFFF, mask_type="and",
-                             initial_event=True, consecutive=True, verbose="error")
+                             verbose="error")
     raw.set_channel_types({c: "eog" for c in EOG}, verbose="error")
     raw.set_montage("biosemi128", verbose="error")
     raw.filter(highpass, None, picks=["eeg", "eog"], phase="minimum", verbose="error")

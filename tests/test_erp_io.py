@@ -27,13 +27,51 @@ def test_test_bdf_equals_eeglab_reading(shared_data):
     assert np.corrcoef(ours.ravel(), eeglab.ravel())[0, 1] > 0.999999
 
 
-def test_events_from_status_channel(shared_data):
+# Expected events of every real BDF in shared/data/eeg, produced with plain MNE 1.13:
+#   raw = mne.io.read_raw_bdf(path); ev = mne.find_events(raw)   (MNE's defaults)
+# -> n events, first (sample, code), last (sample, code), code counts. For
+# multiple_annotation_chans.bdf MNE's default stops ("4932 events shorter than the
+# shortest_event"); the numbers are those of mne.find_events(raw, shortest_event=1), the one
+# setting ours changes. Its "Trigger" channel is not a BioSemi Status (it varies sample by sample).
+REAL_BDF_EVENTS = {
+    # BioSemi's sample: Status rests at 254 and steps to 255 for each trigger (bit 16 set at the
+    # start); the return to 254 is not an event (it was read as "unknown trigger code 254").
+    "Newtest17-256.bdf": (40, (414, 255), (15304, 255), {255: 40}),
+    "test.bdf": (1, (589, 128), (589, 128), {128: 1}),
+    "test_bdf_stim_channel.bdf": (9, (242, 4), (4790, 1), {1: 7, 2: 1, 4: 1}),
+    "multiple_annotation_chans.bdf": (14643, (2, 41845), (30874, 41691), None),
+}
+
+
+def test_every_real_bdf_is_in_the_table(shared_data):
+    assert sorted(p.name for p in (shared_data / "eeg").rglob("*.bdf")) == sorted(REAL_BDF_EVENTS)
+
+
+@pytest.mark.parametrize("name", sorted(REAL_BDF_EVENTS))
+def test_events_equal_mne_find_events(shared_data, name):
+    import mne
+
+    path = shared_data / "eeg/biosemi" / name
+    ev = find_trigger_events(read_recording(path), path)
+    n, first, last, counts = REAL_BDF_EVENTS[name]
+    assert len(ev) == n and tuple(ev[0, [0, 2]]) == first and tuple(ev[-1, [0, 2]]) == last
+    if counts is not None:
+        assert dict(zip(*(a.tolist() for a in np.unique(ev[:, 2], return_counts=True)))) == counts
+    # and the same array as plain MNE, here and now (MNE's defaults where they run)
+    raw = mne.io.read_raw_bdf(path, verbose="error")
+    shortest = 1 if counts is None else 2
+    assert np.array_equal(ev, mne.find_events(raw, shortest_event=shortest, verbose="error"))
+
+
+def test_newtest_sample_has_no_unknown_codes(shared_data):
+    path = shared_data / "eeg/biosemi/Newtest17-256.bdf"
+    ev = select_events(find_trigger_events(read_recording(path), path), codes=[255], path=path)
+    assert len(ev) == 40
+
+
+def test_unknown_code_message(shared_data):
     path = shared_data / "eeg/biosemi/test_bdf_stim_channel.bdf"
-    raw = read_recording(path)
-    ev = find_trigger_events(raw, path)
-    # reference: mne.find_events(read_raw_bdf(path), shortest_event=1) -> codes 4, 2, then 1 x7
-    assert ev[:3].tolist() == [[242, 0, 4], [310, 0, 2], [952, 0, 1]]
-    assert dict(zip(*np.unique(ev[:, 2], return_counts=True))) == {1: 7, 2: 1, 4: 1}
+    ev = find_trigger_events(read_recording(path), path)
     with pytest.raises(AppealInputError, match=r"events: unknown trigger codes 4 \(1x\)"):
         select_events(ev, codes=[1, 2], path=path)
     assert len(select_events(ev, codes=[1, 2], ignore=[4], path=path)) == 8

@@ -96,8 +96,13 @@ def find_trigger_events(raw, path: str | Path, stim_channel: str = "auto", mask:
 
     With a stim channel, onsets are found with :func:`mne.find_events` after keeping the
     bits of ``mask`` (BioSemi puts triggers in the low 16 bits of Status and device state
-    in the upper 8). Without one, annotations whose description is a number (EEGLAB) or a
-    BrainVision ``Stimulus/S 11`` marker give the codes.
+    in the upper 8), with MNE's defaults otherwise: a code counts when the channel steps
+    *up* to it (``consecutive="increasing"``), so a return to a resting value is no event
+    (BioSemi's own sample file rests at 254 between its 255 triggers), and the value the
+    recording starts with is no event (``initial_event=False``). Only ``shortest_event=1``
+    differs from MNE's default 2: a pulse shorter than two samples is still an event,
+    where MNE would stop with an error. Without a stim channel, annotations whose
+    description is a number (EEGLAB) or a BrainVision ``Stimulus/S 11`` marker give the codes.
 
     Raises
     ------
@@ -116,8 +121,7 @@ def find_trigger_events(raw, path: str | Path, stim_channel: str = "auto", mask:
     events = np.zeros((0, 3), int)
     if stim_names:
         events = mne.find_events(raw, stim_channel=stim_names[0], shortest_event=1, mask=mask, mask_type="and",
-                                 initial_event=True, consecutive=True, verbose="error")
-        events = events[events[:, 2] != 0]
+                                 consecutive="increasing", initial_event=False, verbose="error")
     elif len(raw.annotations):
         rows = []
         for onset, desc in zip(raw.annotations.onset, raw.annotations.description):
