@@ -30,6 +30,8 @@ __all__ = [
     "SourceConfig",
     "ProtocolEvents",
     "FiguresConfig",
+    "ChannelsConfig",
+    "BIOSEMI_LAYOUTS",
     "THESIS_COMPONENTS",
 ]
 
@@ -48,6 +50,45 @@ THESIS_COMPONENTS = {
     "EPN": {"window_s": [0.250, 0.400], "clusters": {"left": _LEFT, "right": _RIGHT}, "polarity": "negative"},
     "LPP": {"window_s": [0.400, 0.600], "clusters": {"parietal": _PARIETAL}, "polarity": "positive"},
 }
+
+
+#: BioSemi cap layouts (MNE montages) whose electrodes a recording may label by position,
+#: A1-A32, B1-B32, ... in the order of the montage (``channels: {rename: biosemi16}``).
+BIOSEMI_LAYOUTS = ("biosemi16", "biosemi32", "biosemi64", "biosemi128", "biosemi160", "biosemi256")
+
+
+class ChannelsConfig(StudyModel):
+    """Renaming the recording's channels before anything else reads them.
+
+    ``rename`` is a mapping ``{A1: Fp1, A2: Fp2, ...}`` (file label -> new name) or the name
+    of a BioSemi layout (``biosemi16`` ... ``biosemi256``): BioSemi's positional labels
+    A1-A32, B1-B32, ... become that MNE montage's electrode names in order (for biosemi16:
+    A1 -> Fp1, A2 -> Fp2, A3 -> F4, ...). Labels the recording does not have are skipped, so
+    one config reads A1-labelled files and files already labelled with the montage's names.
+    Every other field (eog, clusters, figure channels, bad channels) uses the new names.
+    """
+
+    rename: dict[str, str] | str = Field(default_factory=dict)
+
+    @field_validator("rename")
+    @classmethod
+    def _rename(cls, v: dict[str, str] | str) -> dict[str, str] | str:
+        if isinstance(v, str):
+            if v not in BIOSEMI_LAYOUTS:
+                import difflib
+
+                close = difflib.get_close_matches(v, BIOSEMI_LAYOUTS, n=1)
+                hint = f"did you mean '{close[0]}'?" if close else f"expected one of {', '.join(BIOSEMI_LAYOUTS)}"
+                raise ValueError(f"unknown BioSemi layout {v!r} ({hint}), or give a mapping {{A1: Fp1, ...}}")
+            return v
+        empty = [k for k, n in v.items() if not str(k).strip() or not str(n).strip()]
+        if empty:
+            raise ValueError(f"expected non-empty channel names (got {empty[0]!r}: {v[empty[0]]!r})")
+        targets = list(v.values())
+        dup = sorted({n for n in targets if targets.count(n) > 1})
+        if dup:
+            raise ValueError(f"several channels renamed to {', '.join(dup)} (expected each new name once)")
+        return v
 
 
 class ProtocolEvents(StudyModel):
@@ -177,6 +218,7 @@ class ErpConfig(StudyModel):
     recordings: OutputPath | list[OutputPath]
     subject_pattern: str = r"sub-([A-Za-z0-9]+)"
     montage: str = "biosemi128"
+    channels: ChannelsConfig = Field(default_factory=ChannelsConfig)
     events: dict[int, dict[str, Level]] | ProtocolEvents
     factors: list[str] | None = None
     levels: dict[str, list[Level]] = Field(default_factory=dict)

@@ -1,4 +1,8 @@
-"""Channel names: 10-5 positions mapped onto other layouts (BioSemi 128 A1-D32) by position.
+"""Channel names: renaming a recording's labels, and 10-5 positions mapped onto other layouts.
+
+BioSemi recordings label their electrodes by position (A1-A32, B1-B32, ...); MNE's
+``biosemi16/32/64`` montages name the same positions in 10-20 terms, in BioSemi's order
+(:func:`biosemi_positional_map`, applied with ``channels: {rename: biosemi16}``).
 
 The thesis (§7.3) names its clusters in the 10-5 system (PO9h, TP7h, CPPz ...); BioSemi caps
 with 128 electrodes are labelled A1-D32. Both MNE layouts ``spherical_1005`` and
@@ -11,7 +15,7 @@ BioSemi 128 is shipped as ``analysis/data/biosemi128_from_1005.csv`` (regenerate
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from functools import lru_cache
 from pathlib import Path
 
@@ -22,6 +26,9 @@ from appeal.errors import AppealInputError
 
 __all__ = [
     "BIOSEMI128_MAP_FILE",
+    "biosemi_labels",
+    "biosemi_positional_map",
+    "rename_channels",
     "make_montage",
     "nearest_channel_table",
     "biosemi128_map",
@@ -66,6 +73,70 @@ def make_montage(name: str):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         return mne.channels.make_standard_montage(real)
+
+
+def biosemi_labels(n: int) -> list[str]:
+    """BioSemi's positional electrode labels: A1-A32, B1-B32, ... (``n`` of them)."""
+    return [f"{chr(ord('A') + i // 32)}{i % 32 + 1}" for i in range(n)]
+
+
+def biosemi_positional_map(layout: str) -> dict[str, str]:
+    """BioSemi's positional labels -> the electrode names of an MNE ``biosemi*`` montage.
+
+    MNE lists the electrodes of its BioSemi montages in BioSemi's order (the 64-channel
+    ``test.bdf`` of MNE's test data is labelled Fp1, AF7, AF3 ... in exactly this order), so
+    the i-th label A1, A2, ... B1 ... is the montage's i-th electrode. For biosemi128 and
+    larger the montage's names are the labels themselves.
+
+    Parameters
+    ----------
+    layout : str
+        ``biosemi16``, ``biosemi32``, ``biosemi64``, ``biosemi128``, ``biosemi160`` or ``biosemi256``.
+
+    Returns
+    -------
+    dict
+        ``{"A1": "Fp1", "A2": "Fp2", ...}`` for biosemi16.
+    """
+    names = make_montage(layout).ch_names
+    return dict(zip(biosemi_labels(len(names)), names))
+
+
+def rename_channels(raw, rename: Mapping[str, str] | str, path: str | Path = "") -> dict[str, str]:
+    """Rename the recording's channels in place (the config's ``channels.rename``).
+
+    Labels of the mapping that the recording does not have are skipped, so a config for
+    A1-labelled files also reads files already labelled with the new names.
+
+    Parameters
+    ----------
+    raw : mne.io.Raw
+        The recording.
+    rename : mapping or str
+        ``{old: new}``, or a BioSemi layout name (see :func:`biosemi_positional_map`).
+    path : path-like
+        The recording, for messages.
+
+    Returns
+    -------
+    dict
+        The renames applied.
+
+    Raises
+    ------
+    AppealInputError
+        When a new name is already the name of another channel of the recording.
+    """
+    mapping = biosemi_positional_map(rename) if isinstance(rename, str) else dict(rename)
+    applied = {old: new for old, new in mapping.items() if old in raw.ch_names and old != new}
+    kept = set(raw.ch_names) - set(applied)
+    clash = [f"{old} -> {new}" for old, new in applied.items() if new in kept]
+    if clash:
+        raise AppealInputError(f"{path}: channels.rename: {clash[0]}: the recording already has a channel "
+                               f"{clash[0].split(' -> ')[1]} (expected new names that are not in the recording)")
+    if applied:
+        raw.rename_channels(applied, verbose="error")
+    return applied
 
 
 def _unit_positions(montage) -> tuple[list[str], np.ndarray]:

@@ -80,15 +80,18 @@ def resolve_components(cfg: ErpConfig, ch_names: list[str], source: str = "confi
 def preprocess(path: str | Path, cfg: ErpConfig, emap: EventMap, seed: int = 0):
     """Read and preprocess one recording; returns ``(epochs, qc)``.
 
-    Steps (each one MNE call): read, channel types + montage, events from the Status channel
+    Steps (each one MNE call): read, rename channels (``channels.rename``), channel types +
+    montage, events from the Status channel
     (or annotations), filters, reference, EOG correction, bad channels (detected on the
     eye-corrected data, spherical-spline interpolation, then referenced again), optional
     resampling, epochs with baseline, rejection.
     """
     from analysis.erp import io, preprocessing as pp
+    from analysis.erp.channels import rename_channels
 
     path = Path(path)
     raw = io.read_recording(path)
+    rename_channels(raw, cfg.channels.rename, path)
     events = io.find_trigger_events(raw, path, cfg.stim_channel, cfg.trigger_mask)
     events = io.select_events(events, emap.codes, emap.ignore, emap.unknown, path)
     pp.setup_channels(raw, cfg.montage, cfg.eog, path)
@@ -175,7 +178,7 @@ def _head_info(cfg: ErpConfig, first: Path):
     """EEG info with positions, for the shared head model."""
     import mne
 
-    from analysis.erp.channels import make_montage
+    from analysis.erp.channels import make_montage, rename_channels
     from analysis.erp.io import read_recording
     from analysis.erp.preprocessing import setup_channels
 
@@ -185,6 +188,7 @@ def _head_info(cfg: ErpConfig, first: Path):
         info.set_montage(mont, verbose="error")
         return info
     raw = read_recording(first)
+    rename_channels(raw, cfg.channels.rename, first)
     setup_channels(raw, "none", cfg.eog, first)
     return raw.pick("eeg").info
 

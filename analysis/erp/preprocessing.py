@@ -15,6 +15,7 @@ are bit-for-bit those of the MNE calls (tests/test_erp_preprocessing.py).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -60,9 +61,12 @@ def setup_channels(raw, montage: str, eog: list[str], path: str | Path) -> None:
         on = [c for c in eeg if c.lower() in known]
         off = [c for c in eeg if c.lower() not in known]
         if len(on) < max(3, len(eeg) // 2):
+            positional = sum(bool(re.fullmatch(r"[A-H]\d{1,2}", c)) for c in off) > len(off) // 2
+            hint = (f", and channels: {{rename: {montage}}} for BioSemi's positional labels A1, A2, ..."
+                    if positional and montage.startswith("biosemi") else "")
             raise AppealInputError(
                 f"{path}: montage: {montage!r} has positions for {len(on)} of the {len(eeg)} EEG channels "
-                f"(e.g. no {', '.join(off[:4])}); expected the montage the recording was made with")
+                f"(e.g. no {', '.join(off[:4])}); expected the montage the recording was made with{hint}")
         types.update({c: "misc" for c in off})
     raw.set_channel_types(types, on_unit_change="ignore", verbose="error")
     if montage != "none":
