@@ -46,3 +46,25 @@ def test_existing_stimuli_validate(tmp_path, capsys):
     (tmp_path / "faces" / next(iter(sorted((tmp_path / "faces").glob("*.png")))).name).unlink()
     assert main(["validate", p]) == 2
     assert "not found" in capsys.readouterr().err
+
+
+def test_erp_recordings_matching_nothing_are_reported(tmp_path, capsys, shared_data):
+    f = tmp_path / "erp.yaml"
+    f.write_text("kind: erp\nrecordings: data/sub-*_eeg.bdf\nevents: {255: {condition: trigger}}\n")
+    assert main(["validate", str(f)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"{f}: recordings: pattern {tmp_path / 'data' / 'sub-*_eeg.bdf'} matches no file "
+                   "(expected a glob of BDF/EDF/FIF/BrainVision/EEGLAB files or a BIDS root)"]
+    assert main(["validate", "--schema-only", str(f)]) == 0
+    # a list: each entry that finds nothing is named; an empty BIDS root too
+    (tmp_path / "bids").mkdir()
+    real = shared_data / "eeg/biosemi/Newtest17-256.bdf"
+    f.write_text(f"kind: erp\nrecordings: [{real}, missing.bdf, bids]\nevents: {{255: {{condition: trigger}}}}\n")
+    assert main(["validate", str(f)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert [line.split(" (")[0] for line in err] == [
+        f"{f}: recordings[1]: pattern {tmp_path / 'missing.bdf'} matches no file",
+        f"{f}: recordings[2]: folder {tmp_path / 'bids'} holds no *_eeg.* recordings"]
+    f.write_text(f"kind: erp\nrecordings: {real}\nevents: {{255: {{condition: trigger}}}}\n")
+    assert main(["validate", str(f)]) == 0
+    assert capsys.readouterr().out.strip() == f"{f}: ok (erp)"

@@ -12,7 +12,8 @@ from appeal.studyfile import load_study_file, load_yaml
 
 from analysis.erp_schema import ErpConfig, ProtocolEvents
 
-__all__ = ["EventMap", "load_erp_config", "read_protocol_codes", "event_map", "find_recordings", "subject_id"]
+__all__ = ["EventMap", "load_erp_config", "read_protocol_codes", "event_map", "find_recordings",
+           "recording_problems", "subject_id"]
 
 #: File types the pipeline reads (MNE readers).
 RECORDING_SUFFIXES = (".bdf", ".edf", ".fif", ".vhdr", ".set", ".fif.gz")
@@ -160,27 +161,55 @@ def event_map(cfg: ErpConfig, source: str | Path = "config") -> EventMap:
                     unknown=cfg.unknown_codes, cells=cells)
 
 
+def _expand(pattern: Path) -> list[Path]:
+    """Files of one ``recordings`` entry: a glob, or a BIDS root walked for ``*_eeg.*``."""
+    if pattern.is_dir():
+        found = [f for f in sorted(pattern.rglob("*_eeg.*"))
+                 if "".join(f.suffixes[-2:]).lower().endswith(RECORDING_SUFFIXES)]
+        return [f for f in found if f.suffix.lower() != ".fdt"]
+    return [Path(f) for f in sorted(glob.glob(str(pattern)))]
+
+
+def _patterns(cfg: ErpConfig) -> list[tuple[str, Path]]:
+    """``(field, pattern)`` for each entry of ``recordings``."""
+    if isinstance(cfg.recordings, list):
+        return [(f"recordings[{i}]", Path(p)) for i, p in enumerate(cfg.recordings)]
+    return [("recordings", Path(cfg.recordings))]
+
+
+def recording_problems(cfg: ErpConfig, source: str | Path = "config") -> list[str]:
+    """One ``FILE: recordings: ...`` line for each entry of ``recordings`` that finds no file.
+
+    ``appeal validate`` reports these (the schema alone cannot know), and
+    :func:`find_recordings` stops on them before a run.
+    """
+    problems = []
+    for where, pat in _patterns(cfg):
+        if _expand(pat):
+            continue
+        if pat.is_dir():
+            problems.append(f"{source}: {where}: folder {pat} holds no *_eeg.* recordings "
+                            f"(expected a BIDS root with BDF/EDF/FIF/BrainVision/EEGLAB files)")
+        else:
+            problems.append(f"{source}: {where}: pattern {pat} matches no file "
+                            f"(expected a glob of BDF/EDF/FIF/BrainVision/EEGLAB files or a BIDS root)")
+    return problems
+
+
 def find_recordings(cfg: ErpConfig, source: str | Path = "config") -> list[Path]:
     """The recording files: expand globs, or walk a BIDS root for ``*_eeg.*`` files.
 
     Raises
     ------
     AppealInputError
-        When nothing matches.
+        When an entry of ``recordings`` matches nothing (one line per entry).
     """
-    patterns = cfg.recordings if isinstance(cfg.recordings, list) else [cfg.recordings]
+    problems = recording_problems(cfg, source)
+    if problems:
+        raise AppealInputError(problems)
     files: list[Path] = []
-    for pat in patterns:
-        p = Path(pat)
-        if p.is_dir():
-            found = [f for f in sorted(p.rglob("*_eeg.*")) if "".join(f.suffixes[-2:]).lower().endswith(RECORDING_SUFFIXES)]
-            found = [f for f in found if f.suffix.lower() != ".fdt"]
-        else:
-            found = [Path(f) for f in sorted(glob.glob(str(p)))]
-        files.extend(f for f in found if f not in files)
-    if not files:
-        raise AppealInputError(f"{source}: recordings: no files match {', '.join(str(p) for p in patterns)} "
-                               f"(expected a glob of BDF/EDF/FIF/BrainVision/EEGLAB files or a BIDS root)")
+    for _, pat in _patterns(cfg):
+        files.extend(f for f in _expand(pat) if f not in files)
     return files
 
 
