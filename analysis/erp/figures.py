@@ -8,7 +8,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["save_figure", "plot_waveforms", "plot_difference_topomaps", "plot_window_bars", "plot_source_map"]
+__all__ = [
+    "save_figure",
+    "plot_waveforms",
+    "plot_difference_topomaps",
+    "plot_window_bars",
+    "plot_source_map",
+    "waveforms_figure",
+    "difference_topomaps_figure",
+    "window_bars_figure",
+    "source_map_figure",
+]
 
 
 def save_figure(fig, path_stem: Path) -> list[Path]:
@@ -34,9 +44,28 @@ def _level_means(grand: Mapping[tuple, np.ndarray], factor_index: int) -> dict:
     return {k: np.mean(v, axis=0) for k, v in acc.items()}
 
 
+def _label_windows(ax, windows: Mapping[str, Sequence[float]], headroom: float = 0.16) -> None:
+    """Shade the component windows and name them in a band above the plotted data.
+
+    The y range grows by ``headroom`` of its height, so the names sit above every curve.
+    """
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + headroom * (hi - lo))
+    for c, (a, b) in windows.items():
+        ax.axvspan(a * 1e3, b * 1e3, color="0.9", zorder=0)
+        ax.text((a + b) / 2 * 1e3, 0.985, c, transform=ax.get_xaxis_transform(), ha="center", va="top", fontsize=8)
+
+
 def plot_waveforms(grand: Mapping[tuple, np.ndarray], times: np.ndarray, ch_names: Sequence[str],
                    channels: Mapping[str, str], factors: Sequence[str], levels: Mapping[str, Sequence],
                    windows: Mapping[str, Sequence[float]], path_stem: Path) -> list[Path]:
+    """Save :func:`waveforms_figure` as ``<path_stem>.png`` and ``.svg``."""
+    return save_figure(waveforms_figure(grand, times, ch_names, channels, factors, levels, windows), path_stem)
+
+
+def waveforms_figure(grand: Mapping[tuple, np.ndarray], times: np.ndarray, ch_names: Sequence[str],
+                     channels: Mapping[str, str], factors: Sequence[str], levels: Mapping[str, Sequence],
+                     windows: Mapping[str, Sequence[float]]):
     """Grand-average waveforms per level of each factor at chosen channels (thesis Fig. 7.5, 7.7).
 
     Parameters
@@ -53,8 +82,8 @@ def plot_waveforms(grand: Mapping[tuple, np.ndarray], times: np.ndarray, ch_name
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(channels), len(factors), figsize=(5.2 * len(factors), 3.0 * len(channels)),
-                             squeeze=False, sharex=True)
+    fig, axes = plt.subplots(len(channels), len(factors), figsize=(6.0 * len(factors), 3.0 * len(channels)),
+                             squeeze=False, sharex=True, layout="constrained")
     for j, f in enumerate(factors):
         means = _level_means(grand, j)
         cmap = plt.get_cmap("viridis" if len(levels[f]) > 3 else "tab10")
@@ -65,25 +94,38 @@ def plot_waveforms(grand: Mapping[tuple, np.ndarray], times: np.ndarray, ch_name
                 if lv in means:
                     color = cmap(n / max(len(levels[f]) - 1, 1)) if len(levels[f]) > 3 else cmap(n)
                     ax.plot(times * 1e3, means[lv][k] * 1e6, color=color, lw=1.4, label=str(lv))
-            for c, (a, b) in windows.items():
-                ax.axvspan(a * 1e3, b * 1e3, color="0.9", zorder=0)
-                ax.text((a + b) / 2 * 1e3, 1.0, c, transform=ax.get_xaxis_transform(), ha="center", va="top", fontsize=8)
+            _label_windows(ax, windows)
             ax.axhline(0, color="0.5", lw=0.6)
             ax.axvline(0, color="0.5", lw=0.6)
             ax.set_title(f"{title} ({ch}) by {f}" if title != ch else f"{ch} by {f}", fontsize=10)
             ax.set_ylabel("µV")
             if i == len(channels) - 1:
                 ax.set_xlabel("time (ms)")
-            if i == 0:
-                ax.legend(title=f, fontsize=7, title_fontsize=8, ncol=2, frameon=False)
+            if i == 0:  # beside the plot, never over the curves
+                ax.legend(title=f, fontsize=7, title_fontsize=8, frameon=False, loc="upper left",
+                          bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     fig.suptitle("Grand-average ERPs", fontsize=11)
-    return save_figure(fig, path_stem)
+    return fig
 
 
 def plot_difference_topomaps(grand: Mapping[tuple, np.ndarray], info, factors: Sequence[str],
                              levels: Mapping[str, Sequence], factor: str, reference, windows: Mapping[str, Sequence[float]],
                              times: np.ndarray, path_stem: Path) -> list[Path]:
-    """Difference topographies (level - reference) of one factor in each window (thesis Fig. 7.6)."""
+    """Save :func:`difference_topomaps_figure` (nothing when the factor has one level)."""
+    fig = difference_topomaps_figure(grand, info, factors, levels, factor, reference, windows, times)
+    return [] if fig is None else save_figure(fig, path_stem)
+
+
+def difference_topomaps_figure(grand: Mapping[tuple, np.ndarray], info, factors: Sequence[str],
+                               levels: Mapping[str, Sequence], factor: str, reference,
+                               windows: Mapping[str, Sequence[float]], times: np.ndarray):
+    """Difference topographies (level - reference) of one factor in each window (thesis Fig. 7.6).
+
+    Returns
+    -------
+    matplotlib.figure.Figure | None
+        ``None`` when the factor has no level besides ``reference``.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -102,7 +144,7 @@ def plot_difference_topomaps(grand: Mapping[tuple, np.ndarray], info, factors: S
             maps.append((means[lv][:, m].mean(axis=1) - means[reference][:, m].mean(axis=1)) * 1e6)
             titles.append(f"{comp}: {lv} − {reference}")
     if not maps:
-        return []
+        return None
     lim = max(np.abs(np.array(maps)).max(), 1e-3)
     ncol = len(others)
     fig, axes = plt.subplots(len(windows), ncol, figsize=(2.6 * ncol + 0.8, 2.5 * len(windows)), squeeze=False)
@@ -112,11 +154,17 @@ def plot_difference_topomaps(grand: Mapping[tuple, np.ndarray], info, factors: S
         ax.set_title(title, fontsize=9)
     fig.colorbar(im, ax=axes.ravel().tolist(), shrink=0.7, label="µV")
     fig.suptitle(f"Difference topographies: {factor}", fontsize=11)
-    return save_figure(fig, path_stem)
+    return fig
 
 
 def plot_window_bars(amplitudes: pd.DataFrame, component: str, factors: Sequence[str], levels: Mapping[str, Sequence],
                      path_stem: Path, dv: str = "mean_uV") -> list[Path]:
+    """Save :func:`window_bars_figure` as ``<path_stem>.png`` and ``.svg``."""
+    return save_figure(window_bars_figure(amplitudes, component, factors, levels, dv), path_stem)
+
+
+def window_bars_figure(amplitudes: pd.DataFrame, component: str, factors: Sequence[str],
+                       levels: Mapping[str, Sequence], dv: str = "mean_uV"):
     """Window means per condition (clusters averaged) with ±1 SEM over subjects (thesis Fig. 7.5, 7.7)."""
     import matplotlib
 
@@ -127,7 +175,8 @@ def plot_window_bars(amplitudes: pd.DataFrame, component: str, factors: Sequence
     per_subj = sub.groupby(["subject", *factors], observed=True)[dv].mean().reset_index()
     x_f = factors[0]
     hue_f = factors[1] if len(factors) > 1 else None
-    fig, ax = plt.subplots(figsize=(max(5.0, 0.9 * len(levels[x_f]) * (len(levels[hue_f]) if hue_f else 1) ** 0.5), 3.4))
+    fig, ax = plt.subplots(figsize=(max(5.0, 0.9 * len(levels[x_f]) * (len(levels[hue_f]) if hue_f else 1) ** 0.5), 3.4),
+                           layout="constrained")
     hues = levels[hue_f] if hue_f else [None]
     width = 0.8 / len(hues)
     cmap = plt.get_cmap("tab10")
@@ -142,14 +191,23 @@ def plot_window_bars(amplitudes: pd.DataFrame, component: str, factors: Sequence
     ax.set_xlabel(x_f)
     ax.set_ylabel(f"{component} mean amplitude (µV)")
     ax.axhline(0, color="0.4", lw=0.6)
-    if hue_f:
-        ax.legend(title=hue_f, fontsize=8, frameon=False)
-    ax.set_title(f"{component}: window mean ± 1 SEM (n = {per_subj['subject'].nunique()})", fontsize=10)
-    return save_figure(fig, path_stem)
+    if hue_f:  # beside the bars, never over them
+        ax.legend(title=hue_f, fontsize=8, frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                  borderaxespad=0.0)
+    n = per_subj["subject"].nunique()
+    ax.set_title(f"{component}: window mean ± 1 SEM (n = {n})" if n > 1 else f"{component}: window mean (n = 1)",
+                 fontsize=10)
+    return fig
 
 
 def plot_source_map(mni: np.ndarray, t: np.ndarray, threshold: float, title: str, path_stem: Path,
                     marks: Mapping[str, Sequence[float]] | None = None) -> list[Path]:
+    """Save :func:`source_map_figure` as ``<path_stem>.png`` and ``.svg``."""
+    return save_figure(source_map_figure(mni, t, threshold, title, marks), path_stem)
+
+
+def source_map_figure(mni: np.ndarray, t: np.ndarray, threshold: float, title: str,
+                      marks: Mapping[str, Sequence[float]] | None = None):
     """Maximum-intensity projections (sagittal, coronal, axial) of a voxel t map in MNI space."""
     import matplotlib
 
@@ -158,7 +216,7 @@ def plot_source_map(mni: np.ndarray, t: np.ndarray, threshold: float, title: str
 
     views = [("sagittal", 1, 2, 0, "y (mm)", "z (mm)"), ("coronal", 0, 2, 1, "x (mm)", "z (mm)"),
              ("axial", 0, 1, 2, "x (mm)", "y (mm)")]
-    fig, axes = plt.subplots(1, 3, figsize=(11, 3.8))
+    fig, axes = plt.subplots(1, 3, figsize=(12, 4.0), layout="constrained")
     vmax = max(float(np.nanmax(np.abs(t))), threshold * 1.01)
     for ax, (name, a, b, depth, xl, yl) in zip(axes, views):
         order = np.argsort(t)  # largest drawn last = on top
@@ -173,4 +231,4 @@ def plot_source_map(mni: np.ndarray, t: np.ndarray, threshold: float, title: str
         ax.set_title(name, fontsize=9)
     fig.colorbar(sc, ax=axes.tolist(), shrink=0.8, label=f"t (≥ {threshold:.2f})")
     fig.suptitle(title, fontsize=11)
-    return save_figure(fig, path_stem)
+    return fig
