@@ -15,6 +15,7 @@ from appeal.errors import AppealInputError
 Examples:
   appeal analyze erp protocols/analysis/erp_stylisation.yaml --out results/erp
   appeal analyze erp study.yaml --out results/erp --n-jobs 2 --permutations 200
+  appeal analyze erp protocols/analysis/erp_biosemi_sample.yaml --out results/sample   # BioSemi's sample file
   appeal analyze erp study.yaml --out results/erp --scheduler tcp://10.0.0.5:8786
   appeal validate study.yaml            # check the config without running it
 
@@ -36,9 +37,10 @@ def erp(config: Path, out: Path, force: bool, resume: bool, seed: int, n_jobs: i
 
     \b
     CONFIG is a `kind: erp` YAML file (see docs/erp.md): recordings (glob or BIDS root),
-    montage, events (inline code -> levels, or {protocol: FILE}), reference, filters,
-    epochs, EOG correction, bad channels, rejection, components (windows + clusters in
-    10-5 names or channel labels) and source settings. Defaults follow thesis §7.3.
+    montage, channels.rename (e.g. BioSemi's A1.. labels to a montage's names), events
+    (inline code -> levels, or {protocol: FILE}), reference, filters, epochs, EOG
+    correction, bad channels, rejection, components (windows + clusters in 10-5 names or
+    channel labels) and source settings. Defaults follow thesis §7.3.
     """
     from appeal.outputs import output_run
 
