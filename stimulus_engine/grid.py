@@ -44,7 +44,7 @@ from stimulus_engine.grid_schema import CharacterSpec, GridFile, MaterialSpec
 __all__ = ["GRID_VERSION", "RenderItem", "plan_grid", "run_grid"]
 
 #: Bumped when the rendering code changes what pixels come out (part of every input hash).
-GRID_VERSION = "grid-5"
+GRID_VERSION = "grid-6"
 
 
 def _sha(*parts: object) -> str:

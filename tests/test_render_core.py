@@ -107,6 +107,82 @@ def test_shadows_darken_the_occluded_side():
     assert (darker > 30).sum() > 50
 
 
+def _darker_with_shadows(parts, light, camera=None):
+    """Per pixel, how much darker (mean over RGB) the image gets when shadow maps are on; and depth."""
+    a, depth = render_mesh(parts, width=320, height=240, lighting=light, camera=camera, return_depth=True)
+    b = render_mesh(parts, width=320, height=240, lighting=light, camera=camera, shadows=False)
+    return (b.astype(int) - a.astype(int)).mean(axis=2), depth
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("light", ["direct_hard", "direct_soft"])
+def test_a_convex_object_does_not_shadow_itself(light):
+    # nothing can cast a shadow on a lone sphere: pyrender's shadow lookup darkened blocks of its
+    # lit side (shadow acne following the triangles; 306 pixels with direct_hard)
+    m = trimesh.creation.uv_sphere(radius=1.0, count=[24, 24])
+    m.visual.vertex_colors = np.tile(np.array([200, 170, 150, 255], np.uint8), (len(m.vertices), 1))
+    darker, depth = _darker_with_shadows(m, light)
+    assert (darker[depth > 0] > 8).sum() == 0
+
+
+@pytest.fixture(scope="module")
+def plain_head():
+    """A procedural head without texture (smooth shading: any abrupt step on its skin is an
+    artefact) and its framing."""
+    from stimulus_engine.materials import rig_render_parts
+    from stimulus_engine.procedural_head import procedural_head
+
+    rig = procedural_head(0, texture_size=64, resolution=48)
+    lm = rig.landmark_points(rig.vertices)
+    cam = face_camera((lm["eye_left"] + lm["eye_right"]) / 2, float(np.linalg.norm(lm["forehead_top"] - lm["chin"])))
+    return rig_render_parts(rig, rig.vertices, None), cam
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("light", ["direct_hard", "direct_soft", "gi_soft"])
+def test_the_lit_cheek_of_a_face_has_no_shadow_staircase(plain_head, light):
+    """The key light comes from the viewer's left, so nothing casts a shadow on the left cheek
+    (left third of the face, below the eyes, 3 px inside the outline). Untextured skin there
+    shades smoothly: no two neighbouring pixels may differ by more than 6 grey levels. Before
+    the shadow fix, shadow-map blocks made 130 (direct_hard) and 249 (direct_soft) such steps,
+    up to 44 levels high."""
+    from scipy import ndimage
+
+    parts, cam = plain_head
+    img, depth = render_mesh(parts, width=320, height=240, lighting=light, camera=cam, return_depth=True)
+    grey = img.astype(float).mean(axis=2)
+    cheek = ndimage.binary_erosion(depth > 0, iterations=3)
+    cols = np.nonzero(cheek.any(axis=0))[0]
+    cheek[:, cols[0] + (cols[-1] - cols[0]) // 3:] = False
+    cheek[: depth.shape[0] // 2] = False  # the eyes (row 0.42) shadow their sockets' rims
+    assert cheek.sum() > 1000
+    step = np.maximum(np.abs(np.diff(grey, axis=1))[:-1, :], np.abs(np.diff(grey, axis=0))[:, :-1])
+    assert (step[cheek[:-1, :-1]] > 6).sum() == 0
+
+
+@pytest.mark.render
+def test_the_nose_still_casts_its_shadow(plain_head):
+    parts, cam = plain_head
+    darker, depth = _darker_with_shadows(parts, "direct_hard", cam)
+    right = depth > 0
+    cols = np.nonzero(right.any(axis=0))[0]
+    right[:, : (cols[0] + cols[-1]) // 2] = False
+    assert (darker[right] > 20).sum() > 200
+
+
+def test_shadow_shader_patch_needs_the_pyrender_it_was_written_for():
+    from pathlib import Path
+
+    from stimulus_engine.render._pyrender import pyrender, shadow_fragment_shader
+
+    original = (Path(pyrender.__file__).parent / "shaders" / "mesh.frag").read_text()
+    patched = shadow_fragment_shader(original)
+    assert "POISSON_DISK[16]" in patched and "float PCF(" not in patched
+    assert patched.count("float shadow_calc(") == 1
+    with pytest.raises(RuntimeError, match="pyrender's mesh.frag changed"):
+        shadow_fragment_shader(original.replace("float PCF(", "float pcf("))
+
+
 def test_contact_sheet_layout_and_png(tmp_path):
     ims = [np.full((30, 40, 3), v, np.uint8) for v in (0, 80, 160, 240, 255)]
     sheet = contact_sheet(ims + [None], ncols=3, thumb_width=40, row_labels=["a", "b"],

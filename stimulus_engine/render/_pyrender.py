@@ -27,7 +27,7 @@ import OpenGL.contextdata  # noqa: E402
 import pyrender  # noqa: E402
 import pyrender.shader_program as _sp  # noqa: E402
 
-__all__ = ["pyrender", "phong_fragment_shader", "platform"]
+__all__ = ["pyrender", "phong_fragment_shader", "shadow_fragment_shader", "platform"]
 
 
 def _context_key() -> object:
@@ -46,15 +46,16 @@ def _context_key() -> object:
 
 
 def _get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):  # type: ignore[no-untyped-def]
-    """pyrender's ``ShaderProgramCache.get_program`` with a stable context key (see above)."""
+    """pyrender's ``ShaderProgramCache.get_program`` with a stable context key (see above) and
+    the patched ``mesh.frag`` (:func:`shadow_fragment_shader`, :func:`phong_fragment_shader`)."""
     defines = defines or {}
     files = [x for x in (vertex_shader, fragment_shader, geometry_shader) if x is not None]
     key = tuple([_context_key()] + sorted([(os.path.split(f)[1], 1) for f in files] + list(defines.items())))
     if key not in self._program_cache:
         paths = [os.path.join(self.shader_dir, f) for f in files] + [None] * (3 - len(files))
         vs, fs, gs = paths
-        if fragment_shader == "mesh.frag" and "USE_GLOSSY_MATERIAL" in defines:
-            fs = _phong_shader_path(self.shader_dir)  # pyrender's own has no glossy branch
+        if fragment_shader == "mesh.frag":
+            fs = _mesh_shader_path(self.shader_dir, glossy="USE_GLOSSY_MATERIAL" in defines)
         self._program_cache[key] = _sp.ShaderProgram(vertex_shader=vs, fragment_shader=fs, geometry_shader=gs,
                                                      defines=defines)
     return self._program_cache[key]
@@ -126,16 +127,134 @@ def phong_fragment_shader(text: str) -> str:
     return text[:end] + "#endif\n" + _GLOSSY_SETUP + loops + "#endif\n" + text[end + len(todo):]
 
 
-def _phong_shader_path(shader_dir: str) -> str:
-    """The patched ``mesh.frag`` (see :func:`phong_fragment_shader`), written once to a temp file
-    named by its content hash (pyrender's shader programs load their sources from files)."""
+#: The classic 16-point Poisson-disk kernel (unit disc) of the PCF below.
+_POISSON_16 = ((-0.94201624, -0.39906216), (0.94558609, -0.76890725), (-0.09418410, -0.92938870),
+               (0.34495938, 0.29387760), (-0.91588581, 0.45771432), (-0.81544232, -0.87912464),
+               (-0.38277543, 0.27676845), (0.97484398, 0.75648379), (0.44323325, -0.97511554),
+               (0.53742981, -0.47373420), (-0.26496911, -0.41893023), (0.79197514, 0.19090188),
+               (-0.24188840, 0.99706507), (-0.81409955, 0.91437590), (0.19984126, 0.78641367),
+               (0.14383161, -0.14100790))
+
+#: Radius of the PCF kernel in shadow-map texels (the penumbra of a "hard" shadow is about twice this).
+PCF_RADIUS_TEXELS = 1.5
+#: One shadow-map texel's width in units of the map's depth range, for the scene-fitted shadow
+#: cameras of :mod:`stimulus_engine.render.renderer` (2048 texels across about the depth range).
+TEXEL_DEPTH = 1.0 / 2048
+#: Constant depth bias, in texel widths (curvature within the filter's footprint).
+BIAS_TEXELS = 0.5
+#: Normal offset of the shadow lookup, in texel widths (grazing light, concave triangle edges).
+NORMAL_OFFSET_TEXELS = 1.5
+#: Largest receiver-plane slope, in texel widths of depth per texel (a surface about 80 degrees
+#: from facing the light); steeper surfaces get this slope.
+MAX_SLOPE_TEXELS = 6.0
+
+_SHADOW_CODE = """float shadow_compare(sampler2D depths, vec2 texel, float depth) {
+    // 1.0 where the shadow map texel (integer coordinates) is closer to the light than depth
+    return depth > texelFetch(depths, ivec2(texel), 0).r ? 1.0 : 0.0;
+}
+
+float shadow_bilinear(sampler2D depths, vec2 size, vec2 uv, float z, vec2 dz_duv, float bias) {
+    // bilinearly weighted comparisons of the four texels around uv, each against the receiver
+    // plane's depth at that texel's centre (so a tilted surface never shadows itself)
+    vec2 p = uv * size - 0.5;
+    vec2 base = floor(p);
+    vec2 f = p - base;
+    float s[4];
+    for (int k = 0; k < 4; k++) {
+        vec2 t = base + vec2(k & 1, k >> 1);
+        vec2 tc = clamp(t, vec2(0.0), size - 1.0);
+        float zt = z + dot(dz_duv, t + 0.5 - uv * size) - bias;
+        s[k] = shadow_compare(depths, tc, zt);
+    }
+    return mix(mix(s[0], s[1], f.x), mix(s[2], s[3], f.x), f.y);
+}
+
+const vec2 POISSON_DISK[16] = vec2[16](POISSON_POINTS);
+
+float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)
+{
+    vec2 size = vec2(textureSize(shadow_map, 0));
+    // Normal offset: look up a point a little above this triangle (its geometric normal, on the
+    // side the camera sees), by a number of shadow-map texel widths at this distance from the light
+    vec3 ng = normalize(cross(dFdx(frag_position), dFdy(frag_position)));
+    ng *= sign(dot(ng, cam_pos - frag_position) + 1e-12);
+    vec4 here = light_matrix * vec4(frag_position.xyz, 1.0);
+    float texel_world = 2.0 * here.w / (size.x * length(vec3(light_matrix[0][0], light_matrix[1][0], light_matrix[2][0])));
+    // Light-space position of that point: texture coordinates and depth in 0..1
+    vec4 proj_coords = light_matrix * vec4(frag_position.xyz + ng * (NORMAL_OFFSET * texel_world), 1.0);
+    vec3 lc = (proj_coords.xyz / proj_coords.w) * 0.5 + 0.5;
+    if (lc.z > 1.0) {
+        return 0.0;
+    }
+    // Receiver plane (this triangle, from screen-space derivatives): depth change per texel
+    vec3 dx = dFdx(lc);
+    vec3 dy = dFdy(lc);
+    vec2 ux = dx.xy * size;
+    vec2 uy = dy.xy * size;
+    float det = ux.x * uy.y - ux.y * uy.x;
+    vec2 dz_duv = vec2(0.0);
+    if (abs(det) > 1e-12) {
+        dz_duv = vec2(uy.y * dx.z - ux.y * dy.z, ux.x * dy.z - uy.x * dx.z) / det;
+    }
+    float slope = length(dz_duv);
+    if (slope > MAX_SLOPE) {
+        dz_duv *= MAX_SLOPE / slope;  // grazing angles: keep the bias bounded
+    }
+    // constant bias: depth quantisation plus the part of a texel the plane does not model
+    float bias = BIAS_TEXELS * TEXEL_DEPTH + 0.5 * min(slope, MAX_SLOPE);
+    float shadow = 0.0;
+    for (int i = 0; i < 16; i++) {
+        vec2 off = POISSON_DISK[i] * PCF_RADIUS;  // in texels
+        shadow += shadow_bilinear(shadow_map, size, lc.xy + off / size, lc.z + dot(dz_duv, off), dz_duv, bias);
+    }
+    return shadow / 16.0;
+}
+
+"""
+
+
+def shadow_fragment_shader(text: str) -> str:
+    """pyrender 0.1.45's ``mesh.frag`` with soft, artefact-free shadow-map lookups.
+
+    pyrender compares the fragment's light-space depth with a fixed bias against a 3 × 3 block
+    of shadow-map texels. On a surface tilted towards the light, the neighbouring texels of that
+    block lie closer to the light than the fragment by more than the bias, so lit skin shadows
+    itself in patches that follow the mesh's triangles (the "staircase" blocks on cheeks and
+    around the eyes), and shadow edges step from texel to texel.
+
+    The replacement filters with percentage-closer filtering over a 16-point Poisson disk of
+    radius :data:`PCF_RADIUS_TEXELS` (each tap a bilinear blend of four comparisons), and
+    compares every texel against the *receiver plane*, the fragment's own triangle extended in
+    light space (its depth slope per texel from screen-space derivatives, clamped at grazing
+    angles), plus a small slope-scaled bias: no self-shadowing, smooth penumbrae. Directional
+    and spot lights use the same code (``SHADOWS_ALL`` is never requested; point-light shadows
+    are not implemented by pyrender).
+    """
+    start = _once(text, "float PCF(sampler2D depths, vec2 size, vec2 uv, float compare){")
+    end = _once(text, "///////////////////////////////////////////////////////////////////////////////\n// MAIN")
+    if "float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)" not in text[start:end]:
+        raise RuntimeError("pyrender's mesh.frag changed (shadow_calc not after PCF); "
+                           "the shadow patch was written for pyrender 0.1.45")
+    points = ", ".join(f"vec2({x:.8f}, {y:.8f})" for x, y in _POISSON_16)
+    code = (_SHADOW_CODE.replace("POISSON_POINTS", points).replace("PCF_RADIUS", f"{PCF_RADIUS_TEXELS:.4f}")
+            .replace("NORMAL_OFFSET", f"{NORMAL_OFFSET_TEXELS:.4f}").replace("MAX_SLOPE", f"{MAX_SLOPE_TEXELS * TEXEL_DEPTH:.6g}")
+            .replace("BIAS_TEXELS * TEXEL_DEPTH", f"{BIAS_TEXELS * TEXEL_DEPTH:.6g}"))
+    return text[:start] + code + text[end:]
+
+
+def _mesh_shader_path(shader_dir: str, glossy: bool) -> str:
+    """The patched ``mesh.frag`` (:func:`shadow_fragment_shader`, and for specular-glossiness
+    materials :func:`phong_fragment_shader`), written once to a temp file named by its content
+    hash (pyrender's shader programs load their sources from files)."""
     import hashlib
     import tempfile
 
     with open(os.path.join(shader_dir, "mesh.frag")) as f:
-        text = phong_fragment_shader(f.read())
+        text = shadow_fragment_shader(f.read())
+    if glossy:
+        text = phong_fragment_shader(text)
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-    path = os.path.join(tempfile.gettempdir(), f"appeal-pyrender-mesh-phong-{digest}.frag")
+    path = os.path.join(tempfile.gettempdir(), f"appeal-pyrender-mesh-{digest}.frag")
     if not os.path.exists(path):
         tmp = f"{path}.{os.getpid()}.tmp"
         with open(tmp, "w") as f:
