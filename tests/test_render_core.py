@@ -195,6 +195,15 @@ def test_contact_sheet_layout_and_png(tmp_path):
         contact_sheet([None], ncols=1)
 
 
+def test_contact_sheet_title_is_not_cut_off():
+    title = "a long heading: shape (rows) x lighting/shading (columns), original, neutral"
+    sheet = contact_sheet([np.full((30, 40, 3), 128, np.uint8)] * 2, ncols=2, thumb_width=40, title=title)
+    ink = np.nonzero((sheet[:12] < 100).all(axis=2).any(axis=0))[0]  # dark text pixels of the heading row
+    assert ink.max() < sheet.shape[1] - 2
+    wide = contact_sheet([np.full((30, 40, 3), 128, np.uint8)] * 2, ncols=2, thumb_width=40, title="t")
+    assert sheet.shape[1] > wide.shape[1] + 100
+
+
 def test_textured_parts_render_at_two_sizes_in_one_process():
     """Materials (and their textures) are shared between images; switching image size must not
     try to load a texture into a second OpenGL context (pyrender refuses that)."""

@@ -60,6 +60,8 @@ def contact_sheet(images: Sequence[np.ndarray | None], ncols: int, *, thumb_widt
     top = (tw // 14 + 10 if col_labels else 0) + (tw // 10 + 10 if title else 0)
     pad = 4
     W = left + ncols * (tw + pad) + pad
+    if title:  # the heading is never cut off: a narrow sheet widens to it
+        W = max(W, int(ImageDraw.Draw(Image.new("RGB", (1, 1))).textlength(title, font=_font(max(12, tw // 10)))) + 2 * pad)
     H = top + nrows * (th + cap_h + pad) + pad
     sheet = Image.new("RGB", (W, H), background)
     draw = ImageDraw.Draw(sheet)
