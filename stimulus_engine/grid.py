@@ -7,16 +7,21 @@ already up to date in parallel worker processes (one OpenGL context each; Dask w
 is given), and writes:
 
 ``DIR/manifest.csv``
-    One row per image: ``file`` (relative to DIR), the factors ``character``, ``shape`` (level),
-    ``stylisation`` (level index; photographs get the next index), ``material``, ``expression``
+    One row per image: ``file`` (relative to DIR), the factors ``character``, ``shape`` (level
+    0 = realistic .. 1 = cartoon), ``shape_label`` (``realistic``, ``shape0.5``, ``cartoon``:
+    what file names and contact sheets say), ``stylisation`` (the thesis's level number, the
+    same way round in every grid: 0 = the grid's most stylised shape level, counting up towards
+    the realistic end; photographs above all, see :meth:`GridFile.stylisation_index`), ``material``, ``expression``
     (canonical), ``emotion`` (as written in the grid), ``lighting``, ``shading``; the input
     hashes ``geometry_hash``, ``albedo_hash``, ``maps_hash`` (normal and specular maps, ``none``
     without), ``input_hash``; ``camera``; ``seconds``; ``status``.
 ``DIR/landmarks.csv``
     3D landmarks of every (character, shape, expression) geometry (for neoteny measures).
-``DIR/contact_sheet.png`` (+ ``contact_sheet_expressions.png``)
+``DIR/contact_sheet.png`` (+ ``contact_sheet_expressions.png``, ``contact_sheet_lighting.png``)
     Rows = character × shape level, columns = materials (thesis Fig. 6.11), for the first
-    expression/lighting/shading; and the same rows against expressions.
+    expression/lighting/shading; and the same rows against expressions (and lighting/shading).
+    Only the cells the grid has: with ``pair_materials_with_shapes`` the first sheet has one row
+    per character and one column per shape+material pair.
 
 A re-run over the same folder (``--resume``) skips images whose ``input_hash`` and file are
 unchanged.
@@ -39,7 +44,7 @@ from appeal.atomic import atomic_write_bytes, atomic_write_text
 from appeal.errors import AppealInputError
 from appeal.logs import logger
 from stimulus_engine.expressions import FaceRig, apply_expression, load_ict_rig, resolve_expression
-from stimulus_engine.grid_schema import CharacterSpec, GridFile, MaterialSpec
+from stimulus_engine.grid_schema import CharacterSpec, GridFile, MaterialSpec, shape_label
 
 __all__ = ["GRID_VERSION", "RenderItem", "plan_grid", "run_grid"]
 
@@ -303,6 +308,7 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
                     "layout (expected corresponded meshes; transfer the texture with the correspondence first)")
     rows, items, lm_rows = [], [], []
     r = grid.render
+    stylisation = grid.stylisation_index()
     geom_cache: dict[tuple, tuple[Path, str]] = {}
     albedo_cache: dict[tuple, tuple[Path, str]] = {}
 
@@ -375,10 +381,11 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
         rig, rig_hash, expr_rig = rigs[c.name]
         rig_npz = cache / "rigs" / f"{_sha(GRID_VERSION, rig_hash)}.npz"
         _save_rig(rig_npz, rig)
-        for si, level in enumerate(grid.shapes):
+        for pos, level in enumerate(grid.shapes):
+            si, label = stylisation[level], shape_label(level)
             shape_v = stylise(rig, level)
             cam = _camera_for(rig, shape_v, grid)
-            mat_list = [mats[si]] if grid.pair_materials_with_shapes else mats
+            mat_list = [mats[pos]] if grid.pair_materials_with_shapes else mats
             for expr in grid.expressions:
                 canon = resolve_expression(expr)
                 gkey = (c.name, level, canon)
@@ -405,13 +412,14 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
                     npng, spng, mh = maps_for(c.name, m)
                     for light in grid.lighting:
                         for shading in grid.shading:
-                            fname = f"images/{c.name}_s{si}_{m.name}_{expr}_{light}_{shading}.png"
+                            fname = f"images/{c.name}_{label}_{m.name}_{expr}_{light}_{shading}.png"
                             extra = () if mh == "none" else (mh,)  # hashes without maps as before
                             ih = _sha(GRID_VERSION, gh, ah, light, shading, cam, r.model_dump(), *extra)
                             items.append(RenderItem(fname, str(out), str(rig_npz), str(gp), str(ap), light, shading,
                                                     cam, r.width, r.height, r.shadows, tuple(r.background),
                                                     npng, spng))
-                            rows.append({"file": fname, "character": c.name, "shape": level, "stylisation": si,
+                            rows.append({"file": fname, "character": c.name, "shape": level, "shape_label": label,
+                                         "stylisation": si,
                                          "material": m.name, "material_style": m.style,
                                          "material_from": m.from_character or c.name, "expression": canon,
                                          "emotion": expr, "lighting": light, "shading": shading,
@@ -424,7 +432,7 @@ def plan_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.Da
             fname = f"images/{p.character}_photo_{expr}.png"
             ih = _sha(GRID_VERSION, "photo", hashlib.sha256(Path(src).read_bytes()).hexdigest(), r.width, r.height)
             rows.append({"file": fname, "character": p.character, "shape": "photograph",
-                         "stylisation": len(grid.shapes), "material": "photograph", "material_style": "photograph",
+                         "shape_label": "photograph", "stylisation": len(grid.shapes), "material": "photograph", "material_style": "photograph",
                          "material_from": p.character, "expression": resolve_expression(expr), "emotion": expr,
                          "lighting": "photograph", "shading": "photograph", "geometry_hash": "", "albedo_hash": "",
                          "maps_hash": "",
@@ -525,43 +533,82 @@ def _previous_hashes(out: Path) -> dict[str, str]:
     return dict(zip(old["file"], old["input_hash"]))
 
 
+def sheet_layout(cells: pd.DataFrame, rows: list[str], col: str) -> tuple[list[int | None], int, dict]:
+    """Arrange the manifest rows ``cells`` (one per image) on a contact sheet.
+
+    Rows are the distinct values of the columns ``rows``, columns those of ``col``. When every
+    row × column combination has an image this is a table (row and column labels); when the grid
+    does not have them all (e.g. materials paired with shapes) the images are laid out as a list
+    with a caption each, so that no cell stands for an image the grid does not have.
+
+    Returns
+    -------
+    order : list of int or None
+        Index labels of ``cells`` in row-major order (None only pads the last row of a list).
+    ncols : int
+    labels : dict
+        ``row_labels`` and ``col_labels`` (table) or ``labels`` (list), for :func:`contact_sheet`.
+    """
+    row_keys = list(dict.fromkeys(zip(*(cells[r] for r in rows))))
+    cols = list(dict.fromkeys(cells[col]))
+    where = {(*key, c): idx for idx, key, c in zip(cells.index, zip(*(cells[r] for r in rows)), cells[col])}
+    if len(where) == len(row_keys) * len(cols):
+        order: list[int | None] = [where[(*key, c)] for key in row_keys for c in cols]
+        return order, len(cols), {"row_labels": [" ".join(map(str, k)) for k in row_keys],
+                                  "col_labels": [str(c) for c in cols]}
+    order = list(where.values())
+    captions = [" ".join(map(str, k)) for k in where]
+    ncols = min(len(order), max(len(cols), 1))
+    return order, ncols, {"labels": captions}
+
+
 def _sheets(out: Path, manifest: pd.DataFrame, grid: GridFile) -> list[Path]:
     from stimulus_engine.render import contact_sheet, save_png
 
-    ok = manifest[manifest["status"].isin(["rendered", "up to date"])]
-    rendered = ok[ok["shape"] != "photograph"]
-    if rendered.empty:
+    planned = manifest[manifest["shape"] != "photograph"]
+    ok = planned["status"].isin(["rendered", "up to date"])
+    if not ok.any():
         return []
-    first = rendered.iloc[0]
+    first = planned[ok].iloc[0]
+    paired = grid.pair_materials_with_shapes
     paths = []
 
-    def sheet(sub: pd.DataFrame, col: str, name: str, title: str) -> None:
-        cols = list(dict.fromkeys(sub[col]))
-        row_keys = list(dict.fromkeys(zip(sub["character"], sub["stylisation"])))
-        lookup = {(r.character, r.stylisation, getattr(r, col)): r.file for r in sub.itertuples()}
-        imgs, labels = [], []
-        for ch, si in row_keys:
-            for cv in cols:
-                f = lookup.get((ch, si, cv))
-                imgs.append(None if f is None else np.asarray(Image.open(out / f).convert("RGB")))
-        row_labels = [f"{ch} s{si}" for ch, si in row_keys]
-        arr = contact_sheet(imgs, len(cols), thumb_width=220, row_labels=row_labels, col_labels=[str(c) for c in cols],
-                            title=title)
+    def sheet(sub: pd.DataFrame, rows: list[str], col: str, name: str, title: str) -> None:
+        order, ncols, labels = sheet_layout(sub, rows, col)
+        imgs = [None if i is None or not ok[i] else np.asarray(Image.open(out / sub.at[i, "file"]).convert("RGB"))
+                for i in order]
+        if all(im is None for im in imgs):
+            return
+        arr = contact_sheet(imgs, ncols, thumb_width=220, title=title, **labels)
         paths.append(save_png(arr, out / name))
 
-    sel = rendered[(rendered.expression == first.expression) & (rendered.lighting == first.lighting)
-                   & (rendered.shading == first.shading)]
-    sheet(sel, "material", "contact_sheet.png",
-          f"{grid.name}: shape (rows) x material (columns), {first.emotion}, {first.lighting}, {first.shading}")
-    sel = rendered[(rendered.material == first.material) & (rendered.lighting == first.lighting)
-                   & (rendered.shading == first.shading)]
-    sheet(sel, "emotion", "contact_sheet_expressions.png",
-          f"{grid.name}: shape (rows) x expression (columns), {first.material}, {first.lighting}, {first.shading}")
+    def where(**eq: str) -> pd.DataFrame:
+        sel = planned
+        for k, v in eq.items():
+            if not (paired and k == "material"):  # paired: each shape level has its own material
+                sel = sel[sel[k] == v]
+        return sel.copy()
+
+    shape_rows = ["character", "shape_label"]
+    sel = where(expression=first.expression, lighting=first.lighting, shading=first.shading)
+    if paired:
+        sel["shape_material"] = sel["shape_label"] + " / " + sel["material"]
+        sheet(sel, ["character"], "shape_material", "contact_sheet.png",
+              f"{grid.name}: character (rows) x shape / material pairs (columns), {first.emotion}, {first.lighting}, "
+              f"{first.shading}")
+    else:
+        sheet(sel, shape_rows, "material", "contact_sheet.png",
+              f"{grid.name}: shape (rows) x material (columns), {first.emotion}, {first.lighting}, {first.shading}")
+    sel = where(material=first.material, lighting=first.lighting, shading=first.shading)
+    sheet(sel, shape_rows, "emotion", "contact_sheet_expressions.png",
+          f"{grid.name}: shape (rows) x expression (columns), {'paired material' if paired else first.material}, "
+          f"{first.lighting}, {first.shading}")
     if len(grid.lighting) > 1 or len(grid.shading) > 1:
-        sel = rendered[(rendered.material == first.material) & (rendered.expression == first.expression)].copy()
+        sel = where(material=first.material, expression=first.expression)
         sel["light_shading"] = sel["lighting"] + "/" + sel["shading"]
-        sheet(sel, "light_shading", "contact_sheet_lighting.png",
-              f"{grid.name}: shape (rows) x lighting/shading (columns), {first.material}, {first.emotion}")
+        sheet(sel, shape_rows, "light_shading", "contact_sheet_lighting.png",
+              f"{grid.name}: shape (rows) x lighting/shading (columns), "
+              f"{'paired material' if paired else first.material}, {first.emotion}")
     return paths
 
 

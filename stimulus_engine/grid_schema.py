@@ -26,7 +26,7 @@ from pydantic import Field, field_validator, model_validator
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
-__all__ = ["CharacterSpec", "GridFile", "MaterialSpec", "MeshSpec", "PhotoSpec", "RenderSettings"]
+__all__ = ["CharacterSpec", "GridFile", "MaterialSpec", "MeshSpec", "PhotoSpec", "RenderSettings", "shape_label"]
 
 _STYLES = ("original", "blur25", "blur50", "bilateral", "flat")
 _LIGHTING = ("direct_hard", "direct_soft", "gi_soft", "flat")
@@ -128,6 +128,26 @@ class RenderSettings(StudyModel):
     intensity: float = Field(1.0, ge=0, le=2)
 
 
+def shape_label(level: float | str) -> str:
+    """A shape level's name in file names and contact sheets, the same in every grid.
+
+    ``realistic`` (0: the character's own shape), ``cartoon`` (1: fully stylised), ``shape0.25``
+    in between; ``photograph`` for photographs.
+
+    Examples
+    --------
+    >>> [shape_label(x) for x in (0.0, 0.25, 1.0, "photograph")]
+    ['realistic', 'shape0.25', 'cartoon', 'photograph']
+    """
+    if isinstance(level, str):
+        return level
+    if level == 0.0:
+        return "realistic"
+    if level == 1.0:
+        return "cartoon"
+    return f"shape{level:g}"
+
+
 class GridFile(StudyModel):
     """A stimulus grid: the product characters × shapes × materials × expressions × lighting × shading."""
 
@@ -196,6 +216,15 @@ class GridFile(StudyModel):
         if self.n_images() == 0:
             raise ValueError("the grid would produce 0 images")
         return self
+
+    def stylisation_index(self) -> dict[float, int]:
+        """The manifest's ``stylisation`` number of each shape level, the same way round in every grid.
+
+        The thesis's numbering: 0 is the grid's most stylised level (the largest ``shapes`` value,
+        towards the cartoon), counting up towards the realistic end, whatever order ``shapes`` lists
+        the levels in; photographs get ``len(shapes)``, above every rendered level.
+        """
+        return {level: i for i, level in enumerate(sorted(self.shapes, reverse=True))}
 
     def material_specs(self) -> list[MaterialSpec]:
         """Materials as :class:`MaterialSpec` (a plain style name becomes ``{name: style, style: style}``)."""

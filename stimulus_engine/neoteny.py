@@ -92,7 +92,7 @@ def plot_neoteny(table: pd.DataFrame, path: str | Path) -> list[Path]:
             g = g.groupby("shape", as_index=False)["value"].mean().sort_values("shape")
             ax.plot(g["shape"].astype(float), g["value"], marker="o", label=str(ch))
         ax.set_title(m.replace("_", " "))
-        ax.set_xlabel("stylisation level")
+        ax.set_xlabel("shape level (0 realistic, 1 cartoon)")
     axes.ravel()[-1].axis("off")
     axes.ravel()[0].legend(fontsize=8)
     fig.suptitle("Neoteny measures across stylisation (relative to face width / length)")

@@ -7,11 +7,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from PIL import Image
 
 from appeal.cli import main
 from appeal.errors import StudyFileError
 from appeal.studyfile import load_study_file
-from stimulus_engine.grid import run_grid
+from stimulus_engine.grid import plan_grid, run_grid, sheet_layout
 from stimulus_engine.grid_schema import GridFile
 
 GRID = """kind: grid
@@ -78,10 +79,45 @@ def test_stylisation_index_and_paired_materials(tmp_path):
     text = GRID.replace("materials: [original, flat, {name: from_b, style: original, from_character: b}]",
                         "materials: [original, flat]\npair_materials_with_shapes: true")
     _, grid = _grid(tmp_path, text)
-    manifest, _ = run_grid(grid, tmp_path / "o", n_jobs=1)
+    manifest, sheets = run_grid(grid, tmp_path / "o", n_jobs=1)
     assert len(manifest) == 2 * 2 * 2
-    pairs = set(zip(manifest["stylisation"], manifest["material"]))
-    assert pairs == {(0, "original"), (1, "flat")}
+    # stylisation 0 = the most stylised level (shape 1.0, paired with flat), as in the thesis
+    pairs = set(zip(manifest["stylisation"], manifest["shape_label"], manifest["material"]))
+    assert pairs == {(1, "realistic", "original"), (0, "cartoon", "flat")}
+    # the contact sheets show the 2 characters x 2 pairs the grid has: no empty (red) cells
+    assert [p.name for p in sheets] == ["contact_sheet.png", "contact_sheet_expressions.png"]
+    for p in sheets:
+        img = np.asarray(Image.open(p).convert("RGB")).astype(int)
+        red = (img[..., 0] == 200) & (img[..., 1] == 0) & (img[..., 2] == 0)
+        assert red.sum() == 0, p.name
+
+
+def test_sheet_layout_is_a_table_when_complete_and_a_list_otherwise():
+    full = pd.DataFrame({"character": ["a", "a", "b", "b"], "shape_label": ["realistic"] * 4,
+                         "material": ["flat", "original"] * 2})
+    order, ncols, labels = sheet_layout(full, ["character", "shape_label"], "material")
+    assert order == [0, 1, 2, 3] and ncols == 2
+    assert labels == {"row_labels": ["a realistic", "b realistic"], "col_labels": ["flat", "original"]}
+    # materials paired with shapes: 2 of the 4 shape x material cells exist
+    paired = pd.DataFrame({"character": ["a", "a"], "shape_label": ["cartoon", "realistic"],
+                           "material": ["flat", "original"]})
+    order, ncols, labels = sheet_layout(paired, ["character", "shape_label"], "material")
+    assert order == [0, 1] and ncols == 2
+    assert labels == {"labels": ["a cartoon flat", "a realistic original"]}
+
+
+def test_level_labels_mean_the_same_whatever_order_the_shapes_are_listed_in(tmp_path):
+    """``s0`` used to be the first listed shape: realistic in one grid, cartoon in another."""
+    _, grid = _grid(tmp_path, GRID.replace("materials: [original, flat, {name: from_b, style: original, "
+                                           "from_character: b}]", "materials: [flat]"))
+    up, _, _ = plan_grid(grid.model_copy(update={"shapes": [0.0, 0.5, 1.0]}), tmp_path / "up")
+    down, _, _ = plan_grid(grid.model_copy(update={"shapes": [1.0, 0.5, 0.0]}), tmp_path / "down")
+    for m in (up, down):
+        table = m.drop_duplicates("shape").set_index("shape")
+        assert table["stylisation"].to_dict() == {1.0: 0, 0.5: 1, 0.0: 2}
+        assert table["shape_label"].to_dict() == {1.0: "cartoon", 0.5: "shape0.5", 0.0: "realistic"}
+    assert sorted(up["file"]) == sorted(down["file"])
+    assert any("_realistic_" in f for f in up["file"]) and not any("_s0_" in f for f in up["file"])
 
 
 @pytest.mark.parametrize("change, message", [
@@ -130,3 +166,26 @@ def test_cli_grid_and_neoteny(tmp_path, capsys):
     assert main(["stimuli", "neoteny", str(tmp_path / "nope.csv")]) == 2
     assert "manifest not found" in capsys.readouterr().err
     assert np.isfinite(table["value"]).all()
+
+
+def test_shipped_grids_and_protocols_number_stylisation_levels_the_same_way():
+    """Every shipped grid: stylisation 0 is its most stylised shape level; every protocol that lists
+    shape levels lists them in that order (most stylised first, the thesis's s0, s1, ...)."""
+    import yaml
+
+    from appeal.assets import protocols_dir
+
+    grids = sorted((protocols_dir() / "grids").glob("*.yaml"))
+    assert len(grids) >= 5
+    for path in grids:
+        grid = load_study_file(path, GridFile)
+        index = grid.stylisation_index()
+        assert [index[lv] for lv in sorted(grid.shapes, reverse=True)] == list(range(len(grid.shapes))), path.name
+    for path in sorted(protocols_dir().glob("*.yaml")):
+        stimuli = yaml.safe_load(path.read_text()).get("stimuli", {})
+        listed = (stimuli.get("levels") or {}).get("shape")
+        if listed is None:
+            continue
+        grid = load_study_file((path.parent / stimuli["grid"]).resolve(), GridFile)
+        index = grid.stylisation_index()
+        assert [index[float(lv)] for lv in listed] == sorted(index[float(lv)] for lv in listed), path.name
