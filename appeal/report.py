@@ -13,13 +13,25 @@ from appeal.atomic import atomic_write_text
 __all__ = ["ReportSection", "write_index_html", "table_html"]
 
 _STYLE = """
+*{box-sizing:border-box}
 body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{border-bottom:2px solid #444}h2{margin-top:2em;border-bottom:1px solid #ccc}
-img{max-width:100%;border:1px solid #ddd;margin:.5em 0}
-table{border-collapse:collapse;font-size:.85em;margin:.5em 0}
-td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}
+h3,figcaption,li,p{overflow-wrap:anywhere}
+figure{margin:1em 0;max-width:100%}
+img{max-width:100%;height:auto;border:1px solid #ddd;margin:.5em 0}
+pre{max-width:100%;overflow-x:auto}
+.table-wrap{max-width:100%;overflow-x:auto;margin:.5em 0;border:1px solid #eee}
+table{border-collapse:collapse;font-size:.85em}
+td,th{border:1px solid #ccc;padding:2px 6px;text-align:right;white-space:nowrap}
 .failed{color:#b00}.muted{color:#777;font-size:.85em}
 """
+
+
+def _scroll_tables(text: str) -> str:
+    """Put every ``<table>`` of ``text`` in a box that scrolls sideways (the page keeps its width)."""
+    import re
+
+    return re.sub(r"(<table\b.*?</table>)", r"<div class='table-wrap'>\1</div>", text, flags=re.S)
 
 
 @dataclass
@@ -37,7 +49,7 @@ class ReportSection:
 def _md(text: str) -> str:
     import markdown
 
-    return markdown.markdown(text, extensions=["tables"])
+    return _scroll_tables(markdown.markdown(text, extensions=["tables"]))
 
 
 def table_html(path: Path, max_rows: int = 25) -> str:
@@ -53,7 +65,7 @@ def table_html(path: Path, max_rows: int = 25) -> str:
     except Exception:  # noqa: BLE001 - a table we cannot parse is still linked
         return ""
     more = f"<p class='muted'>{len(df) - max_rows} more rows in the file</p>" if len(df) > max_rows else ""
-    return df.head(max_rows).to_html(index=False, float_format=lambda v: f"{v:.4g}", border=0) + more
+    return _scroll_tables(df.head(max_rows).to_html(index=False, float_format=lambda v: f"{v:.4g}", border=0)) + more
 
 
 def _rel(path: Path, root: Path) -> str:
@@ -81,7 +93,8 @@ def write_index_html(path: str | Path, title: str, sections: Sequence[ReportSect
     """
     path = Path(path)
     root = path.parent
-    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
+    parts = [f"<!doctype html><html><head><meta charset='utf-8'>"
+             f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{html.escape(title)}</title>",
              f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>", _md(intro) if intro else ""]
     toc = "".join(f"<li><a href='#s{i}'>{html.escape(s.title)}</a></li>" for i, s in enumerate(sections))
     parts.append(f"<ul>{toc}</ul>")

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import re
+import shutil
+
+import pytest
 
 from appeal.cli import main
 from appeal.cli.demo import discover_stages
@@ -69,3 +73,51 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     assert len(links) > 20
     missing = [link for link in links if not (out / link).exists()]
     assert not missing, missing
+
+
+def test_report_page_fits_a_laptop_screen(tmp_path):
+    """Wide tables (the grid manifest has 20 columns of hashes) scroll inside their own box and
+    figures scale to the page width, so the page itself never gets wider than the window."""
+    import pandas as pd
+
+    from appeal.report import ReportSection, write_index_html
+
+    wide = tmp_path / "manifest.csv"
+    pd.DataFrame({f"column_{i}": [f"{i:02d}" + "f" * 20] * 3 for i in range(20)}).to_csv(wide, index=False)
+    text = "| a | b |\n|---|---|\n| 1 | 2 |\n"
+    page = write_index_html(tmp_path / "index.html", "t", [ReportSection("s", text=text, tables=[wide])]).read_text()
+    tables = re.findall(r"<table\b", page)
+    assert len(tables) == 2
+    assert len(re.findall(r"<div class='table-wrap'>\s*<table\b", page)) == 2
+    style = page[page.index("<style>"):page.index("</style>")]
+    assert re.search(r"\.table-wrap\{[^}]*overflow-x:auto", style)
+    assert re.search(r"img\{[^}]*max-width:100%", style) and re.search(r"img\{[^}]*height:auto", style)
+    assert "name='viewport'" in page
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("chromium") is None, reason="needs headless chromium (apt-get install chromium)")
+def test_report_page_is_no_wider_than_a_laptop_window_in_a_browser(tmp_path):
+    """Laid out by a real browser at 1366 x 768, the page with a 20-column table and a figure wider
+    than the window does not scroll sideways (before: 2600 px wide)."""
+    import subprocess
+
+    import numpy as np
+    import pandas as pd
+    from PIL import Image
+
+    from appeal.report import ReportSection, write_index_html
+
+    wide = tmp_path / "manifest.csv"
+    pd.DataFrame({f"column_{i}": [f"{i:02d}" + "f" * 20] * 3 for i in range(20)}).to_csv(wide, index=False)
+    fig = tmp_path / "fig.png"
+    Image.fromarray(np.full((300, 2400, 3), 200, np.uint8)).save(fig)
+    page = write_index_html(tmp_path / "index.html", "t", [ReportSection("s", figures=[fig], tables=[wide])])
+    probe = tmp_path / "probe.html"
+    probe.write_text(page.read_text().replace(
+        "</body>", "<script>document.body.setAttribute('data-width', document.documentElement.scrollWidth)</script></body>"))
+    dom = subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1366,768",
+                          "--virtual-time-budget=2000", "--dump-dom", probe.as_uri()],
+                         capture_output=True, text=True, timeout=120).stdout
+    width = int(re.search(r'data-width="(\d+)"', dom).group(1))
+    assert width <= 1366
