@@ -49,7 +49,7 @@ from stimulus_engine.grid_schema import CharacterSpec, GridFile, MaterialSpec, s
 __all__ = ["GRID_VERSION", "RenderItem", "plan_grid", "run_grid"]
 
 #: Bumped when the rendering code changes what pixels come out (part of every input hash).
-GRID_VERSION = "grid-6"
+GRID_VERSION = "grid-7"
 
 
 def _sha(*parts: object) -> str:

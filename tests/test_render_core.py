@@ -183,6 +183,21 @@ def test_shadow_shader_patch_needs_the_pyrender_it_was_written_for():
         shadow_fragment_shader(original.replace("float PCF(", "float pcf("))
 
 
+def test_every_light_of_a_preset_is_drawn():
+    """gi_soft has 14 lights; pyrender drew at most 4 per type without shadow maps. Eight lights
+    from eight directions: leaving out any one of them must change the picture."""
+    from stimulus_engine.render import LightSpec
+
+    m = _sphere()
+    dirs = [(np.cos(a) * 0.8, np.sin(a) * 0.8, -0.6) for a in np.linspace(0, 2 * np.pi, 8, endpoint=False)]
+    lights = [LightSpec("directional", tuple(map(float, d)), 0.8) for d in dirs]
+    every = render_mesh(m, width=64, height=48, lighting=(lights, 0.05)).astype(int)
+    for k in range(len(lights)):
+        less = render_mesh(m, width=64, height=48, lighting=(lights[:k] + lights[k + 1:], 0.05)).astype(int)
+        assert (every - less).sum(axis=2).max() > 30, k
+    assert len(lighting_preset("gi_soft")[0]) > 4
+
+
 def test_contact_sheet_layout_and_png(tmp_path):
     ims = [np.full((30, 40, 3), v, np.uint8) for v in (0, 80, 160, 240, 255)]
     sheet = contact_sheet(ims + [None], ncols=3, thumb_width=40, row_labels=["a", "b"],

@@ -2,7 +2,8 @@
 
 pyrender needs an OpenGL platform chosen *before* PyOpenGL is first imported, and it still
 uses ``np.infty`` (removed in numpy 2). Both are handled here, once, together with a fix of
-pyrender's shader cache under OSMesa (:func:`_context_key`) and of its unusable
+pyrender's shader cache under OSMesa (:func:`_context_key`), its shadow-map lookup
+(:func:`shadow_fragment_shader`), its limit of 4 lights per type without shadows, and of its unusable
 specular-glossiness ("Phong") material (:func:`phong_fragment_shader`; the
 ``glossinessFactor`` getter recursed forever); everything else in the project imports ``pyrender`` as ``from stimulus_engine.render._pyrender import pyrender``.
 
@@ -264,6 +265,11 @@ def _mesh_shader_path(shader_dir: str, glossy: bool) -> str:
 
 
 _sp.ShaderProgramCache.get_program = _get_program
+# Without shadow maps pyrender draws at most MAX_N_LIGHTS (4) lights of each type per mesh, the 4
+# nearest to that mesh: gi_soft's dome of 12 directional lights plus 2 rims was drawn with 4 of
+# them, not necessarily the same 4 for the skin and the eyes. With shadow maps the limit is the
+# free texture units (13 per light type here). 16 covers every preset.
+pyrender.renderer.MAX_N_LIGHTS = 16
 # pyrender 0.1.45's getter returns ``self.glossinessFactor`` (infinite recursion)
 pyrender.material.SpecularGlossinessMaterial.glossinessFactor = property(
     lambda self: self._glossinessFactor, pyrender.material.SpecularGlossinessMaterial.glossinessFactor.fset)
