@@ -184,12 +184,13 @@ float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)
     // Light-space position of that point: texture coordinates and depth in 0..1
     vec4 proj_coords = light_matrix * vec4(frag_position.xyz + ng * (NORMAL_OFFSET * texel_world), 1.0);
     vec3 lc = (proj_coords.xyz / proj_coords.w) * 0.5 + 0.5;
+    // Receiver plane (this triangle, from screen-space derivatives, taken before any branch):
+    // depth change per texel
+    vec3 dx = dFdx(lc);
+    vec3 dy = dFdy(lc);
     if (lc.z > 1.0) {
         return 0.0;
     }
-    // Receiver plane (this triangle, from screen-space derivatives): depth change per texel
-    vec3 dx = dFdx(lc);
-    vec3 dy = dFdy(lc);
     vec2 ux = dx.xy * size;
     vec2 uy = dy.xy * size;
     float det = ux.x * uy.y - ux.y * uy.x;
