@@ -12,7 +12,7 @@ from typing import Any
 
 from experiments.protocol_schema import ChoiceSpec, ClassificationSpec, LikertSpec, Protocol
 
-__all__ = ["Screens", "markdown_to_text", "open_window"]
+__all__ = ["Screens", "markdown_to_text", "open_window", "clamp_to_edge", "save_back_buffer"]
 
 
 def markdown_to_text(md: str) -> str:
@@ -80,6 +80,7 @@ class Screens:
             self._image = self.visual.ImageStim(self.win, image=path, units="height", interpolate=True)
         else:
             self._image.image = path
+        clamp_to_edge(self._image)
         self._image_path = path
 
     def draw_stimulus(self, height: float | None = None, y: float = 0.0) -> None:
@@ -171,6 +172,24 @@ class Screens:
             box.fillColor = [0.2, 0.6, 0.2] if chosen is not None and level_key(c.value) == chosen else None
             box.draw()
             text.draw()
+
+
+def clamp_to_edge(stim: Any) -> None:
+    """Sample an image stimulus's texture edge-clamped, so its outermost pixels keep their colour.
+
+    PsychoPy creates ImageStim textures with ``GL_CLAMP_TO_BORDER`` and the default (black)
+    border colour. With linear interpolation, the texels sampled at the image's edges are
+    blended with that border, which drew a dark 1-pixel line along the edges of every
+    stimulus (grey 97-100 around a grey-128 image). ``GL_CLAMP_TO_EDGE`` repeats the edge texels
+    instead. Call after every change of the stimulus's image (PsychoPy re-creates the texture).
+    """
+    from pyglet import gl
+
+    gl.glActiveTexture(gl.GL_TEXTURE0)
+    gl.glBindTexture(gl.GL_TEXTURE_2D, stim._texID)
+    gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE)
+    gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE)
+    gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
 
 
 def save_back_buffer(win: Any, path: Path) -> Path:

@@ -161,3 +161,34 @@ def test_live_session_with_deadline(tmp_path, manifest):
     assert (flips[flips["screen"] == "appeal"].groupby("trial").size() == 6).all()  # 100 ms deadline
     _check_thumbnail_and_scale(tmp_path / "s" / "appeal.png")
     _check_thumbnail_and_scale(tmp_path / "s" / "expression.png")
+
+
+def test_stimulus_edges_have_no_frame_line(tmp_path):
+    """The stimulus's outermost pixels keep the image's colour: PsychoPy's ImageStim textures are
+    border-clamped (black border), and linear interpolation blended that border into a dark 1-px
+    line along the image's edges (grey 97 around a grey-128 image). Screenshot = back buffer."""
+    colour = (180, 140, 110)
+    faces = tmp_path / "flat"
+    faces.mkdir()
+    rows = []
+    for i, size in enumerate([(333, 250), (320, 240)]):
+        Image.new("RGB", size, colour).save(faces / f"flat{i}.png")
+        rows.append({"file": f"flat{i}.png", "kind": f"k{i}"})
+    pd.DataFrame(rows).to_csv(faces / "manifest.csv", index=False)
+    data = {"kind": "protocol", "name": "edges", "task": "edges",
+            "stimuli": {"manifest": str(faces / "manifest.csv"), "factors": ["kind"]},
+            "screen": {"refresh_hz": 60, "background": 0.5, "stimulus_height": 0.8}, "timing": {"stimulus_s": 0.05}}
+    p = tmp_path / "edges.yaml"
+    p.write_text(yaml.safe_dump(data))
+    appeal(["run", p, "--participant", "1", "--simulate", "default", "--out", tmp_path / "o",
+            "--screenshots", tmp_path / "s"])
+    im = np.asarray(Image.open(tmp_path / "s" / "stimulus.png").convert("RGB")).astype(int)
+    inside = ~_grey(im)
+    ys, xs = np.nonzero(inside)
+    assert len(ys), "no stimulus on screen"
+    box = im[ys.min(): ys.max() + 1, xs.min(): xs.max() + 1]
+    assert box.shape[0] == pytest.approx(0.8 * 512, abs=2)  # the whole image, no pixel lost
+    off = np.abs(box - np.array(colour)).max(axis=-1)
+    edges = {"top": off[0], "bottom": off[-1], "left": off[:, 0], "right": off[:, -1]}
+    assert all(e.max() <= 2 for e in edges.values()), {k: int(e.max()) for k, e in edges.items()}
+    assert off.max() <= 2  # uniform inside, no line one pixel in either
