@@ -278,12 +278,27 @@ class DemographicItem(StudyModel):
     label: str = ""
     type: Literal["int", "text", "choice"] = "text"
     choices: list[str] = Field(default_factory=list)
+    required: bool = Field(False, description="OK is refused until this field is answered")
+    prefer_not_to_say: str | None = Field(
+        None, description="text of an extra, explicit choice after the others (e.g. 'prefer not to say'), "
+                          "recorded as written; choice fields only")
 
     @model_validator(mode="after")
     def _choices(self) -> DemographicItem:
         if self.type == "choice" and len(self.choices) < 2:
             raise ValueError("type 'choice' needs at least two choices")
+        if self.type != "choice" and (self.choices or self.prefer_not_to_say is not None):
+            raise ValueError(f"'choices' and 'prefer_not_to_say' need type 'choice' (got type '{self.type}')")
+        if self.prefer_not_to_say is not None and self.prefer_not_to_say in self.choices:
+            raise ValueError(f"prefer_not_to_say '{self.prefer_not_to_say}' is already one of the choices")
+        if any(not c.strip() for c in self.choices) or self.prefer_not_to_say == "":
+            raise ValueError("choices must not be empty (an unanswered field is recorded as n/a)")
         return self
+
+    @property
+    def options(self) -> list[str]:
+        """The choices offered, the explicit 'prefer not to say' one last."""
+        return [*self.choices, *([self.prefer_not_to_say] if self.prefer_not_to_say is not None else [])]
 
 
 class Instructions(StudyModel):

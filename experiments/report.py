@@ -12,7 +12,30 @@ import pandas as pd
 
 from appeal.report import ReportSection, write_index_html
 
-__all__ = ["session_summary", "write_session_report"]
+__all__ = ["session_summary", "write_session_report", "onset_asynchronies", "timing_figure", "overlapping_texts"]
+
+
+def onset_asynchronies(main: pd.DataFrame) -> np.ndarray:
+    """Stimulus-onset asynchronies (ms) between consecutive main trials of the same session part.
+
+    Each ``--resume`` starts a new part whose clock restarts at 0 (column ``part``), so onsets
+    of different parts are never subtracted (that gave e.g. -47016 ms across a resume).
+
+    Parameters
+    ----------
+    main : pandas.DataFrame
+        Main-phase rows with ``trial``, ``onset_s`` and (from sessions recorded since parts
+        exist) ``part``.
+
+    Returns
+    -------
+    numpy.ndarray
+        One SOA per pair of consecutive trials within a part, in trial order.
+    """
+    parts = main["part"] if "part" in main else pd.Series(1, index=main.index)
+    out = [np.diff(g.sort_values("trial")["onset_s"].to_numpy(float)) * 1000
+           for _, g in main.assign(_part=parts).groupby("_part", sort=True)]
+    return np.concatenate(out) if out else np.array([])
 
 
 def session_summary(beh: pd.DataFrame, refresh_hz: float, factors: list[str]) -> dict[str, Any]:
@@ -44,7 +67,7 @@ def session_summary(beh: pd.DataFrame, refresh_hz: float, factors: list[str]) ->
         shown_ms_median=("shown_s", lambda s: float(np.nanmedian(s) * 1000)),
     ).reset_index()
     main = beh[beh["phase"] == "main"].sort_values("trial")
-    isi = np.diff(main["onset_s"].to_numpy(float)) * 1000 if len(main) > 1 else np.array([])
+    isi = onset_asynchronies(main)
     fix = (main["fixation_frames"].to_numpy(float) * period_ms) if "fixation_frames" in main else np.array([])
     trig = main["trigger_flip_ms"].dropna().to_numpy(float) if "trigger_flip_ms" in main else np.array([])
     per_cond = main.groupby(factors, dropna=False).size().rename("trials").reset_index() if factors else pd.DataFrame()
@@ -64,11 +87,68 @@ def session_summary(beh: pd.DataFrame, refresh_hz: float, factors: list[str]) ->
             "numbers": numbers}
 
 
-def _figure(summary: dict[str, Any], path_png: Path, title: str) -> list[Path]:
+def _shown_ticklabels(ax: Any, which: str) -> list[Any]:
+    """The tick labels matplotlib draws on one axis (ticks inside the view limits)."""
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    lo, hi = sorted(axis.get_view_interval())
+    span = (hi - lo) * 1e-9
+    return [t.label1 for t in axis.get_major_ticks()[: len(axis.get_majorticklocs())]
+            if lo - span <= t.get_loc() <= hi + span and t.label1.get_visible() and t.label1.get_text()]
+
+
+def overlapping_texts(fig: Any) -> list[tuple[str, str]]:
+    """Pairs of drawn texts (tick labels, axis labels, titles) of a figure that overlap.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure (drawn here first).
+
+    Returns
+    -------
+    list of (str, str)
+        The overlapping texts; empty when every label is readable.
+    """
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    texts = [fig._suptitle] if fig._suptitle is not None else []
+    for ax in fig.axes:
+        texts += [*_shown_ticklabels(ax, "x"), *_shown_ticklabels(ax, "y"), ax.xaxis.label, ax.yaxis.label, ax.title]
+    boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts if t.get_visible() and t.get_text().strip()]
+    return [(a, b) for i, (a, ba) in enumerate(boxes) for b, bb in boxes[i + 1:] if ba.overlaps(bb)]
+
+
+def _readable_ticks(fig: Any, ax: Any) -> None:
+    """Fewer x ticks until this axes' tick labels do not overlap (wide ranges, long numbers)."""
+    from matplotlib.ticker import MaxNLocator
+
+    for nbins in (6, 5, 4, 3, 2):
+        fig.canvas.draw()
+        boxes = [t.get_window_extent() for t in _shown_ticklabels(ax, "x")]
+        if not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:]):
+            return
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=nbins))
+
+
+def timing_figure(summary: dict[str, Any], title: str) -> Any:
+    """The session report's figure: SOA, fixation and trigger-offset histograms, labels readable.
+
+    Parameters
+    ----------
+    summary : dict
+        :func:`session_summary`'s result (``isi_ms``, ``fixation_ms``, ``trigger_ms``).
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
     panels = [("isi_ms", "stimulus onset asynchrony (ms)"), ("fixation_ms", "fixation duration (ms)"),
@@ -81,8 +161,19 @@ def _figure(summary: dict[str, Any], path_png: Path, title: str) -> list[Path]:
             ax.text(0.5, 0.5, "none in this session", ha="center", va="center", transform=ax.transAxes)
         ax.set_xlabel(label)
         ax.set_ylabel("trials")
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     fig.suptitle(title)
     fig.tight_layout()
+    for ax in axes:
+        _readable_ticks(fig, ax)
+    fig.tight_layout()
+    return fig
+
+
+def _figure(summary: dict[str, Any], path_png: Path, title: str) -> list[Path]:
+    import matplotlib.pyplot as plt
+
+    fig = timing_figure(summary, title)
     fig.savefig(path_png, dpi=110)
     fig.savefig(path_png.with_suffix(".svg"))
     plt.close(fig)

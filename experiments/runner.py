@@ -22,7 +22,7 @@ FLIP_COLUMNS = ["trial", "screen", "frame", "time_s"]
 
 def beh_columns(protocol: Protocol) -> list[str]:
     """The ``_beh.tsv`` columns a protocol produces, in order."""
-    cols = ["participant_id", "session", "trial", "phase", "block", "repetition", "stimulus", *protocol.stimuli.factors]
+    cols = ["participant_id", "session", "part", "trial", "phase", "block", "repetition", "stimulus", *protocol.stimuli.factors]
     if protocol.timing.fixation_s is not None:
         cols += ["fixation_frames", "fixation_onset_s"]
     cols += ["onset_frame", "onset_s", "offset_s", "duration_frames", "shown_frames", "shown_s", "dropped_frames"]
@@ -57,7 +57,7 @@ class SessionRunner:
     sender : TriggerSender or None
         EEG triggers.
     ids : dict
-        ``participant_id`` and ``session`` written on every row.
+        ``participant_id``, ``session`` and ``part`` (1, +1 after each resume) written on every row.
     screenshot_dir : Path or None
         Save the first frame of every kind of screen as PNG here.
     """

@@ -5,6 +5,8 @@ from __future__ import annotations
 import hashlib
 import json
 import platform
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -194,6 +196,12 @@ def run_session(
     with output_run(out, force=force, resume=resume, seed=seed, inputs=[protocol_file, full.source], argv=argv) as run:
         out = run.out
         paths = session_paths(out, participant, session, protocol.task)
+        answers = None
+        if model is None and protocol.demographics and not previous:
+            # the dialog comes first and alone: before the PsychoPy window (and its frame-rate test)
+            from experiments.demographics import ask_demographics
+
+            answers = ask_demographics(protocol.demographics, protocol.title or protocol.name)
         win = None
         if window:
             size = SIM_WINDOW if model is not None else protocol.screen.window_size
@@ -242,8 +250,10 @@ def run_session(
             logger.info("session already complete (%d trials)", len(trials))
             status = "complete"
         else:
-            status, completed, shots = _present(protocol, trials, start, columns, paths, win, hz, mode, pace, model,
-                                                 seed, participant, session, previous, screenshot_dir, full)
+            with _terminate_as_exit(), _sidecar_on_failure(sidecar, paths):
+                status, completed, shots = _present(protocol, trials, start, columns, paths, win, hz, mode, pace,
+                                                     model, seed, participant, session, answers, screenshot_dir, full,
+                                                     part=len(sidecar["Resumed"]) + 1)
         sidecar.update(Status=status, CompletedTrials=completed, Ended=now_iso())
         write_sidecar(paths["sidecar"], sidecar)
         run.extra.update(status_session=status, completed_trials=completed, n_trials=len(trials))
@@ -256,9 +266,44 @@ def run_session(
                          status=status, timing_mode=mode, refresh_hz=hz, report=rep, screenshots=shots)
 
 
+@contextmanager
+def _sidecar_on_failure(sidecar: dict[str, Any], paths: dict[str, Path]) -> Iterator[None]:
+    """Record ``Status: crashed`` (and the trials on disk) when the session ends by an exception."""
+    try:
+        yield
+    except BaseException as exc:
+        done = len(read_completed(paths["beh"])) if paths["beh"].is_file() else 0
+        sidecar.update(Status="crashed", CompletedTrials=done, Ended=now_iso(),
+                       Error=f"{type(exc).__name__}: {exc}".strip().rstrip(":"))
+        write_sidecar(paths["sidecar"], sidecar)
+        raise
+
+
+@contextmanager
+def _terminate_as_exit() -> Iterator[None]:
+    """SIGTERM (e.g. ``kill``, a closing terminal) unwinds like an exception, so files are closed
+    and the sidecar says how the session ended; the previous handler is restored after."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def _exit(signum: int, _frame: Any) -> None:
+        raise SystemExit(128 + signum)
+
+    old = signal.signal(signal.SIGTERM, _exit)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[str], paths: dict[str, Path],
              win: Any, hz: float, mode: str, pace: bool, model: Any, seed: int, participant: str, session: int,
-             previous: dict[str, Any], screenshot_dir: str | Path | None, full: Any) -> tuple[str, int, dict]:
+             answers: dict[str, Any] | None, screenshot_dir: str | Path | None, full: Any,
+             part: int = 1) -> tuple[str, int, dict]:
     from experiments.responders import HumanResponder, ModelResponder, SessionAborted
 
     display = win if win is not None else NoWindow()
@@ -276,7 +321,6 @@ def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[
         answers = sim.demographics(protocol.demographics)
     else:
         responder = HumanResponder(win, screens, presenter, deadline)
-        answers = _ask_demographics(protocol) if protocol.demographics and not previous else {}
     if answers:
         write_demographics(paths["demographics"], participant, answers)
     sender = None
@@ -287,7 +331,8 @@ def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[
     writer = TsvWriter(paths["beh"], columns, fsync="background")
     flips = TsvWriter(paths["flips"], FLIP_COLUMNS, fsync="off")
     runner = SessionRunner(protocol, presenter, screens, responder, writer, flips, sender,
-                           {"participant_id": participant, "session": session},
+                           {"participant_id": participant, "session": session,
+                            "part": part},
                            screenshot_dir=Path(screenshot_dir) if screenshot_dir is not None else None)
     status, completed = "crashed", start
     try:
@@ -308,23 +353,10 @@ def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[
     return status, completed, dict(runner.shots)
 
 
-def _ask_demographics(protocol: Protocol) -> dict[str, Any]:
-    """The participant-information dialog (PsychoPy's); skipped with a warning where no GUI toolkit exists."""
-    try:
-        from psychopy import gui
-    except Exception as exc:  # noqa: BLE001 - missing Qt/wx
-        logger.warning("no dialog toolkit (%s): demographics not asked", exc)
-        return {}
-    info = {i.label or i.name: (i.choices if i.type == "choice" else "") for i in protocol.demographics}
-    dlg = gui.DlgFromDict(info, title=protocol.title or protocol.name)
-    if not dlg.OK:
-        raise AppealInputError("participant dialog cancelled")
-    return {i.name: info[i.label or i.name] for i in protocol.demographics}
-
-
 def _column_descriptions(protocol: Protocol, columns: list[str]) -> dict[str, dict[str, str]]:
     desc = {
         "participant_id": "BIDS participant label", "session": "session number",
+        "part": "session part: 1, then +1 after each --resume (times and frames restart at 0 in each part)",
         "trial": "trial number in presentation order (1-based)", "phase": "anchor, practice, main or end",
         "block": "block label", "repetition": "repetition of this stimulus (1-based)",
         "stimulus": "image file as named in the stimulus table",

@@ -169,7 +169,7 @@ class SimulatedParticipant:
             if item.type == "int":
                 out[item.name] = int(self.rng.integers(19, 31))
             elif item.type == "choice":
-                out[item.name] = item.choices[int(self.rng.integers(len(item.choices)))]
+                out[item.name] = item.options[int(self.rng.integers(len(item.options)))]
             else:
                 out[item.name] = "simulated"
         return out

@@ -123,6 +123,14 @@ MALFORMED = [
     ("breaks", {"every": 0}, "breaks.every", "must be >= 1"),
     ("anchors", {"respond": False}, "anchors", "expected 'select'"),
     ("demographics", [{"name": "gender", "type": "choice"}], "demographics[0]", "at least two choices"),
+    ("demographics", [{"name": "age", "type": "int", "prefer_not_to_say": "no"}], "demographics[0]",
+     "need type 'choice'"),
+    ("demographics", [{"name": "g", "type": "choice", "choices": ["a", "b"], "prefer_not_to_say": "a"}],
+     "demographics[0]", "already one of the choices"),
+    ("demographics", [{"name": "g", "type": "choice", "choices": ["a", " "]}], "demographics[0]",
+     "choices must not be empty"),
+    ("demographics", [{"name": "g", "type": "choice", "choices": ["a", "b"], "requird": True}], "demographics[0].requird",
+     "did you mean 'required'"),
 ]
 
 

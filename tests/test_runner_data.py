@@ -202,6 +202,10 @@ def test_sigkill_at_20_random_trials_then_resume(tmp_path, manifest):
     assert final["fixation_frames"].tolist() == pd.read_csv(ref.beh, sep="\t")["fixation_frames"].tolist()
     side = json.loads((out / "sub-07_ses-1_task-fast_beh.json").read_text())
     assert side["Status"] == "complete" and len(side["Resumed"]) == 20
+    # each resume is a new part with its own clock: onset asynchronies are taken within parts only
+    assert final["part"].is_monotonic_increasing and final["part"].iloc[0] == 1 and final["part"].iloc[-1] == 21
+    summary = pd.read_csv(out / "report" / "summary.csv", index_col=0)["value"]
+    assert float(summary["isi_ms_min"]) > 0  # was -(length of the previous part) across each resume
 
 
 def test_resume_refuses_changed_protocol(tmp_path, manifest):
@@ -289,3 +293,20 @@ def test_file_backend(tmp_path):
     b.reset()
     b.close()
     assert (tmp_path / "t.tsv").read_text() == "event\tcode\ttime_s\nset\t5\t0.100000\nreset\t0\t0.200000\n"
+
+
+def test_onset_asynchronies_within_parts_and_readable_figure(tmp_path):
+    """SOAs are never taken across a resume (the clock restarts at 0); the report figure's labels
+    do not overlap even for a very wide SOA range (tick labels '-40000' and '-20000' ran together)."""
+    from experiments.report import onset_asynchronies, overlapping_texts, timing_figure
+
+    main = pd.DataFrame({"trial": [1, 2, 3, 4, 5], "part": [1, 1, 1, 2, 2], "onset_s": [10.0, 12.5, 15.0, 3.0, 5.5]})
+    assert onset_asynchronies(main).tolist() == [2500.0, 2500.0, 2500.0]
+    assert onset_asynchronies(main.drop(columns="part").iloc[:3]).tolist() == [2500.0, 2500.0]
+    rng = np.random.default_rng(0)
+    summary = {"isi_ms": np.r_[rng.normal(2800, 60, 200), -47016.3, 61234.5],
+               "fixation_ms": rng.choice([400, 416.7, 433.3, 450, 466.7, 483.3, 500], 200),
+               "trigger_ms": rng.normal(0.05, 0.01, 200)}
+    for isi in (summary["isi_ms"], summary["isi_ms"] * 3, np.abs(summary["isi_ms"])):
+        fig = timing_figure({**summary, "isi_ms": isi}, "erp_stylisation sub-01 (live timing, 60 Hz)")
+        assert overlapping_texts(fig) == []
