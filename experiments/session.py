@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import ValidationError
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
@@ -87,6 +88,25 @@ def _measure_refresh(win: Any) -> float | None:
     return float(rate) if rate else None
 
 
+def _with_triggers(protocol: Protocol, override: dict[str, str | None], source: Path) -> Protocol:
+    """The protocol with ``--trigger-backend``/``--trigger-address`` applied (validated again)."""
+    changes = {k: v for k, v in override.items() if v is not None}
+    if not changes:
+        return protocol
+    if protocol.triggers is None:
+        opts = ", ".join(f"--trigger-{k}" for k in changes)
+        raise AppealInputError(f"{opts}: {source} sends no triggers (it has no 'triggers' section)")
+    from experiments.protocol_schema import TriggerSpec
+
+    data = {**protocol.triggers.model_dump(), **changes}
+    try:
+        spec = TriggerSpec.model_validate(data)
+    except ValidationError as exc:
+        msg = exc.errors()[0]["msg"].removeprefix("Value error, ")
+        raise AppealInputError(f"--trigger-{'/'.join(changes)}: {msg}") from None
+    return protocol.model_copy(update={"triggers": spec})
+
+
 def _check_resume(rows: list[dict[str, str]], trials: list[Trial], beh: Path) -> None:
     if len(rows) > len(trials):
         raise AppealInputError(f"{beh}: {len(rows)} rows but the session has only {len(trials)} trials")
@@ -114,6 +134,7 @@ def run_session(
     refresh_hz: float | None = None,
     report: bool = True,
     argv: list[str] | None = None,
+    triggers: dict[str, str | None] | None = None,
 ) -> SessionResult:
     """Run (or resume) one session of a protocol.
 
@@ -152,6 +173,9 @@ def run_session(
         Write the session report at the end.
     argv : list of str | None
         Command line for the provenance record.
+    triggers : dict | None
+        ``backend`` and/or ``address`` replacing the protocol's trigger settings (None values
+        keep the protocol's); the sidecar records the settings used.
 
     Returns
     -------
@@ -167,7 +191,7 @@ def run_session(
     if simulate is None and (realtime or not window):
         raise AppealInputError("--realtime and --no-window only apply to simulated sessions (--simulate MODEL)")
     protocol_file = Path(protocol_file)
-    protocol = load_protocol(protocol_file)
+    protocol = _with_triggers(load_protocol(protocol_file), triggers or {}, protocol_file)
     model = load_participant_model(simulate) if simulate is not None else None
     full = load_stimuli(protocol.stimuli, override=stimuli, protocol_file=protocol_file, apply_select=False)
     main = select_stimuli(full, protocol.stimuli.select)

@@ -310,3 +310,51 @@ def test_onset_asynchronies_within_parts_and_readable_figure(tmp_path):
     for isi in (summary["isi_ms"], summary["isi_ms"] * 3, np.abs(summary["isi_ms"])):
         fig = timing_figure({**summary, "isi_ms": isi}, "erp_stylisation sub-01 (live timing, 60 Hz)")
         assert overlapping_texts(fig) == []
+
+
+def test_sigterm_marks_crashed_and_printed_command_resumes(tmp_path, manifest):
+    """A session ended by SIGTERM says 'crashed' (not 'running') in its sidecar, and the printed
+    'Continue with:' command, pasted as it is, finishes the session (it must repeat --stimuli:
+    the protocol's own manifest does not exist here, and every other option given)."""
+    import shlex
+
+    proto = fast_protocol(tmp_path / "p.yaml", manifest, reps=4)  # 48 trials
+    data = yaml.safe_load(proto.read_text())
+    data["stimuli"]["manifest"] = "not_here/manifest.csv"
+    data["triggers"].update(backend="parallel", address="0x0378")
+    proto.write_text(yaml.safe_dump(data))
+    model = tmp_path / "m.yaml"
+    model.write_text(yaml.safe_dump({**FAST_MODEL, "rt": {"median_s": 0.05, "sigma": 0.2, "min_s": 0.02}}))
+    out = tmp_path / "folder with space"
+    beh = out / "sub-09_ses-2_task-fast_beh.tsv"
+    cmd = [sys.executable, "-m", "appeal", "run", str(proto), "--participant", "09", "--session", "2",
+           "--stimuli", str(manifest), "--out", str(out), "--simulate", str(model), "--no-window", "--realtime",
+           "--refresh-hz", "120", "--trigger-backend", "file"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    while proc.poll() is None and _rows(beh) < 5:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode != 0
+    side = json.loads(beh.with_suffix(".json").read_text())
+    assert side["Status"] == "crashed" and side["CompletedTrials"] == _rows(beh) >= 5
+    assert side["Triggers"]["backend"] == "file"
+    line = next(ln for ln in err.splitlines() if ln.startswith("Continue with: "))
+    words = shlex.split(line.removeprefix("Continue with: "))
+    assert words[:2] == ["appeal", "run"] and "--resume" in words and "--stimuli" in words
+    done = subprocess.run([sys.executable, "-m", "appeal", *words[1:]], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    final = pd.read_csv(beh, sep="\t")
+    assert final["trial"].tolist() == list(range(1, 49)) and (final["session"] == 2).all()
+    side = json.loads(beh.with_suffix(".json").read_text())
+    assert side["Status"] == "complete" and side["RefreshRate"] == 120
+
+
+def test_trigger_backend_override_errors(tmp_path, manifest):
+    proto = fast_protocol(tmp_path / "p.yaml", manifest, reps=1, triggers=False)
+    with pytest.raises(AppealInputError, match="--trigger-backend: .* sends no triggers"):
+        run_session(proto, "08", out=tmp_path / "o", simulate="default", window=False,
+                    triggers={"backend": "file", "address": None})
+    proto = fast_protocol(tmp_path / "p.yaml", manifest, reps=1)
+    with pytest.raises(AppealInputError, match="needs 'address'"):
+        run_session(proto, "08", out=tmp_path / "o", simulate="default", window=False, triggers={"backend": "serial"})
