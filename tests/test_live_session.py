@@ -71,14 +71,14 @@ class Participant:
                              check=False)
         return res.stdout.strip()
 
-    def window(self, name: str) -> str | None:
-        """The id of the first window whose name matches the regular expression ``name``."""
-        found = self.xdo("search", "--name", name)
+    def window(self, name: str, *, visible: bool = False) -> str | None:
+        """The id of the first (mapped, if ``visible``) window whose name matches the regular expression ``name``."""
+        found = self.xdo("search", *(["--onlyvisible"] if visible else []), "--name", name)
         return found.split()[0] if found else None
 
-    def wait_window(self, name: str) -> str:
+    def wait_window(self, name: str, *, visible: bool = False) -> str:
         while time.monotonic() < self.deadline:
-            wid = self.window(name)
+            wid = self.window(name, visible=visible)
             if wid:
                 return wid
             if self.proc.poll() is not None:
@@ -88,7 +88,8 @@ class Participant:
 
     def fill_dialog(self, title: str, answers: list[str | None]) -> None:
         """Type one answer per field (None: leave it empty; for a choice, letters select it), then Enter."""
-        wid = self.wait_window("^" + "".join("\\" + c if c in ".^$*+?()[]{}|\\" else c for c in title) + "$")
+        wid = self.wait_window("^" + "".join("\\" + c if c in ".^$*+?()[]{}|\\" else c for c in title) + "$",
+                               visible=True)
         time.sleep(0.5)  # the dialog maps and focuses its first field
         assert self.window("^PsychoPy$") is None, "the PsychoPy window is open behind the dialog"
         self.xdo("windowfocus", "--sync", wid)
@@ -278,3 +279,35 @@ def test_live_erp_session_file_triggers(tmp_path, display):
     assert set(beh["trigger"]) == {13, 63}
     assert np.isfinite(beh["trigger_flip_ms"]).all()
     assert demo.iloc[0].to_dict() == {"participant_id": "03", "age": "24", "gender": "n/a", "handedness": "right"}
+
+
+def test_required_field_is_asked_again(tmp_path, display):
+    """A required field left empty: OK shows the dialog again (answers kept, the field named);
+    the session starts once it is answered. Optional fields may stay empty (n/a)."""
+    import yaml
+
+    stimuli = small_stimuli(tmp_path, {"kind": ["a"]})
+    protocol = tmp_path / "req.yaml"
+    protocol.write_text(yaml.safe_dump({
+        "kind": "protocol", "name": "req", "title": "Required fields", "task": "req",
+        "stimuli": {"manifest": str(stimuli), "factors": ["kind"]}, "timing": {"stimulus_s": 0.1},
+        "responses": [{"type": "likert", "name": "appeal", "low": "a", "high": "b"}],
+        "demographics": [{"name": "gender", "type": "choice", "choices": ["female", "male"],
+                          "prefer_not_to_say": "prefer not to say"},
+                         {"name": "age", "type": "int", "required": True}]}))
+    out = tmp_path / "o"
+    proc = start(display, protocol, "04", out, "--windowed")
+    person = Participant(display, proc)
+    person.fill_dialog("Required fields", ["m", None])  # age (required) skipped
+    time.sleep(1.0)
+    assert proc.poll() is None and person.window("^PsychoPy$") is None  # no session without the answer
+    person.fill_dialog("Required fields", [None, "abc"])  # gender kept as 'male'; not a number
+    time.sleep(1.0)
+    assert person.window("^PsychoPy$") is None
+    person.fill_dialog("Required fields", [None, "38"])  # Tab selects the old text: typing replaces it
+    person.play(["space", "6"])
+    rc, _, err = finish(proc)
+    assert rc == 0, err[-2000:]
+    beh, side, demo = session_files(out)
+    assert side["Status"] == "complete" and beh["response_appeal"].tolist() == [6]
+    assert demo.iloc[0].to_dict() == {"participant_id": "04", "gender": "male", "age": "38"}
