@@ -311,3 +311,19 @@ def test_required_field_is_asked_again(tmp_path, display):
     beh, side, demo = session_files(out)
     assert side["Status"] == "complete" and beh["response_appeal"].tolist() == [6]
     assert demo.iloc[0].to_dict() == {"participant_id": "04", "gender": "male", "age": "38"}
+
+
+def test_cancelled_dialog_writes_no_session_data(tmp_path, display):
+    """Escape in the dialog: a one-line error (exit 2), no window, no data files."""
+    stimuli = small_stimuli(tmp_path, {"shape": [0.0], "material": ["flat"], "expression": ["neutral"]})
+    protocol = protocols_dir() / "exp1c_texture.yaml"
+    out = tmp_path / "o"
+    proc = start(display, protocol, "05", out, "--windowed", "--stimuli", str(stimuli))
+    person = Participant(display, proc)
+    wid = person.wait_window("^Experiment 1c: texture$", visible=True)
+    time.sleep(0.5)
+    person.xdo("windowfocus", "--sync", wid)
+    person.xdo("key", "Escape")
+    rc, _, err = finish(proc)
+    assert rc == 2 and err.strip().splitlines()[-1] == "participant dialog cancelled: no data recorded"
+    assert not list(out.glob("sub-*")) and not (out / "participants.tsv").exists()
