@@ -33,6 +33,35 @@ __all__ = ["SessionResult", "run_session", "default_seed", "session_paths", "loa
 
 #: Refresh rates outside this range mean the display has no vsync (e.g. a virtual screen).
 PLAUSIBLE_HZ = (20.0, 250.0)
+#: Refresh rates displays run at; a measured rate far from all of them is flip speed without vsync.
+DISPLAY_RATES = (50.0, 56.0, 60.0, 70.0, 72.0, 75.0, 85.0, 90.0, 100.0, 120.0, 144.0, 160.0, 165.0, 170.0, 175.0,
+                 180.0, 200.0, 240.0)
+
+
+def display_refresh(measured: float | None, tolerance: float = 0.02) -> float | None:
+    """The measured refresh rate if it is one a display runs at, else None (no vsync).
+
+    Without vsync (a virtual X screen, vsync off in the driver) ``getActualFrameRate`` measures
+    how fast frames are drawn, e.g. 224 Hz on Xvfb: taken as the refresh rate, it shortened
+    every duration 3.7-fold. A real refresh rate lies within ``tolerance`` (relative) of a
+    standard display rate (59.94 Hz counts as 60).
+
+    Parameters
+    ----------
+    measured : float or None
+        Measured frames per second.
+    tolerance : float
+        Relative distance allowed to the nearest standard rate.
+
+    Returns
+    -------
+    float or None
+        ``measured`` rounded to 0.01 Hz, or None.
+    """
+    if measured is None or not PLAUSIBLE_HZ[0] <= measured <= PLAUSIBLE_HZ[1]:
+        return None
+    nearest = min(DISPLAY_RATES, key=lambda r: abs(r - measured))
+    return round(measured, 2) if abs(measured - nearest) <= tolerance * nearest else None
 SIM_WINDOW = (640, 512)
 
 
@@ -240,12 +269,13 @@ def run_session(
             hz = float(protocol.screen.refresh_hz)
         elif mode == "live" and win is not None:
             measured = _measure_refresh(win)
-            if measured is None or not PLAUSIBLE_HZ[0] <= measured <= PLAUSIBLE_HZ[1]:
-                logger.warning("measured refresh %s Hz is implausible (no vsync?): using 60 Hz, paced in software",
-                               measured)
+            shown = display_refresh(measured)
+            if shown is None:
+                logger.warning("measured refresh %s Hz is no display's rate (no vsync?): using 60 Hz, paced in "
+                               "software (give --refresh-hz if the display runs at another rate)", measured)
                 hz, pace = 60.0, True
             else:
-                hz = round(measured, 2)
+                hz = shown
         else:
             hz = 60.0
         trials = build_trials(protocol, main, seed=seed, refresh_hz=hz, source=str(protocol_file), full_set=full)

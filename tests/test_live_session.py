@@ -122,9 +122,11 @@ class Participant:
             time.sleep(0.15)
 
 
-def start(display: str, protocol: Path, participant: str, out: Path, *extra: str) -> subprocess.Popen:
+def start(display: str, protocol: Path, participant: str, out: Path, *extra: str,
+          refresh: bool = True) -> subprocess.Popen:
+    """``appeal run`` on ``display`` (``refresh=False``: the refresh rate is measured, as by default)."""
     cmd = [sys.executable, "-m", "appeal", "run", str(protocol), "--participant", participant, "--out", str(out),
-           "--refresh-hz", "60", *extra]
+           *(["--refresh-hz", "60"] if refresh else []), *extra]
     return subprocess.Popen(cmd, env={**os.environ, "DISPLAY": display}, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 
@@ -296,7 +298,7 @@ def test_required_field_is_asked_again(tmp_path, display):
                           "prefer_not_to_say": "prefer not to say"},
                          {"name": "age", "type": "int", "required": True}]}))
     out = tmp_path / "o"
-    proc = start(display, protocol, "04", out, "--windowed")
+    proc = start(display, protocol, "04", out, "--windowed", refresh=False)  # measured: after the dialog
     person = Participant(display, proc)
     person.fill_dialog("Required fields", ["m", None])  # age (required) skipped
     time.sleep(1.0)
@@ -310,6 +312,9 @@ def test_required_field_is_asked_again(tmp_path, display):
     assert rc == 0, err[-2000:]
     beh, side, demo = session_files(out)
     assert side["Status"] == "complete" and beh["response_appeal"].tolist() == [6]
+    # the rate was measured after the dialog; Xvfb has no vsync, so its flip speed is not a display's rate
+    assert side["RefreshRateMeasured"] is not None
+    assert side["RefreshRate"] == (60 if side["SoftwarePacing"] else round(side["RefreshRateMeasured"], 2))
     assert demo.iloc[0].to_dict() == {"participant_id": "04", "gender": "male", "age": "38"}
 
 

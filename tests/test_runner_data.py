@@ -358,3 +358,12 @@ def test_trigger_backend_override_errors(tmp_path, manifest):
     proto = fast_protocol(tmp_path / "p.yaml", manifest, reps=1)
     with pytest.raises(AppealInputError, match="needs 'address'"):
         run_session(proto, "08", out=tmp_path / "o", simulate="default", window=False, triggers={"backend": "serial"})
+
+
+def test_measured_refresh_must_be_a_display_rate():
+    """Flip speed without vsync (224 Hz measured on Xvfb) is not taken as the refresh rate."""
+    from experiments.session import display_refresh
+
+    assert display_refresh(59.94) == 59.94 and display_refresh(143.2) == 143.2 and display_refresh(239.5) == 239.5
+    assert display_refresh(223.82) is None and display_refresh(96.0) is None
+    assert display_refresh(None) is None and display_refresh(1500.0) is None and display_refresh(12.0) is None
