@@ -9,6 +9,8 @@ Every command that produces files runs inside :func:`output_run`::
 from __future__ import annotations
 
 import contextlib
+import json
+import logging
 import shutil
 import sys
 from collections.abc import Iterable, Iterator
@@ -20,7 +22,35 @@ from appeal.errors import AppealInputError
 from appeal.logs import add_log_file, logger, remove_log_file
 from appeal.provenance import now_iso, provenance_record, write_provenance
 
-__all__ = ["OutputRun", "prepare_out_dir", "output_run"]
+__all__ = ["OutputRun", "prepare_out_dir", "output_run", "failed_run_only", "describe_seed"]
+
+#: What a run that failed before writing anything leaves behind (reused without --force).
+_RUN_RECORDS = frozenset({"log.txt", "provenance.json"})
+
+
+def failed_run_only(out: Path) -> bool:
+    """True when ``out`` holds nothing but the log and provenance of a run that failed.
+
+    Such a folder is reused without ``--force``: the failed run wrote no results, and its
+    log (which records the error) is appended to, not replaced.
+    """
+    names = {p.name for p in out.iterdir()}
+    if not names or not names <= _RUN_RECORDS or "provenance.json" not in names:
+        return False
+    try:
+        status = json.loads((out / "provenance.json").read_text(encoding="utf-8")).get("status", "")
+    except (OSError, ValueError, AttributeError):
+        return False
+    return isinstance(status, str) and status.startswith("failed")
+
+
+def describe_seed(seed: int | dict[str, int] | None) -> str:
+    """How a run's randomness is seeded, in words, for the log."""
+    if seed is None:
+        return "no random choices"
+    if isinstance(seed, dict):
+        return "seeds " + ", ".join(f"{k}={v}" for k, v in seed.items()) if seed else "no random choices"
+    return f"seed {seed}"
 
 
 def prepare_out_dir(out: str | Path, *, force: bool = False, resume: bool = False) -> Path:
@@ -49,7 +79,7 @@ def prepare_out_dir(out: str | Path, *, force: bool = False, resume: bool = Fals
     out = Path(out).expanduser()
     if out.exists() and not out.is_dir():
         raise AppealInputError(f"{out}: --out must be a folder, but a file of that name exists")
-    if out.is_dir() and any(out.iterdir()):
+    if out.is_dir() and any(out.iterdir()) and not failed_run_only(out):
         if resume:
             return out.resolve()
         if not force:
@@ -71,7 +101,7 @@ class OutputRun:
     """A running command's output folder and what will go into its provenance record."""
 
     out: Path
-    seed: int | None
+    seed: int | dict[str, int] | None
     inputs: list[Path]
     argv: list[str]
     started: str
@@ -95,14 +125,16 @@ def output_run(
     *,
     force: bool = False,
     resume: bool = False,
-    seed: int | None = None,
+    seed: int | dict[str, int] | None = None,
     inputs: Iterable[str | Path] = (),
     argv: list[str] | None = None,
 ) -> Iterator[OutputRun]:
     """Prepare ``out``, log into ``out/log.txt`` and write ``out/provenance.json`` at the end.
 
     The provenance is written whether the body succeeds or raises; its ``status`` says
-    which (``"ok"`` or ``"failed: <error>"``).
+    which (``"ok"`` or ``"failed: <error>"``). A failure is also logged to ``log.txt``
+    (with the traceback when it is not a bad-input error). A folder left holding only the
+    log and provenance of a failed run is reused by the next run without ``force``.
 
     Parameters
     ----------
@@ -110,8 +142,9 @@ def output_run(
         Output folder (see :func:`prepare_out_dir` for ``force`` and ``resume``).
     force, resume : bool
         See :func:`prepare_out_dir`.
-    seed : int | None
-        The seed of all randomness in the run.
+    seed : int | dict of str to int | None
+        The seed of all randomness in the run; a mapping names several (e.g. seeds read
+        from the input file); None for a run that makes no random choices.
     inputs : iterable of path-like
         Input files to hash into the record.
     argv : list of str | None
@@ -126,15 +159,34 @@ def output_run(
     run = OutputRun(out=folder, seed=seed, inputs=[Path(p) for p in inputs],
                     argv=list(sys.argv if argv is None else argv), started=now_iso())
     handler = add_log_file(folder / "log.txt")
-    logger.info("writing to %s (seed %s)", folder, seed)
+    logger.info("writing to %s (%s)", folder, describe_seed(seed))
     status = "ok"
     try:
         yield run
     except BaseException as exc:
         status = f"failed: {type(exc).__name__}: {exc}".splitlines()[0]
+        _log_failure(handler, exc)
         raise
     finally:
         record = provenance_record(argv=run.argv, inputs=run.inputs, seed=run.seed, started=run.started,
                                    ended=now_iso(), extra={"status": status, **run.extra})
         write_provenance(folder, record)
         remove_log_file(handler)
+
+
+def _log_failure(handler: logging.Handler, exc: BaseException) -> None:
+    """Write why the run failed into the log file only (the command line reports it on stderr)."""
+    import click
+
+    expected = isinstance(exc, (AppealInputError, click.ClickException, KeyboardInterrupt, SystemExit))
+    if isinstance(exc, AppealInputError):
+        msg = "failed: " + " | ".join(exc.lines)
+    elif isinstance(exc, click.ClickException):
+        msg = f"failed: {exc.format_message()}"
+    elif isinstance(exc, (KeyboardInterrupt, SystemExit)):
+        msg = f"stopped: {type(exc).__name__}"
+    else:
+        msg = f"failed with an internal error: {type(exc).__name__}: {exc}"
+    record = logger.makeRecord(logger.name, logging.ERROR, __file__, 0, msg, (),
+                               None if expected else (type(exc), exc, exc.__traceback__))
+    handler.handle(record)

@@ -79,7 +79,7 @@ def provenance_record(
     *,
     argv: list[str] | None = None,
     inputs: Iterable[str | Path] = (),
-    seed: int | None = None,
+    seed: int | dict[str, int] | None = None,
     started: str | None = None,
     ended: str | None = None,
     extra: dict[str, Any] | None = None,
@@ -92,8 +92,9 @@ def provenance_record(
         The command line (default: ``sys.argv``).
     inputs : iterable of path-like
         Input files or folders; each is hashed (folders: over all files inside).
-    seed : int | None
-        The seed all randomness came from.
+    seed : int | dict of str to int | None
+        The seed all randomness came from (a mapping when there are several; None when
+        the command makes no random choices).
     started, ended : str | None
         ISO timestamps.
     extra : dict | None

@@ -165,6 +165,15 @@ class GridFile(StudyModel):
     photographs: list[PhotoSpec] = Field(default_factory=list)
     render: RenderSettings = Field(default_factory=RenderSettings)
 
+    def seeds(self) -> dict[str, int]:
+        """The seeds of the grid's random textures (painted skin, pores) and generated heads, by field."""
+        out = {}
+        for c in self.characters:
+            if c.procedural is not None:
+                out[f"{c.name}.procedural.seed"] = c.procedural.seed
+            out[f"{c.name}.texture_seed"] = c.texture_seed
+        return out
+
     @field_validator("shapes")
     @classmethod
     def _levels(cls, v: list[float]) -> list[float]:

@@ -80,3 +80,86 @@ def test_index_html_links_everything(tmp_path):
     assert "src='s/fig.png'" in text and "href='s/t.csv'" in text
     assert "<strong>bold</strong>" in text and "<td>2.5</td>" in text
     assert "This stage failed: ValueError: x" in text
+
+
+def test_failed_run_logs_the_error_and_leaves_the_folder_reusable(tmp_path):
+    out = tmp_path / "o"
+    with pytest.raises(AppealInputError):
+        with output_run(out, seed=3):
+            raise AppealInputError("study.yaml: data: expected a file")
+    log = (out / "log.txt").read_text()
+    assert "ERROR appeal: failed: study.yaml: data: expected a file" in log
+    assert "Traceback" not in log
+    # nothing but the failed run's records: the next run needs no --force, and appends to the log
+    with output_run(out, seed=3) as run:
+        (run.out / "result.txt").write_text("ok")
+    assert json.loads((out / "provenance.json").read_text())["status"] == "ok"
+    assert (out / "log.txt").read_text().count("writing to") == 2
+
+
+def test_internal_error_is_logged_with_its_traceback(tmp_path):
+    out = tmp_path / "o"
+    with pytest.raises(ZeroDivisionError):
+        with output_run(out):
+            1 / 0  # noqa: B018
+    log = (out / "log.txt").read_text()
+    assert "failed with an internal error: ZeroDivisionError" in log
+    assert "Traceback (most recent call last)" in log and "1 / 0" in log
+
+
+def test_failed_run_with_results_is_not_reused_silently(tmp_path):
+    out = tmp_path / "o"
+    with pytest.raises(RuntimeError):
+        with output_run(out) as run:
+            (run.out / "part.csv").write_text("half")
+            raise RuntimeError("boom")
+    with pytest.raises(AppealInputError, match="not empty"):
+        prepare_out_dir(out)
+    # a successful run's folder is not reused either
+    out2 = tmp_path / "o2"
+    with output_run(out2):
+        pass
+    with pytest.raises(AppealInputError, match="not empty"):
+        prepare_out_dir(out2)
+
+
+@pytest.mark.parametrize(("seed", "words"), [(None, "(no random choices)"), (5, "(seed 5)"),
+                                             ({"c1.texture_seed": 0, "c2.texture_seed": 4},
+                                              "(seeds c1.texture_seed=0, c2.texture_seed=4)")])
+def test_log_names_the_seed_actually_used(tmp_path, seed, words):
+    with output_run(tmp_path / "o", seed=seed):
+        pass
+    assert words in (tmp_path / "o" / "log.txt").read_text()
+    assert "None" not in (tmp_path / "o" / "log.txt").read_text()
+    assert json.loads((tmp_path / "o" / "provenance.json").read_text())["seed"] == seed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("umask", [0o022, 0o027])
+def test_output_files_are_as_readable_as_the_umask_says(tmp_path, umask):
+    """A simulated session writes its data, sidecar, report, log and provenance with 0o666 & ~umask."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    import yaml
+
+    from appeal.assets import protocols_dir
+    from experiments.drawn_faces import draw_face_grid
+
+    shutil.copytree(protocols_dir(), tmp_path / "protocols")
+    protocol = yaml.safe_load((tmp_path / "protocols" / "exp2_stylisation.yaml").read_text(encoding="utf-8"))
+    levels = {"character": ["c1"], **protocol["stimuli"]["levels"], "expression": ["neutral"]}
+    draw_face_grid((tmp_path / "protocols" / protocol["stimuli"]["manifest"]).parent, levels, size=(40, 30))
+    res = subprocess.run([sys.executable, "-m", "appeal", "-q", "run", "protocols/exp2_stylisation.yaml",
+                          "--participant", "01", "--simulate", "default", "--no-window"],
+                         cwd=tmp_path, env={**os.environ, "MPLBACKEND": "Agg"}, capture_output=True, text=True,
+                         timeout=600, check=False, preexec_fn=lambda: os.umask(umask))
+    assert res.returncode == 0, res.stderr
+    files = [p for p in (tmp_path / "data").rglob("*") if p.is_file()]
+    names = {p.name for p in files}
+    assert {"participants.tsv", "log.txt", "provenance.json"} <= names
+    assert any(n.endswith("_beh.tsv") for n in names) and any(n.endswith("_beh.json") for n in names)
+    modes = {str(p.relative_to(tmp_path)): oct(p.stat().st_mode & 0o777) for p in files}
+    assert set(modes.values()) == {oct(0o666 & ~umask)}, modes

@@ -42,7 +42,7 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
     from stimulus_engine.grid_schema import GridFile
 
     spec = load_study_file(grid_file, GridFile)
-    with output_run(out, force=force, resume=resume, inputs=[grid_file]) as run:
+    with output_run(out, force=force, resume=resume, seed=spec.seeds(), inputs=[grid_file]) as run:
         manifest, sheets = run_grid(spec, run.out, n_jobs=n_jobs, scheduler=scheduler, source=str(grid_file))
         n_ok = int(manifest["status"].isin(["rendered", "up to date"]).sum())
         run.extra["images"] = len(manifest)
