@@ -320,7 +320,7 @@ def test_required_field_is_asked_again(tmp_path, display):
 
 def test_cancelled_dialog_writes_no_session_data(tmp_path, display):
     """Escape in the dialog: a one-line error (exit 2), no window, no data files."""
-    stimuli = small_stimuli(tmp_path, {"shape": [0.0], "material": ["flat"], "expression": ["neutral"]})
+    stimuli = small_stimuli(tmp_path, {"shape": [0.0, 1.0], "material": ["flat", "original"], "expression": ["neutral"]})
     protocol = protocols_dir() / "exp1c_texture.yaml"
     out = tmp_path / "o"
     proc = start(display, protocol, "05", out, "--windowed", "--stimuli", str(stimuli))
@@ -332,3 +332,8 @@ def test_cancelled_dialog_writes_no_session_data(tmp_path, display):
     rc, _, err = finish(proc)
     assert rc == 2 and err.strip().splitlines()[-1] == "participant dialog cancelled: no data recorded"
     assert not list(out.glob("sub-*")) and not (out / "participants.tsv").exists()
+    # the log says why; the folder (only that log and the provenance) takes the next attempt, no --force
+    assert sorted(p.name for p in out.iterdir()) == ["log.txt", "provenance.json"]
+    assert "failed: participant dialog cancelled" in (out / "log.txt").read_text()
+    res = run_session(protocol, "05", out=out, stimuli=stimuli, simulate="default", window=False, report=False)
+    assert res.beh.is_file()
