@@ -20,7 +20,7 @@ import numpy as np
 
 
 def _ict_parts(ict: Path):
-    from stimulus_engine.expressions import load_ict_rig
+    from stimulus_engine.ict import load_ict_rig
     from stimulus_engine.materials import rig_render_parts
 
     rig = load_ict_rig(ict, shapes=[])

@@ -3,7 +3,6 @@
 
 # --- mesh I/O, correspondence, texture transfer, morphing (issue 4) ---
 from stimulus_engine.mesh_io import (  # noqa: E402
-    ict_regions,
     load_mesh,
     load_parts,
     mesh_uv_layout,
@@ -36,13 +35,13 @@ from stimulus_engine.morphpca import (  # noqa: E402
 
 # --- stimulus grids: expressions, materials, stylisation, procedural head, neoteny (issue 5) ---
 # The renderer (pyrender/OpenGL) is the subpackage ``stimulus_engine.render`` (imported on use).
+from stimulus_engine.rig import FaceRig  # noqa: E402
+from stimulus_engine.ict import ict_regions, load_ict_rig  # noqa: E402
 from stimulus_engine.expressions import (  # noqa: E402
     EXPRESSIONS,
-    FaceRig,
     apply_expression,
     deformation_transfer,
     expression_weights,
-    load_ict_rig,
 )
 from stimulus_engine.materials import (  # noqa: E402
     MATERIAL_LEVELS,

@@ -43,7 +43,9 @@ from PIL import Image
 from appeal.atomic import atomic_write_bytes, atomic_write_text
 from appeal.errors import AppealInputError
 from appeal.logs import logger
-from stimulus_engine.expressions import FaceRig, apply_expression, load_ict_rig, resolve_expression
+from stimulus_engine.expressions import apply_expression, resolve_expression
+from stimulus_engine.ict import load_ict_rig
+from stimulus_engine.rig import FaceRig
 from stimulus_engine.grid_schema import CharacterSpec, GridFile, MaterialSpec, shape_label
 
 __all__ = ["GRID_VERSION", "RenderItem", "plan_grid", "run_grid"]
@@ -130,7 +132,8 @@ def _character_rig(c: CharacterSpec, cache: Path, source: str) -> tuple[FaceRig,
     import io
 
     from stimulus_engine.mesh_character import correspond_rig
-    from stimulus_engine.mesh_io import ict_regions, load_mesh
+    from stimulus_engine.ict import ict_regions
+    from stimulus_engine.mesh_io import load_mesh
 
     where = f"{source}: characters.{c.name}.mesh"
     region = None

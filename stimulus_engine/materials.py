@@ -37,7 +37,7 @@ import hashlib
 import numpy as np
 import trimesh
 
-from stimulus_engine.expressions import FaceRig
+from stimulus_engine.rig import FaceRig
 
 __all__ = [
     "FLAT_NORMAL",

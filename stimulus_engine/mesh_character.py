@@ -4,7 +4,7 @@ A user's mesh (a scan, an artist's stylised head, the MediaPipe face ...) has it
 tessellation and UV layout and no expressions. :func:`correspond_rig` deforms a rig's skin
 region (ICT Face Model or the procedural head) onto it with
 :func:`stimulus_engine.correspond` from a few landmark pairs (thesis §3.2), so the character
-becomes a :class:`~stimulus_engine.expressions.FaceRig` *in the rig's topology*:
+becomes a :class:`~stimulus_engine.rig.FaceRig` *in the rig's topology*:
 
 * its neutral is the user's shape (in the rig's frame and scale: the correspondence's
   similarity alignment is undone, so cameras, lights and landmarks work as for the rig);
@@ -27,7 +27,7 @@ from scipy.spatial import cKDTree
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
-from stimulus_engine.expressions import FaceRig
+from stimulus_engine.rig import FaceRig
 
 __all__ = ["MeshCharacter", "correspond_rig", "front_region", "rig_skin_mesh", "source_landmark_names"]
 

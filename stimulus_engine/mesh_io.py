@@ -31,43 +31,16 @@ from appeal.logs import logger
 
 __all__ = [
     "MESH_SUFFIXES",
-    "ICT_GEOMETRY_RANGES",
     "load_mesh",
     "load_parts",
     "save_mesh",
     "select_region",
-    "ict_regions",
     "mesh_uv_layout",
     "texture_image",
 ]
 
 #: File name endings :func:`load_mesh` reads.
 MESH_SUFFIXES = (".obj", ".obj.gz", ".ply", ".glb", ".gltf", ".off", ".stl")
-
-#: Vertex index ranges (inclusive) of the ICT Face Model topology, from the tables in the
-#: ICT-FaceKit README ("Face Model Topology" and "Face Area Details"). Same for every ICT mesh
-#: (neutral, identities, expressions), so they select regions by vertex set.
-ICT_GEOMETRY_RANGES: dict[str, tuple[int, int]] = {
-    "face": (0, 9408),
-    "narrow_face": (0, 6705),
-    "head_and_neck": (9409, 11247),
-    "mouth_socket": (11248, 13293),
-    "eye_socket_left": (13294, 13677),
-    "eye_socket_right": (13678, 14061),
-    "gums_and_tongue": (14062, 17038),
-    "teeth": (17039, 21450),
-    "eyeball_left": (21451, 23020),
-    "eyeball_right": (23021, 24590),
-    "lacrimal_fluid_left": (24591, 24794),
-    "lacrimal_fluid_right": (24795, 24998),
-    "eye_blend_left": (24999, 25022),
-    "eye_blend_right": (25023, 25046),
-    "eye_occlusion_left": (25047, 25198),
-    "eye_occlusion_right": (25199, 25350),
-    "eyelashes_left": (25351, 26034),
-    "eyelashes_right": (26035, 26718),
-}
-
 
 def _suffix(path: Path) -> str:
     name = path.name.lower()
@@ -567,33 +540,6 @@ def read_json(path: str | os.PathLike, what: str):
         return json.loads(p.read_text())
     except json.JSONDecodeError as exc:
         raise AppealInputError(f"{p}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-
-
-def ict_regions(vertex_indices_json: str | os.PathLike | None = None) -> dict[str, np.ndarray]:
-    """Named vertex sets of the ICT Face Model.
-
-    The README's geometry ranges (:data:`ICT_GEOMETRY_RANGES`: ``face``, ``narrow_face``,
-    ``teeth``, ...) plus, when ``vertex_indices.json`` is given, its lists: ``fitting``
-    (``idx_to_fitting_verts``), ``rigid``, ``lap_rigid`` and ``landmarks`` (the 68 Multi-PIE
-    landmark vertices, in iBUG order).
-    """
-    out = {k: np.arange(a, b + 1) for k, (a, b) in ICT_GEOMETRY_RANGES.items()}
-    if vertex_indices_json is None:
-        return out
-    p = Path(vertex_indices_json)
-    d = read_json(p, "ICT vertex_indices.json")
-    keys = {
-        "fitting": "idx_to_fitting_verts",
-        "rigid": "idx_to_rigid_verts",
-        "lap_rigid": "idx_to_lap_rigid_verts",
-        "landmarks": "idx_to_landmark_verts",
-    }
-    for name, key in keys.items():
-        if key not in d:
-            raise AppealInputError(f"{p}: {key}: missing (expected a list of vertex indices)")
-        arr = np.asarray(d[key], dtype=np.int64)
-        out[name] = arr if name == "landmarks" else np.unique(arr)
-    return out
 
 
 # --------------------------------------------------------------------------------------------

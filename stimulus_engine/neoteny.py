@@ -29,7 +29,7 @@ MEASURES: tuple[str, ...] = ("eye_width", "eye_height", "nose_length", "nose_wid
 
 
 def neoteny_measures(lm: dict[str, np.ndarray]) -> dict[str, float]:
-    """The neoteny measures of one face from its landmark points (names of :data:`LANDMARK_NAMES`).
+    """The neoteny measures of one face from its landmark points (names of :data:`stimulus_engine.rig.LANDMARK_NAMES`).
 
     Examples
     --------

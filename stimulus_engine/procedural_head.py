@@ -7,7 +7,7 @@ FACS recipes use (smooth displacement fields at the right places), and an albedo
 analytically in UV space (skin tone with multi-scale noise, lips, brows, cheek blush, hair cap).
 Everything derives from ``seed``; no file is read.
 
-The result is a :class:`stimulus_engine.expressions.FaceRig` like the ICT rig, so expressions,
+The result is a :class:`stimulus_engine.rig.FaceRig` like the ICT rig, so expressions,
 stylisation, materials, rendering and neoteny measures treat both the same way.
 """
 
@@ -17,7 +17,7 @@ import functools
 
 import numpy as np
 
-from stimulus_engine.expressions import FaceRig
+from stimulus_engine.rig import FaceRig
 from stimulus_engine.eyes import eye_texture, eyeball_uv
 
 __all__ = ["paint_albedo_at", "paint_detail_maps_at", "procedural_head"]

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from stimulus_engine.expressions import FaceRig
+from stimulus_engine.rig import FaceRig
 
 __all__ = ["StyliseParams", "stylise", "stylise_rig"]
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from appeal.errors import AppealInputError
+from stimulus_engine.ict import ict_regions
 from stimulus_engine.mesh_io import (
-    ict_regions,
     load_mesh,
     load_parts,
     mesh_uv_layout,

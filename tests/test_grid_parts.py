@@ -9,9 +9,9 @@ from stimulus_engine.expressions import (
     apply_expression,
     deformation_transfer,
     expression_weights,
-    load_ict_rig,
     resolve_expression,
 )
+from stimulus_engine.ict import load_ict_rig
 from stimulus_engine.materials import rig_render_parts, stylise_albedo
 from stimulus_engine.neoteny import neoteny_measures
 from stimulus_engine.procedural_head import procedural_head

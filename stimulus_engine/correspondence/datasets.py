@@ -25,7 +25,8 @@ from stimulus_engine.correspondence.landmarks import (
     reorder_landmarks,
     rim_to_curve_correspondences,
 )
-from stimulus_engine.mesh_io import ict_regions, load_mesh, select_region
+from stimulus_engine.ict import ict_regions
+from stimulus_engine.mesh_io import load_mesh, select_region
 
 __all__ = ["ict_james_pair", "RIM_CURVES"]
 
