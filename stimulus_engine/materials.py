@@ -45,6 +45,7 @@ __all__ = [
     "MATERIAL_LEVELS",
     "MATERIAL_STYLES",
     "SHADINGS",
+    "albedo_hash",
     "bake_surface_points",
     "check_map",
     "maps_hash",
@@ -53,6 +54,7 @@ __all__ = [
     "rig_render_parts",
     "stylise_albedo",
     "stylise_map",
+    "stylise_material",
 ]
 
 #: Albedo stylisations.
@@ -226,6 +228,34 @@ def stylise_map(image: np.ndarray, kind: str, style: str, masks: dict[str, np.nd
     out[..., 2] = np.maximum(out[..., 2], 1e-3)
     out /= np.linalg.norm(out, axis=-1, keepdims=True)
     return np.clip(np.rint((out + 1) / 2 * 255), 0, 255).astype(np.uint8)
+
+
+def stylise_material(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] | None = None,
+                     maps: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """A material's albedo and maps stylised with one operator (one call per material).
+
+    Parameters
+    ----------
+    albedo : (H, W, 3) uint8 array
+    style : str
+        One of :data:`MATERIAL_STYLES`.
+    masks : dict of str to (H, W) float arrays, optional
+        Regions stylised separately (see :func:`stylise_albedo`); the maps use them only when
+        every mask has the albedo's size.
+    maps : dict, optional
+        ``normal`` (H, W, 3) and/or ``specular`` (H, W) uint8 maps in the albedo's layout.
+
+    Returns
+    -------
+    albedo : (H, W, 3) uint8 array
+    maps : dict of str to uint8 array
+        The maps given, stylised (:func:`stylise_map`), in the same order.
+    """
+    masks = masks or {}
+    size = np.shape(albedo)[:2]
+    map_masks = masks if all(np.shape(v) == size for v in masks.values()) else {}
+    return (stylise_albedo(albedo, style, masks),
+            {kind: stylise_map(a, kind, style, map_masks) for kind, a in (maps or {}).items()})
 
 
 def bake_surface_points(rig: FaceRig, size: int, part: str = "skin") -> tuple[np.ndarray, np.ndarray]:

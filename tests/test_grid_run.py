@@ -12,7 +12,7 @@ from PIL import Image
 from appeal.cli import main
 from appeal.errors import StudyFileError
 from appeal.studyfile import load_study_file
-from stimulus_engine.grid import plan_grid, run_grid, sheet_layout
+from stimulus_engine.grid import prepare_grid, run_grid, sheet_layout
 from stimulus_engine.grid_schema import GridFile
 
 GRID = """kind: grid
@@ -110,8 +110,8 @@ def test_level_labels_mean_the_same_whatever_order_the_shapes_are_listed_in(tmp_
     """``s0`` used to be the first listed shape: realistic in one grid, cartoon in another."""
     _, grid = _grid(tmp_path, GRID.replace("materials: [original, flat, {name: from_b, style: original, "
                                            "from_character: b}]", "materials: [flat]"))
-    up, _, _ = plan_grid(grid.model_copy(update={"shapes": [0.0, 0.5, 1.0]}), tmp_path / "up")
-    down, _, _ = plan_grid(grid.model_copy(update={"shapes": [1.0, 0.5, 0.0]}), tmp_path / "down")
+    up, _, _ = prepare_grid(grid.model_copy(update={"shapes": [0.0, 0.5, 1.0]}), tmp_path / "up")
+    down, _, _ = prepare_grid(grid.model_copy(update={"shapes": [1.0, 0.5, 0.0]}), tmp_path / "down")
     for m in (up, down):
         table = m.drop_duplicates("shape").set_index("shape")
         assert table["stylisation"].to_dict() == {1.0: 0, 0.5: 1, 0.0: 2}

@@ -1,0 +1,101 @@
+"""The grid's input cache (``DIR/.cache``): content keys and the files kept between runs.
+
+Every prepared input (a corresponded mesh character, a painted albedo or map set, an
+expression's geometry, a stylised albedo or map, a rig's topology) is written once under a name
+made from a hash of everything it depends on (:func:`sha`, with :data:`GRID_VERSION`), so a
+re-run (``--resume``) reads it back and an image whose input hash is unchanged is not rendered
+again. Files are written atomically: a crash leaves no half-written cache entry.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import io
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from appeal.atomic import atomic_write_bytes
+from stimulus_engine.rig import FaceRig
+
+__all__ = ["GRID_VERSION", "file_sha", "load_rig", "npz_cached", "save_npy", "save_npz", "save_png_once", "save_rig", "sha"]
+
+#: Bumped when the rendering code changes what pixels come out (part of every input hash).
+GRID_VERSION = "grid-7"
+
+
+def sha(*parts: object) -> str:
+    """Short hash (20 hex digits) of ``parts``: bytes as they are, anything else as sorted JSON."""
+    h = hashlib.sha256()
+    for p in parts:
+        h.update(p if isinstance(p, bytes) else json.dumps(p, sort_keys=True, default=str).encode())
+        h.update(b"\0")
+    return h.hexdigest()[:20]
+
+
+def file_sha(path: object) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _write(path: Path, save: Callable[[io.BytesIO], None]) -> None:
+    buf = io.BytesIO()
+    save(buf)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def npz_cached(path: Path, compute: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """``compute()`` (a dict of arrays), kept in ``path`` so a re-run (``--resume``) reads it back."""
+    if path.exists():
+        with np.load(path) as d:
+            return {k: d[k] for k in d.files}
+    out = compute()
+    save_npz(path, out)
+    return out
+
+
+def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write ``arrays`` to ``path`` (``.npz``, uncompressed), atomically."""
+    _write(path, lambda buf: np.savez(buf, **arrays))
+
+
+def save_npy(path: Path, arr: np.ndarray) -> None:
+    """Write ``arr`` to ``path`` (``.npy``) unless it is already there."""
+    if not path.exists():
+        _write(path, lambda buf: np.save(buf, arr))
+
+
+def save_png_once(arr: np.ndarray, path: Path) -> Path:
+    """Write the image ``arr`` to ``path`` unless it is already there (content-named files)."""
+    if not path.exists():
+        from stimulus_engine.render import save_png
+
+        save_png(arr, path)
+    return path
+
+
+def save_rig(path: Path, rig: FaceRig) -> None:
+    """Write a rig's topology (faces, parts, UVs, part textures) for the render workers, once."""
+    if path.exists():
+        return
+    _write(path, lambda buf: np.savez(
+        buf, faces=rig.faces, face_part=rig.face_part, part_names=np.array(rig.part_names),
+        uv=rig.uv if rig.uv is not None else np.zeros((0, 2)),
+        face_uv=rig.face_uv if rig.face_uv is not None else np.zeros((0, 3), np.int64),
+        **{f"part_texture_{k}": t for k, t in rig.part_textures.items()}))
+
+
+@functools.lru_cache(maxsize=8)
+def load_rig(path: str) -> FaceRig:
+    """The topology written by :func:`save_rig` as a rig without vertices (cached per process)."""
+    d = np.load(path)
+    uv = d["uv"] if len(d["uv"]) else None
+    fuv = d["face_uv"] if len(d["face_uv"]) else None
+    textures = {k[len("part_texture_"):]: d[k] for k in d.files if k.startswith("part_texture_")}
+    return FaceRig(name=Path(path).stem, vertices=np.zeros((0, 3)), faces=d["faces"], uv=uv, face_uv=fuv,
+                   face_part=d["face_part"], part_names=tuple(str(x) for x in d["part_names"]), landmarks={},
+                   part_textures=textures)

@@ -1,0 +1,171 @@
+"""A grid's characters: the rig of each :class:`CharacterSpec`, by kind, and its albedo.
+
+A character's *base rig* comes from one of :data:`CHARACTER_KINDS` (``ict``: an ICT Face Model
+identity, ``procedural``: a head made by code); a new kind (e.g. a scanned head) is one more
+entry there: a function from the spec to the rig and a hash of its inputs. A ``mesh`` on top of
+any kind makes the character that mesh, corresponded in the base rig's topology
+(:func:`stimulus_engine.mesh_character.correspond_rig`, cached in ``.cache/mesh``); its
+expressions are then carried over from the base rig by deformation transfer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from appeal.errors import AppealInputError
+from appeal.logs import logger
+from stimulus_engine.grid.cache import GRID_VERSION, file_sha, npz_cached, save_npz, sha
+from stimulus_engine.grid.inputs import load_map, load_texture
+from stimulus_engine.grid_schema import CharacterSpec
+from stimulus_engine.rig import FaceRig
+
+__all__ = ["CHARACTER_KINDS", "Character", "base_rig", "character_albedo", "character_kind", "load_character"]
+
+
+def _ict_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
+    from stimulus_engine.ict import load_ict_rig
+
+    rig = load_ict_rig(c.ict, c.identity)
+    files = sorted(Path(c.ict).glob("*.obj*"))
+    return rig, sha("ict", c.identity, [(f.name, f.stat().st_size, int(f.stat().st_mtime)) for f in files])
+
+
+def _procedural_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
+    from stimulus_engine.procedural_head import procedural_head
+
+    p = c.procedural
+    rig = procedural_head(p.seed, texture_size=p.texture_size, resolution=p.resolution)
+    return rig, sha("procedural", p.model_dump())
+
+
+#: Character kinds: the base rig of a spec and a hash of its inputs, by :func:`character_kind`.
+CHARACTER_KINDS: dict[str, Callable[[CharacterSpec], tuple[FaceRig, str]]] = {
+    "ict": _ict_rig,
+    "procedural": _procedural_rig,
+}
+
+
+def character_kind(c: CharacterSpec) -> str:
+    """The kind of a character's base rig (a key of :data:`CHARACTER_KINDS`)."""
+    return "procedural" if c.procedural is not None else "ict"
+
+
+def base_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
+    """The character's own rig (before any ``mesh``) and a hash of its inputs."""
+    return CHARACTER_KINDS[character_kind(c)](c)
+
+
+@dataclass(frozen=True)
+class Character:
+    """A grid character, ready to pose and paint.
+
+    Attributes
+    ----------
+    spec : CharacterSpec
+    rig : FaceRig
+        Its shape, topology and texture (a mesh character: the mesh in the base rig's topology).
+    rig_hash : str
+        Hash of everything the rig is made from (part of every input hash below it).
+    expression_rig : FaceRig
+        The rig whose blendshapes make its expressions (the base rig; ``rig`` itself unless
+        the character is a mesh).
+    """
+
+    spec: CharacterSpec
+    rig: FaceRig
+    rig_hash: str
+    expression_rig: FaceRig
+
+
+def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
+    """The character of ``c``; a ``mesh`` is corresponded once and kept in ``cache/mesh``."""
+    base, base_hash = base_rig(c)
+    if c.mesh is None:
+        return Character(c, base, base_hash, base)
+    m = c.mesh
+    files = {"file": m.file, "texture": m.texture, "normal_map": m.normal_map, "specular_map": m.specular_map}
+    h = sha(GRID_VERSION, "mesh", base_hash, *[file_sha(f) if f else None for f in files.values()],
+            m.model_dump(mode="json", exclude=set(files)))
+    p = cache / "mesh" / f"{h}.npz"
+    if p.exists():
+        d = np.load(p)
+        masks = {k[5:]: d[k] for k in d.files if k.startswith("mask_")}
+        maps = {k[4:]: d[k] for k in d.files if k.startswith("map_")}
+        rig = replace(base.with_vertices(d["vertices"], name=c.name),
+                      texture=d["texture"] if "texture" in d.files else None, texture_masks=masks, texture_maps=maps)
+        return Character(c, rig, h, base)
+    rig = _corresponded(c, base, source)
+    extra = {} if rig.texture is None else {"texture": rig.texture}
+    save_npz(p, {"vertices": rig.vertices, **extra, **{f"mask_{k}": v for k, v in rig.texture_masks.items()},
+                 **{f"map_{k}": v for k, v in rig.texture_maps.items()}})
+    return Character(c, rig, h, base)
+
+
+def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | None:
+    """The base rig's vertices to correspond onto the mesh (``mesh.region``), None = all skin."""
+    region = c.mesh.region
+    if region is None:
+        return None
+    if region == "front":
+        from stimulus_engine.mesh_character import front_region
+
+        return front_region(base)
+    from stimulus_engine.ict import ict_regions
+
+    regions = ict_regions(Path(c.ict) / "vertex_indices.json")
+    if region not in regions or region == "landmarks":
+        names = ", ".join(k for k in regions if k != "landmarks")
+        raise AppealInputError(f"{where}: region: unknown ICT region '{region}' (expected one of: {names})")
+    return regions[region]
+
+
+def _corresponded(c: CharacterSpec, base: FaceRig, source: str) -> FaceRig:
+    """The character's mesh in the base rig's topology, with its texture and maps re-laid."""
+    from stimulus_engine.mesh_character import correspond_rig
+    from stimulus_engine.mesh_io import load_mesh
+
+    m = c.mesh
+    where = f"{source}: characters.{c.name}.mesh"
+    region = _mesh_region(c, base, where)
+    mesh = load_mesh(m.file)
+    texture = load_texture(m.texture) if m.texture is not None else None
+    maps = {kind: load_map(path, kind, None, f"{where}.{kind}_map")
+            for kind, path in (("normal", m.normal_map), ("specular", m.specular_map)) if path is not None}
+    landmarks = {k: (list(v) if isinstance(v, tuple) else v) for k, v in m.landmarks.items()}
+    logger.info("%s: corresponding %s onto %s", c.name, base.name, m.file)
+    mc = correspond_rig(base, mesh, landmarks, region=region, texture=texture, texture_size=m.texture_size,
+                        name=c.name, where=where, maps=maps)
+    logger.info("%s: correspondence metrics %s", c.name,
+                {k: round(v, 5) for k, v in mc.metrics.items() if isinstance(v, float)})
+    return mc.rig
+
+
+def character_albedo(ch: Character, source: str, cache: Path | None = None) -> tuple[np.ndarray, dict]:
+    """The character's albedo and region masks before any stylisation.
+
+    The spec's ``texture`` file, else the rig's own texture, else one painted by code on its UVs
+    (:func:`stimulus_engine.materials.rig_albedo`; cached in ``cache/painted`` when given).
+    """
+    from stimulus_engine.materials import rig_albedo
+
+    c, rig = ch.spec, ch.rig
+    if c.texture is not None:
+        if rig.uv is None:
+            raise AppealInputError(f"{source}: characters.{c.name}.texture: the mesh has no UVs, "
+                                   "so a texture cannot be applied (expected a mesh with texture coordinates)")
+        return load_texture(c.texture), {}
+    if rig.uv is None and rig.texture is None:
+        raise AppealInputError(f"{source}: characters.{c.name}: the mesh has no UVs, so no albedo texture can be "
+                               "painted (expected a mesh with texture coordinates)")
+    if rig.texture is None and cache is not None:
+        def paint() -> dict[str, np.ndarray]:
+            img, masks = rig_albedo(rig, seed=c.texture_seed)
+            return {"albedo": img, **{f"mask_{k}": v for k, v in masks.items()}}
+
+        d = npz_cached(cache / "painted" / f"{sha(GRID_VERSION, ch.rig_hash, 'albedo', c.texture_seed)}.npz", paint)
+        return d["albedo"], {k[5:]: v for k, v in d.items() if k.startswith("mask_")}
+    return rig_albedo(rig, seed=c.texture_seed)

@@ -1,0 +1,219 @@
+"""Preparing a grid's inputs in ``DIR/.cache`` and turning its plan into render items.
+
+Each character is loaded once (:mod:`stimulus_engine.grid.characters`), each material once per
+albedo character (albedo and maps stylised by one :func:`stimulus_engine.materials.stylise_material`
+call), each (character, shape, expression) geometry once; every image of
+:func:`~stimulus_engine.grid.plan.plan_images` then gets its input hash, a manifest row and a
+:class:`~stimulus_engine.grid.worker.RenderItem`. Everything that can be wrong with the inputs
+is found here, before any rendering.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from appeal.errors import AppealInputError
+from stimulus_engine.grid.cache import (
+    GRID_VERSION,
+    file_sha,
+    npz_cached,
+    save_npy,
+    save_png_once,
+    save_rig,
+    sha,
+)
+from stimulus_engine.grid.characters import Character, character_albedo, load_character
+from stimulus_engine.grid.inputs import load_map
+from stimulus_engine.grid.plan import PlannedImage, material_sources, plan_images, plan_photos
+from stimulus_engine.grid.worker import RenderItem
+from stimulus_engine.grid_schema import GridFile, MaterialSpec
+
+__all__ = ["PreparedMaterial", "prepare_grid"]
+
+
+@dataclass(frozen=True)
+class PreparedMaterial:
+    """A material as worn by one albedo character: cached PNGs and content hashes."""
+
+    albedo_png: str
+    albedo_hash: str
+    normal_png: str
+    specular_png: str
+    maps_hash: str
+
+
+def _check_shared_uv(grid: GridFile, chars: dict[str, Character], source: str) -> None:
+    """An albedo from another character needs every character to share its UV layout."""
+    for m in grid.material_specs():
+        if m.from_character is None:
+            continue
+        a = chars[m.from_character].rig
+        for c in grid.characters:
+            b = chars[c.name].rig
+            if b.uv is None or a.uv is None or a.uv.shape != b.uv.shape or not np.allclose(a.uv, b.uv):
+                raise AppealInputError(
+                    f"{source}: materials.{m.name}: characters '{c.name}' and '{m.from_character}' do not share a UV "
+                    "layout (expected corresponded meshes; transfer the texture with the correspondence first)")
+
+
+def _painted_maps(ch: Character, m: MaterialSpec, size: tuple[int, int], cache: Path,
+                  source: str) -> dict[str, np.ndarray]:
+    """Normal and specular maps painted by code on the character (``procedural_maps``), cached."""
+    from stimulus_engine.materials import rig_detail_maps
+
+    if ch.rig.uv is None:
+        raise AppealInputError(f"{source}: materials.{m.name}.procedural_maps: character '{ch.spec.name}' has no "
+                               "UVs (expected a mesh with texture coordinates)")
+    seed = ch.spec.texture_seed
+    return npz_cached(cache / "painted" / f"{sha(GRID_VERSION, ch.rig_hash, 'maps', seed, size)}.npz",
+                      lambda: dict(zip(("normal", "specular"), rig_detail_maps(ch.rig, size=size[0], seed=seed))))
+
+
+def _material_maps(m: MaterialSpec, ch: Character, size: tuple[int, int], cache: Path,
+                   source: str) -> dict[str, np.ndarray]:
+    """The material's unstylised maps: its files, else the character's own maps, else painted by code."""
+    own = ch.rig.texture_maps
+    painted = None
+    found = {}
+    for kind, path in (("normal", m.normal_map), ("specular", m.specular_map)):
+        if path is not None:
+            found[kind] = load_map(path, kind, size, f"{source}: materials.{m.name}.{kind}_map")
+        elif kind in own:
+            found[kind] = own[kind]
+        elif m.procedural_maps:
+            painted = painted or _painted_maps(ch, m, size, cache, source)
+            found[kind] = painted[kind]
+        if kind in found and found[kind].shape[:2] != size:
+            raise AppealInputError(f"{source}: materials.{m.name}: the {kind} map of '{ch.spec.name}' is "
+                                   f"{found[kind].shape[1]} x {found[kind].shape[0]}, expected {size[1]} x {size[0]} "
+                                   "like its albedo")
+    return found
+
+
+def _prepare_material(m: MaterialSpec, ch: Character, albedo: tuple[np.ndarray, dict], cache: Path,
+                      source: str) -> PreparedMaterial:
+    """Stylise the material on the character's albedo once and keep the PNGs in the cache."""
+    from stimulus_engine.materials import albedo_hash, maps_hash, stylise_material
+
+    img, masks = albedo
+    styl, maps = stylise_material(img, m.style, masks, _material_maps(m, ch, img.shape[:2], cache, source))
+    ah = albedo_hash(styl)
+    paths = {kind: str(save_png_once(a if a.ndim == 3 else np.repeat(a[..., None], 3, axis=2),
+                                     cache / "maps" / f"{kind}_{albedo_hash(a)}.png")) for kind, a in maps.items()}
+    return PreparedMaterial(str(save_png_once(styl, cache / "albedo" / f"{ah}.png")), ah, paths.get("normal", ""),
+                            paths.get("specular", ""), maps_hash(maps.get("normal"), maps.get("specular")))
+
+
+def _camera_for(ch: Character, shape_vertices: np.ndarray, grid: GridFile) -> tuple:
+    """Same face size and eye position for every shape: framed on the shape's neutral landmarks."""
+    from stimulus_engine.render import face_camera
+
+    lm = ch.rig.landmark_points(shape_vertices)
+    eye = (lm["eye_left"] + lm["eye_right"]) / 2
+    length = float(np.linalg.norm(lm["forehead_top"] - lm["chin"]))
+    r = grid.render
+    cam = face_camera(eye, length, yfov_deg=r.yfov_deg, eye_row=r.eye_row, face_fraction=r.face_fraction)
+    return (cam.position, cam.target, cam.yfov_deg, cam.up)
+
+
+def _camera_text(cam: tuple) -> str:
+    from stimulus_engine.render import CameraSpec
+
+    return CameraSpec(tuple(cam[0]), tuple(cam[1]), cam[2], tuple(cam[3])).describe()
+
+
+def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFile, cache: Path,
+              source: str) -> tuple[Path, str]:
+    """The posed vertices of (character, shape, expression) in ``cache/geometry`` and their hash.
+
+    The rig's own blendshapes on its own neutral; deformation transfer onto a stylised shape or
+    a corresponded mesh character.
+    """
+    from stimulus_engine.expressions import apply_expression
+
+    r = grid.render
+    gh = sha(GRID_VERSION, ch.rig_hash, im.shape, im.expression, r.intensity)
+    gp = cache / "geometry" / f"{gh}.npy"
+    if not gp.exists():
+        plain = im.shape == 0 and ch.expression_rig is ch.rig
+        try:
+            v = apply_expression(ch.expression_rig, im.expression, r.intensity, target=None if plain else shape_v)
+        except ValueError as exc:  # a recipe shape the rig lacks
+            raise AppealInputError(f"{source}: characters.{im.character}: {exc}") from None
+        save_npy(gp, v.astype(np.float32))
+    return gp, gh
+
+
+def _landmark_rows(ch: Character, im: PlannedImage, vertices: np.ndarray) -> list[dict]:
+    return [{"character": im.character, "shape": im.shape, "stylisation": im.stylisation, "expression": im.expression,
+             "landmark": name, "x": pt[0], "y": pt[1], "z": pt[2]}
+            for name, pt in ch.rig.landmark_points(vertices.astype(np.float64)).items()]
+
+
+def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.DataFrame, list[RenderItem], pd.DataFrame]:
+    """Prepare the inputs of every image in ``out/.cache`` and list the images.
+
+    Returns
+    -------
+    manifest : DataFrame
+        One row per image (``seconds`` and ``status`` still empty; photographs carry their
+        source file in ``_photo``).
+    items : list of RenderItem
+        One per rendered image, in manifest order (photographs need no rendering).
+    landmarks : DataFrame
+        Long table: character, shape, stylisation, expression, landmark, x, y, z.
+    """
+    from stimulus_engine.stylise import stylise
+
+    cache = out / ".cache"
+    chars = {c.name: load_character(c, cache, source) for c in grid.characters}
+    albedos = {name: character_albedo(ch, source, cache) for name, ch in chars.items()}
+    _check_shared_uv(grid, chars, source)
+    images = plan_images(grid)
+    looks = {(src, m.name): _prepare_material(m, chars[src], albedos[src], cache, source)
+             for src, m in material_sources(images)}
+    r = grid.render
+    rows, items, lm_rows = [], [], []
+    rig_files: dict[str, Path] = {}
+    shapes: dict[tuple, tuple[np.ndarray, tuple]] = {}
+    geometry: dict[tuple, tuple[Path, str]] = {}
+    for im in images:
+        ch = chars[im.character]
+        if im.character not in rig_files:
+            rig_files[im.character] = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash)}.npz"
+            save_rig(rig_files[im.character], ch.rig)
+        if (im.character, im.shape) not in shapes:
+            shape_v = stylise(ch.rig, im.shape)
+            shapes[im.character, im.shape] = (shape_v, _camera_for(ch, shape_v, grid))
+        shape_v, cam = shapes[im.character, im.shape]
+        gkey = (im.character, im.shape, im.expression)
+        if gkey not in geometry:
+            geometry[gkey] = _geometry(ch, im, shape_v, grid, cache, source)
+            lm_rows += _landmark_rows(ch, im, np.load(geometry[gkey][0]))
+        gp, gh = geometry[gkey]
+        look = looks[im.albedo_from, im.material.name]
+        extra = () if look.maps_hash == "none" else (look.maps_hash,)  # hashes without maps as before
+        ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(), *extra)
+        items.append(RenderItem(im.file, str(out), str(rig_files[im.character]), str(gp), look.albedo_png,
+                                im.lighting, im.shading, cam, r.width, r.height, r.shadows, tuple(r.background),
+                                look.normal_png, look.specular_png))
+        rows.append({"file": im.file, "character": im.character, "shape": im.shape, "shape_label": im.shape_label,
+                     "stylisation": im.stylisation, "material": im.material.name,
+                     "material_style": im.material.style, "material_from": im.albedo_from,
+                     "expression": im.expression, "emotion": im.emotion, "lighting": im.lighting,
+                     "shading": im.shading, "geometry_hash": gh, "albedo_hash": look.albedo_hash,
+                     "maps_hash": look.maps_hash, "input_hash": ih, "camera": _camera_text(cam),
+                     "width": r.width, "height": r.height})
+    for p in plan_photos(grid):
+        rows.append({"file": p.file, "character": p.character, "shape": "photograph", "shape_label": "photograph",
+                     "stylisation": len(grid.shapes), "material": "photograph", "material_style": "photograph",
+                     "material_from": p.character, "expression": p.expression, "emotion": p.emotion,
+                     "lighting": "photograph", "shading": "photograph", "geometry_hash": "", "albedo_hash": "",
+                     "maps_hash": "", "input_hash": sha(GRID_VERSION, "photo", file_sha(p.source), r.width, r.height),
+                     "camera": f"photo:{p.source.name}", "width": r.width, "height": r.height,
+                     "_photo": str(p.source)})
+    return pd.DataFrame(rows), items, pd.DataFrame(lm_rows)

@@ -1,0 +1,94 @@
+"""The grid workflow: plan and prepare -> render the images not up to date -> manifest, sheets.
+
+:func:`run_grid` is the one entry of ``appeal stimuli grid`` (and the demo's grid stage).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from appeal.atomic import atomic_write_text
+from appeal.logs import logger
+from stimulus_engine.grid.prepare import prepare_grid
+from stimulus_engine.grid.sheets import write_sheets
+from stimulus_engine.grid.worker import place_photo, render_item
+from stimulus_engine.grid_schema import GridFile
+
+__all__ = ["previous_hashes", "run_grid"]
+
+
+def previous_hashes(out: Path) -> dict[str, str]:
+    """``file`` -> ``input_hash`` of the images a previous run over ``out`` rendered (none without its manifest)."""
+    p = out / "manifest.csv"
+    if not p.exists():
+        return {}
+    try:
+        old = pd.read_csv(p, dtype=str)
+    except (OSError, ValueError, pd.errors.ParserError):
+        return {}
+    if not {"file", "input_hash", "status"} <= set(old.columns):
+        return {}
+    old = old[old["status"].isin(["rendered", "up to date"])]
+    return dict(zip(old["file"], old["input_hash"]))
+
+
+def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler: str | None = None,
+             source: str = "grid") -> tuple[pd.DataFrame, list[Path]]:
+    """Render ``grid`` into ``out`` (see :mod:`stimulus_engine.grid` for the files written).
+
+    Parameters
+    ----------
+    grid : GridFile
+    out : Path
+        Output folder (prepared by the caller, e.g. :func:`appeal.outputs.output_run`).
+    n_jobs : int, optional
+        Local worker processes (default: all cores; 1 = in this process).
+    scheduler : str, optional
+        Dask scheduler address.
+    source : str
+        The grid file's name, for error messages.
+
+    Returns
+    -------
+    manifest : DataFrame
+    sheets : list of Path
+        The contact sheets written.
+    """
+    from appeal.parallel import parallel_map
+
+    out = Path(out)
+    manifest, items, landmarks = prepare_grid(grid, out, source=source)
+    previous = previous_hashes(out)
+    status = {}
+    todo = []
+    for it, row in zip(items, manifest[manifest["shape"] != "photograph"].itertuples()):
+        if previous.get(it.file) == row.input_hash and (out / it.file).exists():
+            status[it.file] = ("up to date", float("nan"))
+        else:
+            todo.append(it)
+    logger.info("%s: %d images, %d up to date, %d to render", grid.name, len(manifest), len(status), len(todo))
+    res = parallel_map(render_item, todo, n_jobs=n_jobs, scheduler=scheduler, desc="rendering",
+                       labels=[t.file for t in todo])
+    failed = {f.index: f.error for f in res.failures}
+    for i, (it, secs) in enumerate(zip(todo, res.results)):
+        status[it.file] = (f"failed: {failed[i]}", float("nan")) if i in failed else ("rendered", float(secs))
+    for idx in manifest.index[manifest["shape"] == "photograph"]:
+        t0 = time.perf_counter()
+        f = manifest.at[idx, "file"]
+        place_photo(manifest.at[idx, "_photo"], out / f, grid.render.width, grid.render.height,
+                     grid.render.background)
+        status[f] = ("rendered", time.perf_counter() - t0)
+    manifest["seconds"] = [round(status[f][1], 4) for f in manifest["file"]]
+    manifest["status"] = [status[f][0] for f in manifest["file"]]
+    manifest = manifest.drop(columns=[c for c in manifest.columns if c.startswith("_")])
+    atomic_write_text(out / "manifest.csv", manifest.to_csv(index=False))
+    atomic_write_text(out / "landmarks.csv", landmarks.to_csv(index=False))
+    atomic_write_text(out / "grid.json", json.dumps(grid.model_dump(mode="json"), indent=2))
+    sheets = write_sheets(out, manifest, grid)
+    if res.failures:
+        logger.warning(res.summary())
+    return manifest, sheets

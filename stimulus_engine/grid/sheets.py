@@ -1,0 +1,93 @@
+"""Contact sheets of a rendered grid: its images side by side, one sheet per pair of factors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from PIL import Image
+
+from stimulus_engine.grid_schema import GridFile
+
+__all__ = ["sheet_layout", "write_sheets"]
+
+
+def sheet_layout(cells: pd.DataFrame, rows: list[str], col: str) -> tuple[list[int | None], int, dict]:
+    """Arrange the manifest rows ``cells`` (one per image) on a contact sheet.
+
+    Rows are the distinct values of the columns ``rows``, columns those of ``col``. When every
+    row × column combination has an image this is a table (row and column labels); when the grid
+    does not have them all (e.g. materials paired with shapes) the images are laid out as a list
+    with a caption each, so that no cell stands for an image the grid does not have.
+
+    Returns
+    -------
+    order : list of int or None
+        Index labels of ``cells`` in row-major order (None only pads the last row of a list).
+    ncols : int
+    labels : dict
+        ``row_labels`` and ``col_labels`` (table) or ``labels`` (list), for :func:`contact_sheet`.
+    """
+    row_keys = list(dict.fromkeys(zip(*(cells[r] for r in rows))))
+    cols = list(dict.fromkeys(cells[col]))
+    where = {(*key, c): idx for idx, key, c in zip(cells.index, zip(*(cells[r] for r in rows)), cells[col])}
+    if len(where) == len(row_keys) * len(cols):
+        order: list[int | None] = [where[(*key, c)] for key in row_keys for c in cols]
+        return order, len(cols), {"row_labels": [" ".join(map(str, k)) for k in row_keys],
+                                  "col_labels": [str(c) for c in cols]}
+    order = list(where.values())
+    captions = [" ".join(map(str, k)) for k in where]
+    ncols = min(len(order), max(len(cols), 1))
+    return order, ncols, {"labels": captions}
+
+
+def write_sheets(out: Path, manifest: pd.DataFrame, grid: GridFile) -> list[Path]:
+    """Write the grid's contact sheets (see :mod:`stimulus_engine.grid`) from its manifest; returns their paths."""
+    from stimulus_engine.render import contact_sheet, save_png
+
+    planned = manifest[manifest["shape"] != "photograph"]
+    ok = planned["status"].isin(["rendered", "up to date"])
+    if not ok.any():
+        return []
+    first = planned[ok].iloc[0]
+    paired = grid.pair_materials_with_shapes
+    paths = []
+
+    def sheet(sub: pd.DataFrame, rows: list[str], col: str, name: str, title: str) -> None:
+        order, ncols, labels = sheet_layout(sub, rows, col)
+        imgs = [None if i is None or not ok[i] else np.asarray(Image.open(out / sub.at[i, "file"]).convert("RGB"))
+                for i in order]
+        if all(im is None for im in imgs):
+            return
+        arr = contact_sheet(imgs, ncols, thumb_width=220, title=title, **labels)
+        paths.append(save_png(arr, out / name))
+
+    def where(**eq: str) -> pd.DataFrame:
+        sel = planned
+        for k, v in eq.items():
+            if not (paired and k == "material"):  # paired: each shape level has its own material
+                sel = sel[sel[k] == v]
+        return sel.copy()
+
+    shape_rows = ["character", "shape_label"]
+    sel = where(expression=first.expression, lighting=first.lighting, shading=first.shading)
+    if paired:
+        sel["shape_material"] = sel["shape_label"] + " / " + sel["material"]
+        sheet(sel, ["character"], "shape_material", "contact_sheet.png",
+              f"{grid.name}: character (rows) x shape / material pairs (columns), {first.emotion}, {first.lighting}, "
+              f"{first.shading}")
+    else:
+        sheet(sel, shape_rows, "material", "contact_sheet.png",
+              f"{grid.name}: shape (rows) x material (columns), {first.emotion}, {first.lighting}, {first.shading}")
+    sel = where(material=first.material, lighting=first.lighting, shading=first.shading)
+    sheet(sel, shape_rows, "emotion", "contact_sheet_expressions.png",
+          f"{grid.name}: shape (rows) x expression (columns), {'paired material' if paired else first.material}, "
+          f"{first.lighting}, {first.shading}")
+    if len(grid.lighting) > 1 or len(grid.shading) > 1:
+        sel = where(material=first.material, expression=first.expression)
+        sel["light_shading"] = sel["lighting"] + "/" + sel["shading"]
+        sheet(sel, shape_rows, "light_shading", "contact_sheet_lighting.png",
+              f"{grid.name}: shape (rows) x lighting/shading (columns), "
+              f"{'paired material' if paired else first.material}, {first.emotion}")
+    return paths

@@ -1,0 +1,103 @@
+"""Rendering one grid image (runs in worker processes: one OpenGL context each).
+
+A :class:`RenderItem` names files and settings only (it is pickled to the workers); the
+worker reads the prepared inputs from the cache and hands them to a render engine of
+:data:`ENGINES` by the item's ``engine`` (``pyrender`` now; a path tracer would be another
+entry taking the same item and returning the image).
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from stimulus_engine.grid.cache import load_rig
+
+__all__ = ["ENGINES", "RenderItem", "place_photo", "render_item"]
+
+
+@dataclass(frozen=True)
+class RenderItem:
+    """Everything a worker needs to render one image (paths and settings; picklable)."""
+
+    file: str
+    out_dir: str
+    rig_npz: str
+    geometry_npy: str
+    albedo_png: str
+    lighting: str
+    shading: str
+    camera: tuple
+    width: int
+    height: int
+    shadows: bool
+    background: tuple
+    normal_png: str = ""
+    specular_png: str = ""
+    engine: str = "pyrender"
+
+
+@functools.lru_cache(maxsize=16)
+def _image(path: str) -> np.ndarray:
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB"))
+
+
+@functools.lru_cache(maxsize=16)
+def _grey(path: str) -> np.ndarray:
+    return np.ascontiguousarray(_image(path)[..., 0])
+
+
+def _map_image(path: str, kind: str) -> np.ndarray | None:
+    """A prepared map from the cache (specular maps are stored as grey RGB), or None."""
+    if not path:
+        return None
+    return _image(path) if kind == "normal" else _grey(path)
+
+
+def _render_pyrender(item: RenderItem) -> np.ndarray:
+    """The image of ``item`` rasterised by pyrender (OpenGL)."""
+    from stimulus_engine.materials import rig_render_parts
+    from stimulus_engine.render import CameraSpec, render_mesh
+
+    rig = load_rig(item.rig_npz)
+    v = np.load(item.geometry_npy).astype(np.float64)
+    parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,
+                             normal_map=_map_image(item.normal_png, "normal"),
+                             specular_map=_map_image(item.specular_png, "specular"))
+    pos, target, yfov, up = item.camera
+    cam = CameraSpec(tuple(pos), tuple(target), yfov, tuple(up))
+    return render_mesh(parts, width=item.width, height=item.height, lighting=item.lighting, camera=cam,
+                       background=item.background, shadows=item.shadows)
+
+
+#: Render engines: a :class:`RenderItem` -> its (H, W, 3) uint8 image.
+ENGINES: dict[str, Callable[[RenderItem], np.ndarray]] = {"pyrender": _render_pyrender}
+
+
+def render_item(item: RenderItem) -> float:
+    """Render one grid image to ``item.out_dir/item.file``; returns the seconds it took."""
+    from stimulus_engine.render import save_png
+
+    t0 = time.perf_counter()
+    save_png(ENGINES[item.engine](item), Path(item.out_dir) / item.file)
+    return time.perf_counter() - t0
+
+
+def place_photo(src: str, dst: Path, width: int, height: int, background: tuple) -> None:
+    """Letterbox a photograph into the stimulus size on the grid's background."""
+    from stimulus_engine.render import save_png
+
+    with Image.open(src) as im:
+        im = im.convert("RGB")
+        scale = min(width / im.width, height / im.height)
+        im = im.resize((max(1, round(im.width * scale)), max(1, round(im.height * scale))), Image.LANCZOS)
+    canvas = Image.new("RGB", (width, height), tuple(int(round(b * 255)) for b in background))
+    canvas.paste(im, ((width - im.width) // 2, (height - im.height) // 2))
+    save_png(np.asarray(canvas), dst)
