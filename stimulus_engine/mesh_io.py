@@ -12,6 +12,9 @@ and ``mesh.metadata["uv_coords"]`` (K × 2), which :mod:`stimulus_engine.texture
 uses so that seams are handled exactly.
 
 Bad files raise :class:`appeal.errors.AppealInputError` with a one-line message naming the file.
+
+The OBJ text itself (parsing and writing) is :mod:`stimulus_engine.obj_format`; ICT Face
+Model regions are in :mod:`stimulus_engine.ict`.
 """
 
 from __future__ import annotations
@@ -28,14 +31,17 @@ import trimesh
 from appeal.atomic import atomic_write_bytes, atomic_write_text
 from appeal.errors import AppealInputError
 from appeal.logs import logger
+from stimulus_engine.obj_format import ObjData, obj_text, parse_mtl, parse_obj, texture_for
 
 __all__ = [
     "MESH_SUFFIXES",
+    "build_trimesh",
     "load_mesh",
     "load_parts",
     "save_mesh",
     "select_region",
     "mesh_uv_layout",
+    "read_json",
     "texture_image",
 ]
 
@@ -66,186 +72,8 @@ def _check_exists(path: Path) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# OBJ
+# Meshes from arrays (OBJ text: stimulus_engine.obj_format)
 # --------------------------------------------------------------------------------------------
-
-
-class _ObjData:
-    """Raw OBJ content: positions, corner UV indices, per-face part labels and materials."""
-
-    def __init__(self) -> None:
-        self.vertices: np.ndarray = np.zeros((0, 3))
-        self.uv_coords: np.ndarray | None = None
-        self.faces: np.ndarray = np.zeros((0, 3), dtype=np.int64)
-        self.face_uv: np.ndarray | None = None
-        self.face_group: np.ndarray = np.zeros(0, dtype=np.int64)
-        self.face_material: np.ndarray = np.zeros(0, dtype=np.int64)
-        self.groups: list[str] = []
-        self.materials: list[str] = []
-        self.mtllibs: list[str] = []
-
-
-def _read_text(path: Path) -> str:
-    try:
-        if _suffix(path) == ".obj.gz":
-            with gzip.open(path, "rb") as fh:
-                raw = fh.read()
-        else:
-            raw = path.read_bytes()
-    except (OSError, EOFError) as exc:
-        raise AppealInputError(f"{path}: cannot read mesh file ({exc})") from None
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
-
-
-def _parse_obj(path: Path) -> _ObjData:
-    text = _read_text(path)
-    v: list[str] = []
-    vt: list[str] = []
-    corners_v: list[int] = []
-    corners_t: list[int] = []
-    poly_sizes: list[int] = []
-    poly_group: list[int] = []
-    poly_mat: list[int] = []
-    groups: dict[str, int] = {}
-    materials: dict[str, int] = {}
-    mtllibs: list[str] = []
-    cur_group = -1
-    cur_mat = -1
-    any_missing_t = False
-    for lineno, line in enumerate(text.splitlines(), start=1):
-        if not line or line[0] == "#":
-            continue
-        head, _, rest = line.partition(" ")
-        if head == "v":
-            v.append(rest)
-        elif head == "vt":
-            vt.append(rest)
-        elif head == "f":
-            items = rest.split()
-            if len(items) < 3:
-                raise AppealInputError(
-                    f"{path}: line {lineno}: face needs at least 3 vertices (got '{line.strip()}')"
-                )
-            for it in items:
-                parts = it.split("/")
-                try:
-                    vi = int(parts[0])
-                    ti = int(parts[1]) if len(parts) > 1 and parts[1] else 0
-                except ValueError:
-                    raise AppealInputError(
-                        f"{path}: line {lineno}: face entries must be integer indices "
-                        f"(got '{it}')"
-                    ) from None
-                # OBJ indices are 1-based; negative ones count back from the current end.
-                vi = vi - 1 if vi > 0 else len(v) + vi
-                if ti == 0:
-                    any_missing_t = True
-                    ti = -1
-                else:
-                    ti = ti - 1 if ti > 0 else len(vt) + ti
-                corners_v.append(vi)
-                corners_t.append(ti)
-            poly_sizes.append(len(items))
-            poly_group.append(cur_group)
-            poly_mat.append(cur_mat)
-        elif head in ("g", "o"):
-            name = rest.strip() or f"group{len(groups)}"
-            cur_group = groups.setdefault(name, len(groups))
-        elif head == "usemtl":
-            name = rest.strip()
-            cur_mat = materials.setdefault(name, len(materials))
-        elif head == "mtllib":
-            mtllibs.append(rest.strip())
-    data = _ObjData()
-    if not v:
-        raise AppealInputError(f"{path}: no vertices ('v' lines) found; expected an OBJ mesh")
-    if not poly_sizes:
-        raise AppealInputError(f"{path}: no faces ('f' lines) found; expected a polygon mesh")
-    try:
-        verts = np.loadtxt(io.StringIO("\n".join(v)), dtype=np.float64, ndmin=2, usecols=(0, 1, 2))
-    except ValueError as exc:
-        raise AppealInputError(f"{path}: vertex lines must hold 3 numbers ({exc})") from None
-    if not np.all(np.isfinite(verts)):
-        raise AppealInputError(f"{path}: vertex coordinates must be finite numbers (found NaN/inf)")
-    cv = np.asarray(corners_v, dtype=np.int64)
-    ct = np.asarray(corners_t, dtype=np.int64)
-    bad = (cv < 0) | (cv >= len(verts))
-    if bad.any():
-        raise AppealInputError(
-            f"{path}: face refers to vertex {int(cv[bad][0]) + 1}, but the file has "
-            f"{len(verts)} vertices"
-        )
-    sizes = np.asarray(poly_sizes, dtype=np.int64)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    # Fan triangulation: polygon (p0 .. pk-1) -> (p0, pj, pj+1), j = 1 .. k-2.
-    n_tri = sizes - 2
-    poly_of_tri = np.repeat(np.arange(len(sizes)), n_tri)
-    j = np.arange(n_tri.sum()) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri) + 1
-    base = starts[poly_of_tri]
-    corner_idx = np.stack([base, base + j, base + j + 1], axis=1)
-    data.vertices = verts
-    data.faces = cv[corner_idx]
-    if vt and not any_missing_t:
-        uvs = np.loadtxt(io.StringIO("\n".join(vt)), dtype=np.float64, ndmin=2, usecols=(0, 1))
-        if ((ct < 0) | (ct >= len(uvs))).any():
-            raise AppealInputError(
-                f"{path}: face refers to a texture coordinate beyond the {len(uvs)} 'vt' lines"
-            )
-        data.uv_coords = uvs
-        data.face_uv = ct[corner_idx]
-    elif vt:
-        logger.warning("%s: some faces have no texture coordinates; UVs ignored", path)
-    data.face_group = np.asarray(poly_group, dtype=np.int64)[poly_of_tri]
-    data.face_material = np.asarray(poly_mat, dtype=np.int64)[poly_of_tri]
-    data.groups = list(groups)
-    data.materials = list(materials)
-    data.mtllibs = mtllibs
-    return data
-
-
-def _parse_mtl(obj_path: Path, mtllibs: list[str]) -> dict[str, dict[str, str]]:
-    """Material name -> {key: value} from the OBJ's mtllib files (missing libs are logged)."""
-    out: dict[str, dict[str, str]] = {}
-    for lib in mtllibs:
-        mpath = (obj_path.parent / lib).resolve()
-        if not mpath.exists():
-            logger.warning("%s: material library '%s' not found; materials ignored", obj_path, lib)
-            continue
-        current: dict[str, str] | None = None
-        for line in mpath.read_text(errors="replace").splitlines():
-            line = line.strip()
-            if not line or line.startswith("#"):
-                continue
-            key, _, val = line.partition(" ")
-            if key == "newmtl":
-                current = out.setdefault(val.strip(), {"_mtl": str(mpath)})
-            elif current is not None:
-                current[key] = val.strip()
-    return out
-
-
-def _texture_for(obj_path: Path, mats: dict[str, dict[str, str]], names: list[str]):
-    """First ``map_Kd`` image among the used materials: (image or None, path or None, missing)."""
-    from PIL import Image
-
-    for name in names or list(mats):
-        m = mats.get(name)
-        if not m or "map_Kd" not in m:
-            continue
-        rel = m["map_Kd"].split()[-1]
-        tpath = (Path(m["_mtl"]).parent / rel).resolve()
-        if not tpath.exists():
-            return None, tpath, True
-        try:
-            img = Image.open(tpath)
-            img.load()
-        except OSError as exc:
-            raise AppealInputError(f"{tpath}: map_Kd: cannot read texture image ({exc})") from None
-        return img, tpath, False
-    return None, None, False
 
 
 def _per_vertex_uv(n_vertices: int, faces: np.ndarray, face_uv: np.ndarray, uv: np.ndarray):
@@ -257,7 +85,7 @@ def _per_vertex_uv(n_vertices: int, faces: np.ndarray, face_uv: np.ndarray, uv: 
     return out
 
 
-def _build_trimesh(
+def build_trimesh(
     vertices: np.ndarray,
     faces: np.ndarray,
     uv_coords: np.ndarray | None,
@@ -265,6 +93,12 @@ def _build_trimesh(
     image,
     metadata: dict,
 ) -> trimesh.Trimesh:
+    """A :class:`trimesh.Trimesh` in the given vertex order, with the exact UV layout kept.
+
+    With ``uv_coords`` (K, 2) and ``face_uv`` (F, 3), ``visual.uv`` gets one UV per vertex (the
+    first corner's) and ``metadata["uv_coords"/"face_uv"]`` the per-corner layout; ``image``
+    (PIL, optional) becomes the texture; ``metadata`` is copied into the mesh's.
+    """
     visual = None
     if uv_coords is not None and face_uv is not None:
         uv = _per_vertex_uv(len(vertices), faces, face_uv, uv_coords)
@@ -278,19 +112,19 @@ def _build_trimesh(
     return mesh
 
 
-def _load_obj(path: Path) -> tuple[trimesh.Trimesh, _ObjData]:
-    data = _parse_obj(path)
+def _load_obj(path: Path) -> tuple[trimesh.Trimesh, ObjData]:
+    data = parse_obj(path)
     image, tex_path, missing = None, None, False
     if data.mtllibs:
-        mats = _parse_mtl(path, data.mtllibs)
-        image, tex_path, missing = _texture_for(path, mats, data.materials)
+        mats = parse_mtl(path, data.mtllibs)
+        image, tex_path, missing = texture_for(path, mats, data.materials)
     meta: dict = {"source_path": str(path)}
     if tex_path is not None:
         meta["texture_path"] = str(tex_path)
         if missing:
             meta["texture_missing"] = True
             logger.warning("%s: map_Kd: texture file %s not found", path, tex_path)
-    mesh = _build_trimesh(data.vertices, data.faces, data.uv_coords, data.face_uv, image, meta)
+    mesh = build_trimesh(data.vertices, data.faces, data.uv_coords, data.face_uv, image, meta)
     return mesh, data
 
 
@@ -318,7 +152,7 @@ def _from_trimesh(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trimesh:
         uv = np.asarray(uv, dtype=np.float64)
     meta = {"source_path": str(path)}
     if uv is not None and len(uv) == len(verts):
-        return _build_trimesh(verts, faces, uv, faces.copy(), image, meta)
+        return build_trimesh(verts, faces, uv, faces.copy(), image, meta)
     out = trimesh.Trimesh(vertices=verts, faces=faces, process=False)
     if getattr(mesh.visual, "kind", None) == "vertex":
         out.visual.vertex_colors = mesh.visual.vertex_colors
@@ -527,7 +361,7 @@ def select_region(
         image = texture_image(mesh)
     meta = {k: v for k, v in mesh.metadata.items() if k not in ("uv_coords", "face_uv")}
     meta["vertex_ids"] = ids
-    sub = _build_trimesh(mesh.vertices[ids], new_faces, uv_coords, face_uv, image, meta)
+    sub = build_trimesh(mesh.vertices[ids], new_faces, uv_coords, face_uv, image, meta)
     return sub, ids
 
 
@@ -545,25 +379,6 @@ def read_json(path: str | os.PathLike, what: str):
 # --------------------------------------------------------------------------------------------
 # Writing
 # --------------------------------------------------------------------------------------------
-
-
-def _obj_text(mesh: trimesh.Trimesh, mtl_name: str | None) -> str:
-    buf = io.StringIO()
-    buf.write("# written by Appeal Lab (stimulus_engine.mesh_io)\n")
-    if mtl_name:
-        buf.write(f"mtllib {mtl_name}\nusemtl material_0\n")
-    np.savetxt(buf, np.asarray(mesh.vertices), fmt="v %.8g %.8g %.8g")
-    layout = mesh_uv_layout(mesh)
-    faces1 = np.asarray(mesh.faces, dtype=np.int64) + 1
-    if layout is not None:
-        uv, fuv = layout
-        np.savetxt(buf, uv, fmt="vt %.8g %.8g")
-        fuv1 = np.asarray(fuv, dtype=np.int64) + 1
-        inter = np.stack([faces1, fuv1], axis=2).reshape(len(faces1), 6)
-        np.savetxt(buf, inter, fmt="f %d/%d %d/%d %d/%d")
-    else:
-        np.savetxt(buf, faces1, fmt="f %d %d %d")
-    return buf.getvalue()
 
 
 def save_mesh(mesh: trimesh.Trimesh, path: str | os.PathLike) -> Path:
@@ -600,7 +415,7 @@ def save_mesh(mesh: trimesh.Trimesh, path: str | os.PathLike) -> Path:
                 path.parent / mtl_name,
                 f"newmtl material_0\nKd 1 1 1\nKa 0 0 0\nKs 0 0 0\nmap_Kd {stem}.png\n",
             )
-        text = _obj_text(mesh, mtl_name)
+        text = obj_text(mesh.vertices, mesh.faces, mesh_uv_layout(mesh), mtl_name)
         if suffix == ".obj.gz":
             atomic_write_bytes(path, gzip.compress(text.encode("utf-8"), mtime=0))
         else:

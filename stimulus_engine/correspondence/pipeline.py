@@ -281,9 +281,9 @@ def correspond(
 
 def deformed_mesh(source: trimesh.Trimesh, vertices: np.ndarray) -> trimesh.Trimesh:
     """A copy of ``source`` with new vertex positions; connectivity, UV layout and texture kept."""
-    from stimulus_engine.mesh_io import _build_trimesh
+    from stimulus_engine.mesh_io import build_trimesh
 
     layout = mesh_uv_layout(source)
     uv, fuv = layout if layout is not None else (None, None)
     meta = {k: v for k, v in source.metadata.items() if k not in ("uv_coords", "face_uv")}
-    return _build_trimesh(np.asarray(vertices, dtype=np.float64), np.asarray(source.faces), uv, fuv, texture_image(source), meta)
+    return build_trimesh(np.asarray(vertices, dtype=np.float64), np.asarray(source.faces), uv, fuv, texture_image(source), meta)
