@@ -68,3 +68,13 @@ def test_photographs_are_planned_after_the_rendered_images(tmp_path):
     assert [(p.file, p.expression, p.source.name) for p in photos] == [
         ("images/a_photo_neutral.png", "neutral", "neutral.png"), ("images/a_photo_happy.png", "happiness", "happy.png")]
     assert len(plan_images(grid)) + len(photos) == grid.n_images()
+
+
+def test_every_character_has_one_kind_with_a_rig_builder():
+    from stimulus_engine.grid.characters import CHARACTER_KINDS, character_kind
+
+    grid = validate_data({**SPEC, "characters": [{"name": "p", "procedural": {"seed": 1}}, {"name": "i", "ict": "k"}],
+                          "materials": ["original"]},
+                         GridFile, source="g.yaml", check_paths=False)
+    assert [character_kind(c) for c in grid.characters] == ["procedural", "ict"]
+    assert set(CHARACTER_KINDS) == {"ict", "procedural"}

@@ -42,7 +42,8 @@ def _procedural_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
     return rig, sha("procedural", p.model_dump())
 
 
-#: Character kinds: the base rig of a spec and a hash of its inputs, by :func:`character_kind`.
+#: Character kinds, each named like the :class:`CharacterSpec` field that holds its settings:
+#: the base rig of a spec and a hash of its inputs.
 CHARACTER_KINDS: dict[str, Callable[[CharacterSpec], tuple[FaceRig, str]]] = {
     "ict": _ict_rig,
     "procedural": _procedural_rig,
@@ -50,8 +51,11 @@ CHARACTER_KINDS: dict[str, Callable[[CharacterSpec], tuple[FaceRig, str]]] = {
 
 
 def character_kind(c: CharacterSpec) -> str:
-    """The kind of a character's base rig (a key of :data:`CHARACTER_KINDS`)."""
-    return "procedural" if c.procedural is not None else "ict"
+    """The kind of a character's base rig: the key of :data:`CHARACTER_KINDS` whose spec field is set.
+
+    The grid file's schema lets exactly one of those fields be given.
+    """
+    return next(k for k in CHARACTER_KINDS if getattr(c, k) is not None)
 
 
 def base_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
