@@ -21,7 +21,7 @@ import numpy as np
 
 def _ict_parts(ict: Path):
     from stimulus_engine.ict import load_ict_rig
-    from stimulus_engine.materials import rig_render_parts
+    from stimulus_engine.render.rig_parts import rig_render_parts
 
     rig = load_ict_rig(ict, shapes=[])
     return rig, rig_render_parts(rig, rig.vertices, None)

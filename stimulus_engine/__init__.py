@@ -47,7 +47,6 @@ from stimulus_engine.materials import (  # noqa: E402
     MATERIAL_LEVELS,
     rig_albedo,
     rig_detail_maps,
-    rig_render_parts,
     stylise_albedo,
     stylise_map,
 )

@@ -16,7 +16,6 @@ from stimulus_engine.grid import run_grid
 from stimulus_engine.grid_schema import GridFile
 from stimulus_engine.materials import (
     FLAT_NORMAL,
-    _new_material,
     check_map,
     rig_detail_maps,
     stylise_albedo,
@@ -25,6 +24,7 @@ from stimulus_engine.materials import (
 from stimulus_engine.procedural_head import procedural_head
 from stimulus_engine.render import LightSpec, RenderPart, render_mesh
 from stimulus_engine.render._pyrender import phong_fragment_shader, pyrender
+from stimulus_engine.render.rig_parts import _new_material
 
 
 def _plane() -> trimesh.Trimesh:

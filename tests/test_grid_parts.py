@@ -12,9 +12,10 @@ from stimulus_engine.expressions import (
     resolve_expression,
 )
 from stimulus_engine.ict import load_ict_rig
-from stimulus_engine.materials import rig_render_parts, stylise_albedo
+from stimulus_engine.materials import stylise_albedo
 from stimulus_engine.neoteny import neoteny_measures
 from stimulus_engine.procedural_head import procedural_head
+from stimulus_engine.render.rig_parts import rig_render_parts
 from stimulus_engine.stylise import stylise
 
 

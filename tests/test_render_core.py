@@ -129,7 +129,7 @@ def test_a_convex_object_does_not_shadow_itself(light):
 def plain_head():
     """A procedural head without texture (smooth shading: any abrupt step on its skin is an
     artefact) and its framing."""
-    from stimulus_engine.materials import rig_render_parts
+    from stimulus_engine.render.rig_parts import rig_render_parts
     from stimulus_engine.procedural_head import procedural_head
 
     rig = procedural_head(0, texture_size=64, resolution=48)
@@ -222,7 +222,7 @@ def test_contact_sheet_title_is_not_cut_off():
 def test_textured_parts_render_at_two_sizes_in_one_process():
     """Materials (and their textures) are shared between images; switching image size must not
     try to load a texture into a second OpenGL context (pyrender refuses that)."""
-    from stimulus_engine.materials import rig_render_parts
+    from stimulus_engine.render.rig_parts import rig_render_parts
     from stimulus_engine.procedural_head import procedural_head
 
     r = procedural_head(0, texture_size=64, resolution=24)

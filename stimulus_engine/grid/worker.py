@@ -63,8 +63,8 @@ def _map_image(path: str, kind: str) -> np.ndarray | None:
 
 def _render_pyrender(item: RenderItem) -> np.ndarray:
     """The image of ``item`` rasterised by pyrender (OpenGL)."""
-    from stimulus_engine.materials import rig_render_parts
     from stimulus_engine.render import CameraSpec, render_mesh
+    from stimulus_engine.render.rig_parts import rig_render_parts
 
     rig = load_rig(item.rig_npz)
     v = np.load(item.geometry_npy).astype(np.float64)
