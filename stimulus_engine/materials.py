@@ -221,12 +221,9 @@ def stylise_material(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray
 
     Parameters
     ----------
-    albedo : (H, W, 3) uint8 array
-    style : str
-        One of :data:`MATERIAL_STYLES`.
-    masks : dict of str to (H, W) float arrays, optional
-        Regions stylised separately (see :func:`stylise_albedo`); the maps use them only when
-        every mask has the albedo's size.
+    albedo, style, masks
+        As for :func:`stylise_albedo`; the maps use ``masks`` only when every mask has the
+        albedo's size.
     maps : dict, optional
         ``normal`` (H, W, 3) and/or ``specular`` (H, W) uint8 maps in the albedo's layout.
 
