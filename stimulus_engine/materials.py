@@ -11,19 +11,16 @@ Albedo stylisation (thesis ch. 5 & §6.3, material levels 1a …):
 ``flat``  a "cartoon" albedo: every region becomes its mean colour.
 
 :data:`MATERIAL_LEVELS` orders them as a five-step material-stylisation axis (0 = original …
-4 = flat). Shaders: ``pbr`` (metallic-roughness, pyrender's shader) and ``phong``
-(specular-glossiness with an energy-normalised Blinn-Phong BRDF: a sharper, brighter highlight;
-pyrender 0.1.45 has no shader for it, see :func:`stimulus_engine.render._pyrender.phong_fragment_shader`).
+4 = flat). Shading models (:data:`SHADINGS`): ``pbr`` (metallic-roughness) and ``phong``
+(specular-glossiness, Blinn-Phong); how an engine draws them: :mod:`stimulus_engine.render.rig_parts`.
 
 Optional maps on the skin, in the albedo's UV layout (:data:`MAP_KINDS`):
 
 ``normal``  tangent-space normal map, RGB (OpenGL convention: R = +u, G = +v, B out of the
     surface; flat = (128, 128, 255)); pyrender builds the tangent frame per pixel from the UV
     derivatives, so no tangents are needed on the mesh.
-``specular``  greyscale specularity ``s`` (white = shiny, mid-grey = the look without a map).
-    With ``pbr`` it sets the roughness ``r = r_skin · (1.4 − 0.8 s)`` (0.87 … 0.37 for skin;
-    a metallic-roughness texture); with ``phong`` the specular level ``0.16 s`` and the
-    glossiness ``g_skin + 0.3 (s − 0.5)``.
+``specular``  greyscale specularity ``s`` (white = shiny, mid-grey = the look without a map);
+    it sets the roughness (``pbr``) or the specular level and glossiness (``phong``).
 
 :func:`stylise_map` stylises the maps with the albedo's operator, so a blurred or flat material
 is blurred or flat in every channel (:func:`stylise_material`: albedo and maps in one call);

@@ -9,8 +9,9 @@ way.
 Shaders: ``pbr`` (metallic-roughness, pyrender's shader) and ``phong`` (specular-glossiness
 with an energy-normalised Blinn-Phong BRDF: a sharper, brighter highlight; pyrender 0.1.45 has
 no shader for it, see :func:`stimulus_engine.render._pyrender.phong_fragment_shader`). A
-specular map ``s`` sets, with ``pbr``, the roughness ``r = r_skin · (1.4 − 0.8 s)``; with
-``phong`` the specular level ``0.16 s`` and the glossiness ``g_skin + 0.3 (s − 0.5)``.
+specular map ``s`` sets, with ``pbr``, the roughness ``r = r_skin · (1.4 − 0.8 s)`` (0.87 … 0.37
+for skin; a metallic-roughness texture); with ``phong`` the specular level ``0.16 s`` and the
+glossiness ``g_skin + 0.3 (s − 0.5)``.
 """
 
 from __future__ import annotations
