@@ -169,8 +169,7 @@ def mask_crop(rig: FaceRig, region: np.ndarray, mesh: trimesh.Trimesh, to_mesh) 
     from scipy.sparse.csgraph import connected_components
 
     from stimulus_engine.correspondence.closest import SurfaceIndex
-    from stimulus_engine.correspondence.landmarks import boundary_loops
-    from stimulus_engine.correspondence.untangle import vertex_adjacency
+    from stimulus_engine.mesh_ops import boundary_loops, vertex_adjacency
 
     sub, vid = rig_skin_mesh(rig, np.asarray(region, np.int64))
     f = np.asarray(sub.faces, np.int64)
@@ -209,7 +208,8 @@ def _outline_pairs(source: trimesh.Trimesh, mesh: trimesh.Trimesh, to_mesh, up: 
     at the landmarks' targets that lie on it (``anchor_targets``, mesh frame) plus the loop's
     top end (along ``up``, unless an anchor is near it), each paired with the source loop
     vertex whose ``to_mesh`` image is nearest."""
-    from stimulus_engine.correspondence.landmarks import boundary_correspondences, boundary_loops
+    from stimulus_engine.correspondence import boundary_correspondences
+    from stimulus_engine.mesh_ops import boundary_loops
 
     s_loop = boundary_loops(np.asarray(source.faces))[0]
     t_loop = boundary_loops(np.asarray(mesh.faces))[0]
@@ -285,8 +285,15 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
     AppealInputError
         Unknown landmark names, too few pairs, points off the mesh, texture without UVs.
     """
-    from stimulus_engine.correspondence import CorrespondParams, Correspondences, SurfacePoints, correspond, umeyama
-    from stimulus_engine.correspondence.landmarks import boundary_loops, parse_points
+    from stimulus_engine.correspondence import (
+        CorrespondParams,
+        Correspondences,
+        SurfacePoints,
+        correspond,
+        parse_points,
+        umeyama,
+    )
+    from stimulus_engine.mesh_ops import boundary_loops
     from stimulus_engine.materials import FLAT_NORMAL, rig_albedo
     from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
     from stimulus_engine.texture_transfer import transfer_texture

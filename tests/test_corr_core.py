@@ -13,14 +13,13 @@ from stimulus_engine.correspondence import (
     Correspondences,
     SurfacePoints,
     boundary_correspondences,
-    boundary_loops,
     parse_pairs,
     parse_points,
     reorder_landmarks,
     umeyama,
 )
 from stimulus_engine.correspondence.closest import SurfaceIndex, closest_point_on_triangles
-from stimulus_engine.correspondence.landmarks import landmark_orderings
+from stimulus_engine.correspondence.landmark_sets import landmark_orderings
 from stimulus_engine.correspondence.laplacian import (
     bilaplacian,
     cotangent_laplacian,
@@ -28,6 +27,7 @@ from stimulus_engine.correspondence.laplacian import (
     voronoi_areas,
 )
 from stimulus_engine.correspondence.solve import ReusableSolver, available_backends
+from stimulus_engine.mesh_ops import boundary_loops
 
 
 def test_cotangent_laplacian_right_triangle():
@@ -111,15 +111,6 @@ def test_projection_kernel_matches_trimesh_on_random_triangles():
     np.testing.assert_allclose(got[ok], want[ok], atol=1e-9)
     np.testing.assert_allclose(np.sqrt(d2), np.linalg.norm(got - p, axis=1), atol=1e-7)
     assert ((v >= -1e-12) & (w >= -1e-12) & (v + w <= 1 + 1e-12)).all()
-
-
-def test_edge_face_counts():
-    from stimulus_engine.correspondence.closest import edge_face_counts
-
-    f = np.array([[0, 1, 2], [2, 1, 3], [1, 2, 4]])  # edge 1-2 shared by three triangles
-    c = edge_face_counts(f)
-    assert c[0, 0] == c[1, 2] == c[2, 2] == 3  # the edge 1-2, opposite corners 0, 2, 2
-    assert (np.sort(c.ravel()) == [1, 1, 1, 1, 1, 1, 3, 3, 3]).all()
 
 
 def test_surface_index_matches_trimesh():

@@ -21,7 +21,7 @@ from stimulus_engine import (
 )
 from stimulus_engine.correspondence import CorrespondParams, Correspondences, SurfacePoints, joint_fairing
 from stimulus_engine.correspondence.datasets import ict_james_pair
-from stimulus_engine.correspondence.landmarks import boundary_loops
+from stimulus_engine.mesh_ops import boundary_loops
 from stimulus_engine.correspondence.synthetic import synthetic_pair
 from stimulus_engine.mesh_io import load_mesh, save_mesh
 

@@ -9,11 +9,9 @@ import pytest
 from appeal.errors import AppealInputError
 from meshes import grid
 from stimulus_engine.correspondence.datasets import _rim_anchors
-from stimulus_engine.correspondence.landmarks import (
-    boundary_loops,
-    rim_to_curve_correspondences,
-    surface_polyline,
-)
+from stimulus_engine.correspondence.boundary import rim_to_curve_correspondences
+from stimulus_engine.correspondence.curves import surface_polyline
+from stimulus_engine.mesh_ops import boundary_loops
 
 
 def holed_plane(n: int = 16, a: float = 1.0, b: float = 1.0, rings: int = 3, width: float = 0.5):

@@ -10,7 +10,7 @@ import pytest
 
 from stimulus_engine.correspondence import umeyama
 from stimulus_engine.correspondence.closest import SurfaceIndex
-from stimulus_engine.correspondence.landmarks import boundary_loops
+from stimulus_engine.mesh_ops import boundary_loops
 from stimulus_engine.mesh_character import correspond_rig, front_region, rig_skin_mesh
 from stimulus_engine.mesh_io import load_mesh
 from stimulus_engine.procedural_head import procedural_head

@@ -20,7 +20,7 @@ def _refuse_existing(path: Path, force: bool) -> None:
 
 
 def _landmark_pairs(spec: str, src, tgt):
-    from stimulus_engine.correspondence.landmarks import load_pairs_file, parse_pairs
+    from stimulus_engine.correspondence import load_pairs_file, parse_pairs
 
     p = Path(spec)
     if p.suffix.lower() == ".json" or p.exists():

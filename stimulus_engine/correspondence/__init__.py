@@ -6,11 +6,14 @@ Public API
 correspond, CorrespondParams, CorrespondenceResult, deformed_mesh
     The whole geometry matching (§3.2) and its result.
 SurfacePoints, Correspondences, parse_points, parse_pairs, load_pairs_file
-    Reference points (vertex, barycentric, or snapped 3D point) and their pairs (§3.2.1).
-boundary_loops, boundary_correspondences
-    Boundary-loop correspondences by relative arc length (Fig. 3.5).
+    Reference points (vertex, barycentric, or snapped 3D point) and their pairs (§3.2.1;
+    module ``points``).
+boundary_correspondences
+    Boundary-loop correspondences by relative arc length (Fig. 3.5; module ``boundary``, with
+    rims mapped onto curves drawn on the target, module ``curves``). The loops themselves:
+    :func:`stimulus_engine.mesh_ops.boundary_loops`.
 reorder_landmarks, read_ljson, landmark_orderings, LANDMARK_SUBSET_16
-    68-point landmark orderings (iBUG/Multi-PIE vs menpo LJSON).
+    68-point landmark orderings (iBUG/Multi-PIE vs menpo LJSON; module ``landmark_sets``).
 umeyama, Similarity
     Closed-form similarity alignment.
 joint_fairing, nonrigid_register, Pruning
@@ -21,16 +24,10 @@ fit_metrics, flipped_triangles
 
 from stimulus_engine.correspondence.alignment import Similarity, umeyama
 from stimulus_engine.correspondence.fairing import FairingResult, joint_fairing
-from stimulus_engine.correspondence.landmarks import (
+from stimulus_engine.correspondence.boundary import boundary_correspondences
+from stimulus_engine.correspondence.landmark_sets import (
     LANDMARK_SUBSET_16,
-    Correspondences,
-    SurfacePoints,
-    boundary_correspondences,
-    boundary_loops,
     landmark_orderings,
-    load_pairs_file,
-    parse_pairs,
-    parse_points,
     read_ljson,
     reorder_landmarks,
 )
@@ -40,6 +37,13 @@ from stimulus_engine.correspondence.pipeline import (
     CorrespondParams,
     correspond,
     deformed_mesh,
+)
+from stimulus_engine.correspondence.points import (
+    Correspondences,
+    SurfacePoints,
+    load_pairs_file,
+    parse_pairs,
+    parse_points,
 )
 from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
 
@@ -53,7 +57,6 @@ __all__ = [
     "Similarity",
     "SurfacePoints",
     "boundary_correspondences",
-    "boundary_loops",
     "correspond",
     "deformed_mesh",
     "fit_metrics",

@@ -14,42 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from stimulus_engine.mesh_ops import boundary_edge_mask, boundary_vertex_mask, face_normals, vertex_faces
+
 __all__ = [
     "SurfaceIndex",
     "ClosestPoints",
     "closest_point_on_triangles",
     "project_to_triangles",
-    "boundary_edge_mask",
-    "edge_face_counts",
-    "edge_keys",
 ]
-
-
-def edge_keys(faces: np.ndarray) -> np.ndarray:
-    """(F, 3) int64 key of the undirected edge opposite each corner (equal keys = same edge)."""
-    faces = np.asarray(faces, dtype=np.int64)
-    a = faces[:, [1, 2, 0]]
-    b = faces[:, [2, 0, 1]]
-    base = int(faces.max()) + 1 if faces.size else 1
-    return np.minimum(a, b) * base + np.maximum(a, b)
-
-
-def edge_face_counts(faces: np.ndarray) -> np.ndarray:
-    """(F, 3) number of triangles sharing the edge opposite each corner (1 = boundary edge,
-    2 = interior, more = non-manifold)."""
-    key = edge_keys(faces).ravel()
-    order = np.argsort(key, kind="stable")
-    k = key[order]
-    start = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
-    counts = np.diff(np.concatenate([start, [len(k)]]))
-    out = np.empty(len(k), dtype=np.int64)
-    out[order] = np.repeat(counts, counts)
-    return out.reshape(-1, 3)
-
-
-def boundary_edge_mask(faces: np.ndarray) -> np.ndarray:
-    """(F, 3) bool: the edge opposite corner ``k`` of face ``f`` has no neighbouring face."""
-    return edge_face_counts(faces) == 1
 
 
 def project_to_triangles(
@@ -143,25 +115,12 @@ class SurfaceIndex:
         self.faces = np.asarray(faces, dtype=np.int64)
         self.k = k
         self.k_vertices = k_vertices
-        nf = len(self.faces)
         # vertex -> incident faces, padded with -1 (candidates: faces around the 2 nearest
         # vertices and the k nearest centroids)
-        fv = self.faces.ravel()
-        order = np.argsort(fv, kind="stable")
-        counts = np.bincount(fv, minlength=len(self.vertices))
-        width = int(counts.max()) if counts.size else 1
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        slot = np.arange(len(fv)) - np.repeat(starts, counts)
-        self._vf = np.full((len(self.vertices), max(width, 1)), -1, dtype=np.int64)
-        self._vf[fv[order], slot] = order // 3
+        self._vf = vertex_faces(self.faces, len(self.vertices))
         self.boundary = boundary_edge_mask(self.faces)
-        bverts = np.zeros(len(self.vertices), dtype=bool)
-        for k_ in range(3):
-            e = self.faces[self.boundary[:, k_]]
-            bverts[e[:, (k_ + 1) % 3]] = True
-            bverts[e[:, (k_ + 2) % 3]] = True
-        self.boundary_vertices = bverts
-        self._n_faces = nf
+        self.boundary_vertices = boundary_vertex_mask(self.faces, len(self.vertices))
+        self._n_faces = len(self.faces)
         self._build()
 
     def _build(self) -> None:
@@ -175,8 +134,7 @@ class SurfaceIndex:
         self._dots = np.stack(
             [np.einsum("ij,ij->i", self._ab, self._ab), np.einsum("ij,ij->i", self._ab, self._ac),
              np.einsum("ij,ij->i", self._ac, self._ac)], axis=1)
-        n = np.cross(self._ab, self._ac)
-        self.face_normals = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        self.face_normals = face_normals(self.vertices, self.faces)[0]
 
     def update(self, vertices: np.ndarray) -> None:
         """New vertex positions, same triangulation."""

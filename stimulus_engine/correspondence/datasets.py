@@ -14,19 +14,12 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from stimulus_engine.correspondence.landmarks import (
-    LANDMARK_SUBSET_16,
-    Correspondences,
-    SurfacePoints,
-    boundary_loops,
-    nearest_boundary_vertices,
-    parse_points,
-    read_ljson,
-    reorder_landmarks,
-    rim_to_curve_correspondences,
-)
+from stimulus_engine.correspondence.boundary import nearest_boundary_vertices, rim_to_curve_correspondences
+from stimulus_engine.correspondence.landmark_sets import LANDMARK_SUBSET_16, read_ljson, reorder_landmarks
+from stimulus_engine.correspondence.points import Correspondences, SurfacePoints, parse_points
 from stimulus_engine.ict import ict_regions
 from stimulus_engine.mesh_io import load_mesh, select_region
+from stimulus_engine.mesh_ops import boundary_loops
 
 __all__ = ["ict_james_pair", "RIM_CURVES"]
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from stimulus_engine.correspondence.landmarks import Correspondences
+from stimulus_engine.correspondence.points import Correspondences
 from stimulus_engine.correspondence.laplacian import bilaplacian, fairing_operator, voronoi_areas
 from stimulus_engine.correspondence.solve import ReusableSolver
 

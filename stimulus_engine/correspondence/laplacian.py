@@ -24,12 +24,13 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from stimulus_engine.mesh_ops import boundary_neighbours, face_normals
+
 __all__ = [
     "cotangent_laplacian",
     "voronoi_areas",
     "bilaplacian",
     "face_cotangents",
-    "boundary_vertices",
     "fairing_operator",
 ]
 
@@ -73,7 +74,7 @@ def voronoi_areas(vertices: np.ndarray, faces: np.ndarray, floor: float = 1e-12)
     v = vertices[faces]
     e = [v[:, (k + 2) % 3] - v[:, (k + 1) % 3] for k in range(3)]  # edge opposite corner k
     l2 = np.stack([np.einsum("ij,ij->i", x, x) for x in e], axis=1)
-    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    _, area = face_normals(vertices, faces)
     cot = face_cotangents(vertices, faces)
     # Voronoi part for corner k: 1/8 (|e_{k+1}|² cot_{k+1} + |e_{k+2}|² cot_{k+2})
     vor = np.stack(
@@ -98,36 +99,13 @@ def bilaplacian(L: sp.spmatrix, areas: np.ndarray) -> sp.csr_matrix:
     return (L.T @ sp.diags(1.0 / areas) @ L).tocsr()
 
 
-def boundary_vertices(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Boundary vertices with their previous and next boundary neighbours (half-edge order).
-
-    Returns ``(b, prev, next)`` int arrays. Vertices on several boundary edges pairs (non-manifold
-    boundary "bow-ties") keep the first pair found.
-    """
-    faces = np.asarray(faces, dtype=np.int64)
-    he = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    base = int(n_vertices)
-    key = he[:, 0] * base + he[:, 1]
-    rev = he[:, 1] * base + he[:, 0]
-    border = he[~np.isin(key, rev)]
-    if len(border) == 0:
-        e = np.zeros(0, dtype=np.int64)
-        return e, e, e
-    nxt = np.full(base, -1, dtype=np.int64)
-    prv = np.full(base, -1, dtype=np.int64)
-    nxt[border[:, 0]] = border[:, 1]
-    prv[border[:, 1]] = border[:, 0]
-    b = np.flatnonzero((nxt >= 0) & (prv >= 0))
-    return b, prv[b], nxt[b]
-
-
 def fairing_operator(vertices: np.ndarray, faces: np.ndarray, areas: np.ndarray | None = None) -> sp.csr_matrix:
     """``A·Δ`` rows: cotangent rows at interior vertices, boundary-curve curvature rows at
     boundary vertices (see the module notes). ``Σ A_i ||Δv_i||² = ||A^{-1/2} (op @ V)||²``."""
     v = np.asarray(vertices, dtype=np.float64)
     n = len(v)
     lap = cotangent_laplacian(v, faces)
-    b, prv, nxt = boundary_vertices(faces, n)
+    b, prv, nxt = boundary_neighbours(faces, n)
     if len(b) == 0:
         return lap
     a = voronoi_areas(v, faces) if areas is None else areas

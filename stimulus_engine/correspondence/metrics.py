@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from stimulus_engine.correspondence.closest import SurfaceIndex
+from stimulus_engine.mesh_ops import face_normals, vertex_normals
 
 __all__ = ["surface_distances", "flipped_triangles", "against_target_triangles", "degenerate_triangles", "fit_metrics"]
 
@@ -17,18 +18,9 @@ def surface_distances(
     return index.query(points).distance
 
 
-def _face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    v = vertices[faces]
-    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-    area = 0.5 * np.linalg.norm(n, axis=1)
-    return n / np.maximum(2 * area[:, None], 1e-300), area
-
-
 def _local_folds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Triangles facing against the mean of their three (area-weighted) vertex normals."""
-    from stimulus_engine.correspondence.registration import vertex_normals
-
-    n, _ = _face_normals(vertices, faces)
+    n, _ = face_normals(vertices, faces)
     vn = vertex_normals(vertices, faces)
     return np.einsum("ij,ij->i", n, vn[faces].sum(axis=1)) < 0
 
@@ -53,7 +45,7 @@ def against_target_triangles(
 ) -> np.ndarray:
     """Triangles whose normal points against the target's normal at the closest point of their
     centroid (sensitive to scan noise; reported beside :func:`flipped_triangles`)."""
-    n, _ = _face_normals(vertices, faces)
+    n, _ = face_normals(vertices, faces)
     index = index if index is not None else SurfaceIndex(target_vertices, target_faces)
     cp = index.query(vertices[faces].mean(axis=1))
     return np.einsum("ij,ij->i", n, cp.normals) < 0
@@ -62,8 +54,8 @@ def against_target_triangles(
 def degenerate_triangles(vertices: np.ndarray, faces: np.ndarray, reference_vertices: np.ndarray, rel: float = 1e-4) -> np.ndarray:
     """Triangles whose area shrank below ``rel`` times their area in ``reference_vertices``
     (or whose area is zero). Returns a boolean mask (F,)."""
-    _, a = _face_normals(vertices, faces)
-    _, a0 = _face_normals(reference_vertices, faces)
+    _, a = face_normals(vertices, faces)
+    _, a0 = face_normals(reference_vertices, faces)
     return (a <= rel * np.maximum(a0, 1e-300)) | (a <= 1e-300)
 
 

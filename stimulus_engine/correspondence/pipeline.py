@@ -12,14 +12,15 @@ import trimesh
 from appeal.errors import AppealInputError
 from appeal.logs import logger
 from stimulus_engine.correspondence.alignment import Similarity, umeyama
-from stimulus_engine.correspondence.closest import SurfaceIndex, edge_face_counts, edge_keys
+from stimulus_engine.correspondence.closest import SurfaceIndex
 from stimulus_engine.correspondence.fairing import joint_fairing
-from stimulus_engine.correspondence.landmarks import Correspondences, SurfacePoints
+from stimulus_engine.correspondence.points import Correspondences, SurfacePoints
 from stimulus_engine.correspondence.laplacian import fairing_operator, voronoi_areas
 from stimulus_engine.correspondence.metrics import fit_metrics
 from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
 from stimulus_engine.correspondence.untangle import untangle
 from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
+from stimulus_engine.mesh_ops import edge_face_counts, edge_keys
 
 #: The weights of eq. 3.7-3.13 mix unitless curvature energies with squared distances, so
 #: their balance depends on the model's size. Both meshes are scaled so that the target's

@@ -21,12 +21,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from stimulus_engine.correspondence.closest import ClosestPoints, SurfaceIndex
-from stimulus_engine.correspondence.landmarks import SurfacePoints
+from stimulus_engine.correspondence.points import SurfacePoints
 from stimulus_engine.correspondence.laplacian import bilaplacian
 from stimulus_engine.correspondence.ordering import nested_dissection
 from stimulus_engine.correspondence.solve import ReusableSolver
+from stimulus_engine.mesh_ops import vertex_normals
 
-__all__ = ["Pruning", "RegistrationResult", "vertex_normals", "prune_mask", "nonrigid_register"]
+__all__ = ["Pruning", "RegistrationResult", "prune_mask", "nonrigid_register"]
 
 
 @dataclass(frozen=True)
@@ -51,17 +52,6 @@ class RegistrationResult:
     reuses: int = 0
     history: list[dict] = field(default_factory=list)
     ordering: np.ndarray | None = None
-
-
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals (unit length; zero for isolated vertices)."""
-    v = vertices[faces]
-    fn = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-    n = np.zeros_like(vertices)
-    for k in range(3):
-        for d in range(3):
-            n[:, d] += np.bincount(faces[:, k], weights=fn[:, d], minlength=len(vertices))
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
 def prune_mask(points: np.ndarray, normals: np.ndarray, cp: ClosestPoints, pruning: Pruning) -> np.ndarray:

@@ -194,12 +194,8 @@ def synthetic_pair(
     source, target : trimesh.Trimesh
     corr : Correspondences
     """
-    from stimulus_engine.correspondence.landmarks import (
-        Correspondences,
-        boundary_correspondences,
-        nearest_boundary_vertices,
-        parse_points,
-    )
+    from stimulus_engine.correspondence.boundary import boundary_correspondences, nearest_boundary_vertices
+    from stimulus_engine.correspondence.points import Correspondences, parse_points
 
     src = synthetic_face(n_source, 1.0, 1.0, "grid", seed, texture_size)
     tgt = synthetic_face(n_target, eyes, nose, "jitter", seed + 1, texture_size, nose_hook)

@@ -34,10 +34,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from stimulus_engine.correspondence.laplacian import boundary_vertices, cotangent_laplacian
+from stimulus_engine.correspondence.laplacian import cotangent_laplacian
 from stimulus_engine.correspondence.metrics import degenerate_triangles, flipped_triangles
+from stimulus_engine.mesh_ops import boundary_neighbours, vertex_adjacency
 
-__all__ = ["UntangleResult", "untangle", "vertex_adjacency"]
+__all__ = ["UntangleResult", "untangle"]
 
 
 @dataclass
@@ -51,16 +52,6 @@ class UntangleResult:
     folds_before: int
     folds_after: int
     off_surface: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-
-
-def vertex_adjacency(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
-    """Symmetric 0/1 vertex adjacency (edges of the triangles)."""
-    f = np.asarray(faces, dtype=np.int64)
-    i = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
-    j = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
-    a = sp.csr_matrix((np.ones(len(i)), (i, j)), shape=(n_vertices, n_vertices))
-    a = ((a + a.T) > 0).astype(np.float64)
-    return a.tocsr()
 
 
 def _grow(mask: np.ndarray, adjacency: sp.csr_matrix, rings: int, within: np.ndarray | None = None) -> np.ndarray:
@@ -134,7 +125,7 @@ def untangle(
     faces = np.asarray(faces, dtype=np.int64)
     n = len(v)
     adjacency = vertex_adjacency(faces, n)
-    b, prv, nxt = boundary_vertices(faces, n)
+    b, prv, nxt = boundary_neighbours(faces, n)
     # rows of the harmonic operator: interior vertices average their neighbours, hole-rim
     # vertices average their two rim neighbours (the rim stays a faired curve)
     lap = sp.diags(np.asarray(adjacency.sum(axis=1)).ravel()) - adjacency
