@@ -3,7 +3,8 @@
 The deformed source (source connectivity and UV layout, target shape) receives the target's
 texture re-laid into the *source's* UV layout, pixel by pixel: for each pixel covered by a
 source UV triangle, its 3D point on the deformed source, the closest point on the target, the
-target's UV there and a bilinear lookup in the target image. Uncovered pixels next to covered
+target's UV there and a bilinear lookup in the target image
+(:func:`stimulus_engine.sampling.sample_points`, the sampler the 2-D warps use too). Uncovered pixels next to covered
 ones are filled by a one-pixel dilation (the mean of their covered neighbours). Works for any
 per-pixel map: albedo, specular, displacement, normal maps (object-space normal maps transfer
 as they are; tangent-space maps keep their values, which is right when both layouts have
@@ -19,8 +20,9 @@ from PIL import Image
 from appeal.errors import AppealInputError
 from stimulus_engine.correspondence.closest import SurfaceIndex
 from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
+from stimulus_engine.sampling import sample_points, uv_to_pixels
 
-__all__ = ["rasterize_uv", "bilinear_lookup", "dilate", "transfer_texture"]
+__all__ = ["rasterize_uv", "dilate", "transfer_texture"]
 
 
 def _name(mesh: trimesh.Trimesh, role: str) -> str:
@@ -59,24 +61,6 @@ def rasterize_uv(uv: np.ndarray, face_uv: np.ndarray, width: int, height: int):
     bary = np.stack([w0[inside], w1[inside], w2[inside]], axis=1)
     rows = height - 1 - py  # image rows count from the top
     return rows, px, fid, bary
-
-
-def bilinear_lookup(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear samples of ``image`` (H, W, C) at UVs (K, 2) (v up, clamped at the border)."""
-    h, w = image.shape[:2]
-    x = np.clip(uv[:, 0] * w - 0.5, 0, w - 1)
-    y = np.clip((1.0 - uv[:, 1]) * h - 0.5, 0, h - 1)
-    x0 = np.floor(x).astype(np.int64)
-    y0 = np.floor(y).astype(np.int64)
-    x1 = np.minimum(x0 + 1, w - 1)
-    y1 = np.minimum(y0 + 1, h - 1)
-    fx = (x - x0)[:, None]
-    fy = (y - y0)[:, None]
-    # gather the four neighbours first, convert only them (not the whole image)
-    px = [image[yy, xx].astype(np.float64).reshape(len(uv), -1) for yy, xx in ((y0, x0), (y0, x1), (y1, x0), (y1, x1))]
-    top = px[0] * (1 - fx) + px[1] * fx
-    bot = px[2] * (1 - fx) + px[3] * fx
-    return top * (1 - fy) + bot * fy
 
 
 def dilate(image: np.ndarray, mask: np.ndarray, pixels: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -168,7 +152,7 @@ def transfer_texture(
     face, bary_t = SurfaceIndex(target.vertices, target.faces, k=3, k_vertices=1).closest(pts)
     uv_t, fuv_t = tgt_layout
     tuv = np.einsum("ij,ijk->ik", bary_t, uv_t[fuv_t[face]])
-    vals = bilinear_lookup(arr, tuv)
+    vals = sample_points(arr, uv_to_pixels(tuv, arr.shape[1], arr.shape[0]))
     out = np.zeros((h, w, arr.shape[2]))
     if background is not None:
         out[:] = np.asarray(background, dtype=np.float64)[: arr.shape[2]]

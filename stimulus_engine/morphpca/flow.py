@@ -16,6 +16,8 @@ import threading
 import cv2
 import numpy as np
 
+from stimulus_engine.sampling import sample_bilinear
+
 __all__ = ["FLOW_BACKENDS", "DIS_SETTINGS", "compute_flow", "grey_u8", "grid", "warp_image", "sample_field",
            "invert_displacement", "jacobian_det", "fix_foldovers"]
 
@@ -127,20 +129,19 @@ def compute_flow(reference: np.ndarray, image: np.ndarray, backend: str = "dis",
     return fix_foldovers(flow.astype(np.float32))
 
 
-def warp_image(image: np.ndarray, positions: np.ndarray, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
-    """Sample ``image`` at absolute ``positions`` (``out(p) = image(positions(p))``).
+def warp_image(image: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Sample ``image`` at absolute ``positions`` (``out(p) = image(positions(p))``), bilinearly
+    (:func:`stimulus_engine.sampling.sample_bilinear`).
 
     Backward mapping: every output pixel gets a value, so there are no holes; outside the
     image the border is replicated.
     """
-    pos = np.ascontiguousarray(positions, dtype=np.float32)  # one CV_32FC2 map: no x/y split
-    return cv2.remap(np.ascontiguousarray(image, dtype=np.float32), pos, None, interpolation,
-                     borderMode=cv2.BORDER_REPLICATE)
+    return sample_bilinear(image, positions)
 
 
 def sample_field(field: np.ndarray, positions: np.ndarray) -> np.ndarray:
     """Bilinearly sample a 2-channel field at absolute ``positions`` (border replicated)."""
-    return warp_image(field, positions, cv2.INTER_LINEAR)
+    return sample_bilinear(field, positions)
 
 
 def invert_displacement(d: np.ndarray, iterations: int = 12, base: np.ndarray | None = None,
@@ -159,7 +160,7 @@ def invert_displacement(d: np.ndarray, iterations: int = 12, base: np.ndarray | 
     e[...] = neg
     for _ in range(iterations):
         np.add(g, e, out=pos)
-        e = cv2.remap(neg, pos, None, cv2.INTER_LINEAR, dst=e, borderMode=cv2.BORDER_REPLICATE)
+        e = sample_bilinear(neg, pos, out=e)
     return e
 
 

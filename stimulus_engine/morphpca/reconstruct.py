@@ -24,6 +24,7 @@ import numpy as np
 
 from stimulus_engine.morphpca.flow import fix_foldovers, grid, invert_displacement
 from stimulus_engine.morphpca.morphvec import TEXTURE_SCALE
+from stimulus_engine.sampling import sample_bilinear
 
 __all__ = ["HALF_RESOLUTION_MIN", "render_morph", "render_vectors", "Reconstructor", "reconstruct_image"]
 
@@ -80,7 +81,7 @@ class _Renderer:
             else:
                 e *= self.scale
                 np.add(self.grid, e, out=self.pos)
-        return cv2.remap(texture, self.pos, None, cv2.INTER_LINEAR, dst=self.image, borderMode=cv2.BORDER_REPLICATE)
+        return sample_bilinear(texture, self.pos, out=self.image)
 
     def pixel_rows(self, vectors: np.ndarray, texture_scale: float, absolute: bool) -> np.ndarray:
         """Serialised morph vectors ``(n, D)`` → rows ``[texture (h, w, 3) · scale, low-res displacement]``.
