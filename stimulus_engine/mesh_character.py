@@ -169,7 +169,7 @@ def mask_crop(rig: FaceRig, region: np.ndarray, mesh: trimesh.Trimesh, to_mesh) 
     from scipy.sparse.csgraph import connected_components
 
     from stimulus_engine.correspondence.closest import SurfaceIndex
-    from stimulus_engine.mesh_ops import boundary_loops, vertex_adjacency
+    from stimulus_engine.mesh_ops import boundary_loops, grow_rings, vertex_adjacency
 
     sub, vid = rig_skin_mesh(rig, np.asarray(region, np.int64))
     f = np.asarray(sub.faces, np.int64)
@@ -179,9 +179,8 @@ def mask_crop(rig: FaceRig, region: np.ndarray, mesh: trimesh.Trimesh, to_mesh) 
     on = np.asarray(cp.distance) < 1e-3 * float(np.linalg.norm(np.ptp(mv, axis=0)))
     inside = ~np.asarray(cp.on_boundary, bool) | on
     adj = vertex_adjacency(f, n)
-    grow = lambda m: m | (adj @ m.astype(np.int64) > 0)  # noqa: E731
-    keep = ~grow(~grow(inside)) & (inside | ~on)  # closing: fill one-ring notches
-    keep = grow(~grow(~keep)) | (keep & on)  # opening: drop one-ring spikes (not the landmarks)
+    keep = ~grow_rings(~grow_rings(inside, adj), adj) & (inside | ~on)  # closing: fill one-ring notches
+    keep = grow_rings(~grow_rings(~keep, adj), adj) | (keep & on)  # opening: drop one-ring spikes (not the landmarks)
     # holes: pieces of the dropped part that do not reach the region's own border
     border = np.zeros(n, bool)
     for loop in boundary_loops(f):

@@ -2,7 +2,8 @@
 
 Small pure functions on ``(vertices (N, 3) float, faces (F, 3) int)`` arrays: face normals and
 areas, area-weighted vertex normals, edge keys and the triangles sharing each edge, boundary
-edges, half-edges, neighbours and loops, vertex adjacency and the faces around each vertex.
+edges, half-edges, neighbours and loops, vertex adjacency (and masks grown along it by rings)
+and the faces around each vertex.
 
 trimesh is used where it has the operation and gives the same result
 (:func:`vertex_adjacency`: ``trimesh.geometry.faces_to_edges`` and
@@ -48,6 +49,7 @@ __all__ = [
     "boundary_neighbours",
     "boundary_loops",
     "vertex_adjacency",
+    "grow_rings",
     "vertex_faces",
 ]
 
@@ -191,6 +193,18 @@ def vertex_adjacency(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
     edges = trimesh.geometry.faces_to_edges(np.asarray(faces, dtype=np.int64))
     a = trimesh.graph.edges_to_coo(edges, int(n_vertices), data=np.ones(len(edges))).tocsr()
     return ((a + a.T) > 0).astype(np.float64).tocsr()
+
+
+def grow_rings(mask: np.ndarray, adjacency: sp.csr_matrix, rings: int = 1,
+               within: np.ndarray | None = None) -> np.ndarray:
+    """``mask`` (N,) grown by ``rings`` rings of :func:`vertex_adjacency` neighbours (through the
+    ``within`` vertices only, if given); a bool array."""
+    m = mask > 0
+    for _ in range(rings):
+        m = m | (adjacency @ m.astype(np.float64) > 0)
+        if within is not None:
+            m &= within
+    return m
 
 
 def vertex_faces(faces: np.ndarray, n_vertices: int) -> np.ndarray:

@@ -36,7 +36,7 @@ from scipy.sparse.linalg import spsolve
 
 from stimulus_engine.correspondence.laplacian import cotangent_laplacian
 from stimulus_engine.correspondence.metrics import degenerate_triangles, flipped_triangles
-from stimulus_engine.mesh_ops import boundary_neighbours, vertex_adjacency
+from stimulus_engine.mesh_ops import boundary_neighbours, grow_rings, vertex_adjacency
 
 __all__ = ["UntangleResult", "untangle"]
 
@@ -52,16 +52,6 @@ class UntangleResult:
     folds_before: int
     folds_after: int
     off_surface: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-
-
-def _grow(mask: np.ndarray, adjacency: sp.csr_matrix, rings: int, within: np.ndarray | None = None) -> np.ndarray:
-    """``mask`` grown by ``rings`` rings (through the ``within`` vertices only, if given)."""
-    m = mask > 0
-    for _ in range(rings):
-        m = m | (adjacency @ m.astype(np.float64) > 0)
-        if within is not None:
-            m &= within
-    return m
 
 
 def _bad_triangles(v: np.ndarray, faces: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -181,7 +171,7 @@ def _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_ro
     while bad.any() and rounds < max_rounds:
         seed = np.zeros(len(v), dtype=bool)
         seed[faces[bad].ravel()] = True
-        ids = np.flatnonzero(_grow(seed, adjacency, rings + rounds))
+        ids = np.flatnonzero(grow_rings(seed, adjacency, rings + rounds))
         s_f = smooth[ids]
         for _ in range(steps):
             # relax towards the neighbours' mean (then back onto the target)
@@ -220,7 +210,7 @@ def _extend_displacement(v, faces, reference, adjacency, fitted, project, distan
     while bad.any() and rounds < max_rounds:
         seed = np.zeros(len(v), dtype=bool)
         seed[faces[bad].ravel()] = True
-        patch = _grow(seed, adjacency, rings + rounds, free)
+        patch = grow_rings(seed, adjacency, rings + rounds, free)
         ids, rest = np.flatnonzero(patch), np.flatnonzero(~patch)
         rows = lap[ids]
         # eps keeps a patch that touches no held vertex (a detached overhang) where it is
@@ -250,7 +240,7 @@ def _reproject_where_flat(v, faces, reference, adjacency, candidates, project, m
             break
         seed = np.zeros(len(v), dtype=bool)
         seed[faces[new_bad].ravel()] = True
-        grow = _grow(seed, adjacency, 1) & candidates & ~off
+        grow = grow_rings(seed, adjacency, 1) & candidates & ~off
         if not grow.any():
             break
         off |= grow
