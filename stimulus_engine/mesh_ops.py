@@ -22,7 +22,7 @@ of 20) on the 9,223-vertex Lee Perry-Smith scan, 2-core development machine:
   whose summed normal is tiny (1 vertex here: a normal of length 1e-38 instead of 1).
 * :func:`edge_face_counts` (3.3-3.6x): one integer sort of the edge keys; trimesh's
   ``grouping.unique_rows`` on the sorted edges gives the same counts.
-* :func:`boundary_half_edges` and what builds on it (1.0x): a half-edge is on the boundary
+* :func:`boundary_half_edges` and what builds on it (1.0-1.2x): a half-edge is on the boundary
   when its reverse is missing, which keeps the boundary's direction (loops oriented like the
   faces) and treats an edge of two inconsistently oriented triangles as boundary on both
   sides; trimesh's ``grouping.group_rows(edges_sorted, require_count=1)`` finds undirected
