@@ -1,18 +1,23 @@
 """The one bilinear image sampler: OpenCV's ``cv2.remap`` (linear, border replicated).
 
 Used by the morph-PCA warps (:mod:`stimulus_engine.morphpca.flow`, the reconstructor) and by
-texture transfer (:mod:`stimulus_engine.texture_transfer`), which had a NumPy sampler of its own
-(float64 gathers of the four neighbours). Measured in one process by ``benchmarks/sampler.py``
-(2-core development machine, OpenCV 5.0): on a float32 image OpenCV interpolates with exact (not 1/32-pixel fixed-point)
-weights — a ramp sampled at 1,001 positions between two pixels gives 1,001 values, error 0 — and
-its replicated border equals the NumPy sampler's clamped coordinates; what remains is float32
-rounding of positions and sums: on the 2400 x 1600 james texture (8-bit), 262,144 lookups
-differ from the float64 sampler by at most 0.023 of a level, and after rounding to 8 bits 61 of
-them (0.02 %) by one level. It is 5-9x faster there (14-20 ms vs 103-122 ms) and 29-44x
-faster on a 240 x 200 warp (0.16-0.20 ms vs 5.6-7.2 ms; runs on a shared machine). Texture-transfer outputs therefore changed when it moved to
-this sampler, by one level in 64 of the 262,144 texels of the ICT -> james transfer at 512 x 512
-(0.024 %), and with them, slightly, images of grid characters made from a textured mesh; the
-morph-PCA outputs did not change (the same ``cv2.remap`` call as before).
+texture transfer (:mod:`stimulus_engine.texture_transfer`), which had a NumPy sampler of its
+own (float64 gathers of the four neighbours). Measured in one process by
+``benchmarks/sampler.py`` (2-core shared development machine, OpenCV 5.0):
+
+* Accuracy: on a float32 image OpenCV interpolates with exact weights, not in 1/32-pixel
+  fixed-point steps (a ramp sampled at 1,001 positions between two pixels gives 1,001 values,
+  error 1e-7), and its replicated border equals the NumPy sampler's clamped coordinates. What
+  remains is float32 rounding of positions and sums: 262,144 lookups in the 2400 x 1600 james
+  texture (8-bit) differ from the float64 sampler by at most 0.023 of a level; after rounding
+  to 8 bits 61 of them (0.02 %) by one level.
+* Speed: 5-9x faster there (14-20 ms vs 103-122 ms), 29-44x on a 240 x 200 warp
+  (0.16-0.20 ms vs 5.6-7.2 ms).
+
+So texture-transfer outputs changed when it moved to this sampler: by one level in 64 of the
+262,144 texels of the ICT -> james transfer at 512 x 512 (0.024 %); a MediaPipe mesh-character
+grid (texture, normal and specular maps re-laid at 128 x 128) stayed byte-identical, images
+and cache. The morph-PCA outputs did not change (the same ``cv2.remap`` call as before).
 """
 
 from __future__ import annotations
