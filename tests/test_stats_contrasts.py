@@ -10,30 +10,20 @@ import pytest
 
 from analysis import compare_trends, polynomial_contrasts
 from analysis.stats.anova import contr_poly
+from r_reference_numbers import r_reference
 
 DATA = Path(__file__).parent / "data"
 
+_R = r_reference("anova_reference")  # tests/r_reference/anova_reference.out
 # ---- produced by: Rscript tests/r_reference/anova_reference.R (function poly_ref):
 # per-subject level means of the factor %*% contr.poly(k)[, j], then
 # car::Anova(lm(score ~ between, contrasts = contr.sum), type = 3), row "(Intercept)".
 # {degree: (F, num_df, den_df, p, pes)}
-R_POLY_W2_B = {
-    1: (3.5283358320839566, 1, 7, 0.10240837550233201, 0.335127591706539),
-    2: (2.3898989898989873, 1, 7, 0.16604049911273211, 0.25451807228915641),
-    3: (5.2952270081490171, 1, 7, 0.054899117083324067, 0.43067338282078504),
-}
+R_POLY_W2_B = _R["R_POLY_W2_B"]
 
-R_POLY_W4_SHAPE = {
-    1: (14.704464260598014, 1, 9, 0.0039992053155001785, 0.62032468225995896),
-    2: (0.079903147699756899, 1, 9, 0.78382213659345146, 0.0087999999999998947),
-}
+R_POLY_W4_SHAPE = _R["R_POLY_W4_SHAPE"]
 
-R_POLY_OBK_HOUR = {
-    1: (0.0011528411128768105, 1, 10, 0.97358238947372766, 0.00011527082239336402),
-    2: (50.19380049638265, 1, 10, 3.3559586397352322e-05, 0.83386993481827165),
-    3: (5.9780216884297523, 1, 10, 0.034552172859803949, 0.37414029127014192),
-    4: (22.408191843164797, 1, 10, 0.00079965430808614786, 0.69143604035690454),
-}
+R_POLY_OBK_HOUR = _R["R_POLY_OBK_HOUR"]
 
 CASES = {
     "within2": ("stats_within2_likert.csv", "rating", "B", ["A", "B"], [], R_POLY_W2_B),

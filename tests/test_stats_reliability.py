@@ -10,45 +10,25 @@ import pytest
 
 from analysis import cronbach_alpha, mixed_model_anova, within_ci
 from appeal.errors import AppealInputError
+from r_reference_numbers import r_reference
 
 DATA = Path(__file__).parent / "data"
 
+_R = r_reference("reliability_intervals_mixed_reference")  # tests/r_reference/reliability_intervals_mixed_reference.out
 # ---- produced by: Rscript tests/r_reference/reliability_intervals_mixed_reference.R
 # alpha = k/(k-1) (1 - sum(item variances) / var(row sums)); Feldt CI with qf(.975 / .025, n-1, (n-1)(k-1))
-R_ALPHA = (0.82335102350265355, 0.71479611339110893, 0.89509567973638549)  # alpha, Feldt 95% CI low, high
+R_ALPHA = _R["R_ALPHA"]  # alpha, Feldt 95% CI low, high
 
 # Cousineau normalisation (y - subject mean + grand mean) of the subject x plotted-cell means,
 # half-width = qt(.975, n-1) * sd / sqrt(n) * sqrt(M / (M-1)); {cell: (mean, half-width)}
-R_CM_A = {
-    "a1": (3.71875, 0.51195616807102917),
-    "a2": (4.25, 0.44556086090083818),
-    "a3": (5.0625, 0.52586136067919831),
-}
-R_CM_AB = {
-    "a1:b1": (3.75, 0.51664425666638669),
-    "a2:b1": (4.5, 0.8022579733758729),
-    "a3:b1": (5.5, 0.54652619151337778),
-    "a1:b2": (3.375, 0.80367102242042299),
-    "a2:b2": (4.25, 0.96412870843002618),
-    "a3:b2": (5, 0.92324939625904423),
-    "a1:b3": (4, 0.81905368141695467),
-    "a2:b3": (4.875, 0.77492063052662497),
-    "a3:b3": (5.375, 0.84764575038060397),
-    "a1:b4": (3.75, 0.66967290716915451),
-    "a2:b4": (3.375, 0.87918454975807248),
-    "a3:b4": (4.375, 0.6679764562941285),
-}
+R_CM_A = _R["R_CM_A"]
+R_CM_AB = _R["R_CM_AB"]
 
 # lmer(rating ~ A * B + (1 | id), REML, contr.sum) without s03/a2/b4 and s05/a1 (all of a1);
 # car::Anova(fit, type = 3): {term: (Chisq, Df, p)}
-R_LMER = {
-    "(Intercept)": (277.37980396413707, 1, 2.796350977979248e-62),
-    "A": (33.394055647395369, 2, 5.6049656063153002e-08),
-    "B": (17.955402136009013, 3, 0.00044926401682526351),
-    "A:B": (5.7623456751256583, 6, 0.45033197812148451),
-}
-R_LMER_SIGMA = 0.92321218276177341
-R_LMER_SD_ID = 0.67918837150108191
+R_LMER = _R["R_LMER"]
+R_LMER_SIGMA = _R["R_LMER_SIGMA"]
+R_LMER_SD_ID = _R["R_LMER_SD_ID"]
 
 
 def test_cronbach_alpha_matches_r_and_pingouin():

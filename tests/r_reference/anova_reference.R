@@ -65,6 +65,10 @@ anova_ref <- function(name, d, dv, id, within, between = NULL) {
               mauchly_W = g(sph, "Test statistic"), mauchly_p = g(sph, "p-value"),
               gg_eps = g(adj, "GG eps"), hf_eps = g(adj, "HF eps"), p_gg = g(adj, "Pr(>F[GG])"),
               p_hf = g(adj, "Pr(>F[HF])"), pes = es[term, "pes"], ges = es[term, "ges"])
+    # with a singular error SSP matrix car leaves eps NA but fills Pr(>F[GG]/[HF]) with 0
+    # (a placeholder, not a p value): report NA there
+    if (is.na(vals[["gg_eps"]])) vals[["p_gg"]] <- NA
+    if (is.na(vals[["hf_eps"]])) vals[["p_hf"]] <- NA
     cat(sprintf("    %s: {%s},\n", shQuote(term, "cmd"),
                 paste(sprintf("%s: %s", shQuote(names(vals), "cmd"), fmt(vals)), collapse = ", ")))
   }
