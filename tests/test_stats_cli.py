@@ -29,7 +29,7 @@ def test_anova_json_keys_and_values(tmp_path, capsys):
     effects = json.loads(out.read_text())["effects"]
     assert [e["effect"] for e in effects][:4] == ["treatment", "gender", "treatment:gender", "phase"]
     assert list(effects[0]) == ["effect", "SS", "error_SS", "num_df", "den_df", "F", "p", "mauchly_W", "mauchly_p",
-                                "gg_eps", "hf_eps", "p_gg", "p_hf", "pes", "ges"]
+                                "gg_eps", "hf_eps", "p_gg", "p_hf", "pes", "ges", "note"]
     assert effects[0]["mauchly_W"] is None and effects[0]["gg_eps"] is None  # between effect: undefined
     hour = next(e for e in effects if e["effect"] == "hour")
     assert hour["F"] == pytest.approx(16.685670498084288, rel=1e-9)  # R_OBK in test_stats_anova.py
@@ -73,11 +73,11 @@ def test_reporting_thesis_style():
     assert markdown_table(t).splitlines()[1].startswith("|---|")
 
 
-def _write_study(tmp_path, **extra):
+def _write_study(tmp_path, n_subjects=8, **extra):
     factors = {"shape": ["s0", "s1", "s2"], "material": ["m0", "m1", "m2"]}
     scales = {"appeal": ScaleModel(mean=lambda c: 4 - (c["shape"] - c["material"]) ** 2 * 0.5),
               "reassurance": ScaleModel(mean=lambda c: 4 - (c["shape"] - c["material"]) ** 2 * 0.4)}
-    df = simulate_ratings(factors, scales, n_subjects=8, repetitions=2, seed=3, **extra)
+    df = simulate_ratings(factors, scales, n_subjects=n_subjects, repetitions=2, seed=3, **extra)
     write_bids(df, tmp_path / "data", "t")
     study = tmp_path / "study.yaml"
     study.write_text("kind: ratings\ndata: data/sub-*/ses-*/beh/*_beh.tsv\nwithin: [shape, material]\n"
@@ -100,6 +100,19 @@ def test_ratings_command_writes_report(tmp_path):
     assert sm["shape:material"]["p"] < 0.001  # the simulated mismatch effect is found
     assert res["reliability"][0]["alpha"] > 0.5
     assert (out / "appeal" / "posthoc_shape_x_material.csv").is_file()
+
+
+def test_ratings_command_with_two_participants(tmp_path):
+    """Two participants: 1 error df, so no Mauchly and no HF ε; the report says so instead of failing."""
+    study, _ = _write_study(tmp_path, n_subjects=2)
+    out = tmp_path / "out"
+    assert main(["analyze", "ratings", str(study), "--out", str(out)]) == 0
+    rows = {r["effect"]: r for r in json.loads((out / "results.json").read_text())["scales"]["appeal"]["anova"]}
+    assert rows["shape"]["den_df"] == 2 and rows["shape"]["hf_eps"] is None and rows["shape"]["mauchly_W"] is None
+    assert rows["shape"]["gg_eps"] == pytest.approx(0.5)  # rank-1 error matrix: the lower bound 1/d
+    assert "HF ε undefined" in rows["shape"]["note"]
+    report = (out / "report.md").read_text()
+    assert "nan" not in report.lower().replace("nanopore", "") and "HF ε undefined" in report
 
 
 def test_ratings_incomplete_design_uses_mixed_model(tmp_path):

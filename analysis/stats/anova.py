@@ -19,14 +19,17 @@ import pandas as pd
 from scipy import special
 
 from analysis.stats.design import Design, prepare_design
-from analysis.stats.sphericity import gg_epsilon, hf_epsilon, is_singular, mauchly
+from analysis.stats.sphericity import error_rank, gg_epsilon, hf_epsilon, mauchly
 
 __all__ = ["rm_anova", "anova_from_design", "fit_design", "AnovaFit", "contr_poly", "contr_sum",
            "ANOVA_COLUMNS"]
 
 #: Columns of the table :func:`rm_anova` returns.
 ANOVA_COLUMNS = ["effect", "SS", "error_SS", "num_df", "den_df", "F", "p", "mauchly_W", "mauchly_p",
-                 "gg_eps", "hf_eps", "p_gg", "p_hf", "pes", "ges"]
+                 "gg_eps", "hf_eps", "p_gg", "p_hf", "pes", "ges", "note"]
+
+#: Error sums of squares below this fraction of the total sum of squares count as zero.
+ZERO_SS = 1e-12
 
 
 def contr_poly(k: int) -> np.ndarray:
@@ -124,6 +127,49 @@ def single_thread_blas() -> contextlib.AbstractContextManager:
     return _BLAS.limit(limits=1, user_api="blas")
 
 
+def _ratio(num: float, den: float) -> float:
+    """``num / den`` as R divides: ``x / 0`` is ±Inf, ``0 / 0`` is NaN (never an exception)."""
+    if den != 0:
+        return num / den
+    return float("nan") if num == 0 or np.isnan(num) else float(np.copysign(np.inf, num))
+
+
+def sphericity(S: np.ndarray, error_df: int, n_cells: int) -> tuple[float, float, float, float, str]:
+    """Mauchly's W and p, GG and HF ε of one within effect, and a note on what is undefined.
+
+    Parameters
+    ----------
+    S : ndarray (d, d), d >= 2
+        The effect's error SSP matrix in the orthonormal within basis.
+    error_df : int
+        Error df of the between-subject model (n − rank X).
+    n_cells : int
+        Within cells of the whole design (for Mauchly's second-order term).
+
+    Returns
+    -------
+    W, p_W, gg, hf : float
+        NaN where undefined (see :mod:`analysis.stats.sphericity`).
+    note : str
+        Empty when everything is defined; otherwise why not, in words.
+    """
+    d = S.shape[0]
+    gg = gg_epsilon(S)
+    W, pW = mauchly(S, error_df, n_cells)
+    hf = hf_epsilon(gg, error_df, d)
+    rank = min(error_rank(S), error_df)
+    notes = []
+    if rank == 0:
+        return W, pW, gg, hf, "Mauchly, GG and HF ε undefined"
+    if rank < d:
+        why = (f"{error_df} error df < {d} effect df" if error_df < d else f"error SSP matrix of rank {rank} < {d}")
+        notes.append(f"Mauchly undefined ({why}); ε from the trace formula (car: NA)")
+    if np.isnan(hf):
+        notes.append("HF ε undefined (0/0 with 1 error df)" if error_df == 1 else
+                     "HF ε undefined (error df = d·GG ε)")
+    return W, pW, gg, hf, "; ".join(notes)
+
+
 def fit_design(design: Design) -> AnovaFit:
     """Fit the repeated-measures ANOVA of a prepared :class:`Design`.
 
@@ -157,21 +203,18 @@ def _fit(design: Design) -> AnovaFit:
     bnames = list(design.between)
     n_within = len(wnames)
     within_effects = [()] + _terms(n_within)
+    zero_ss = ZERO_SS * float(np.sum((Y - Y.mean()) ** 2))
     error_ss, error_ms, error_df, sph = {}, {}, {}, {}
     for weff in within_effects:
         bits = sum(1 << i for i in weff)
         idx = np.flatnonzero(mask == bits)
         d = len(idx)
-        error_ss[bits] = float(e_diag[idx].sum())
+        ess = float(e_diag[idx].sum())
+        error_ss[bits] = 0.0 if ess <= zero_ss else ess
         error_df[bits] = float(dfe * d)
         error_ms[bits] = error_ss[bits] / error_df[bits]
-        if d >= 2:
-            S = RQ[:, idx].T @ RQ[:, idx]
-            gg = gg_epsilon(S)
-            W, pW = mauchly(S, dfe, C)
-            sph[bits] = (W, pW, gg, hf_epsilon(gg, dfe, d))
-        else:
-            sph[bits] = (np.nan,) * 4
+        S = RQ[:, idx].T @ RQ[:, idx] if error_ss[bits] else np.zeros((d, d))
+        sph[bits] = sphericity(S, dfe, C) if d >= 2 else (np.nan,) * 4 + ("",)
     total_error = sum(error_ss.values())
 
     rows = []
@@ -185,15 +228,18 @@ def _fit(design: Design) -> AnovaFit:
             ss = float(h[term][idx].sum())
             num_df = float(len(cols) * d)
             den_df = error_df[bits]
-            F = (ss / num_df) / error_ms[bits]
-            W, pW, gg, hf = sph[bits]
+            F = _ratio(ss / num_df, error_ms[bits])
+            W, pW, gg, hf, note = sph[bits]
+            if error_ss[bits] == 0:
+                note = "; ".join(filter(None, ["no error variance (every participant's scores differ by a constant): "
+                                               + ("F infinite" if ss > 0 else "F undefined"), note]))
             rows.append({
                 "effect": ":".join([bnames[i] for i in term] + [wnames[i] for i in weff]),
                 "SS": ss, "error_SS": error_ss[bits], "num_df": num_df, "den_df": den_df, "F": F,
                 "p": special.fdtrc(num_df, den_df, F), "mauchly_W": W, "mauchly_p": pW, "gg_eps": gg, "hf_eps": hf,
                 "p_gg": special.fdtrc(gg * num_df, gg * den_df, F) if np.isfinite(gg) else np.nan,
                 "p_hf": special.fdtrc(min(1.0, hf) * num_df, min(1.0, hf) * den_df, F) if np.isfinite(hf) else np.nan,
-                "pes": ss / (ss + error_ss[bits]), "ges": ss / (ss + total_error),
+                "pes": _ratio(ss, ss + error_ss[bits]), "ges": _ratio(ss, ss + total_error), "note": note,
             })
     # car/afex order: between terms first, then each within effect with its between interactions
     table = pd.DataFrame(rows)
@@ -245,9 +291,12 @@ def rm_anova(
     DataFrame
         One row per effect with columns effect, SS, error_SS, num_df, den_df, F, p,
         mauchly_W, mauchly_p, gg_eps, hf_eps (uncapped), p_gg, p_hf (ε capped at 1),
-        pes (partial η²) and ges (generalised η², as afex). NaN where undefined: Mauchly
-        for one-df effects and for effects with more df than error df (ε then comes from
-        the trace formula). Effect names join factors with ``:``, between factors first.
+        pes (partial η²) and ges (generalised η², as afex), and note. NaN where
+        undefined, with the reason in ``note``: Mauchly for one-df effects and for effects
+        with more df than error df (ε then comes from the trace formula, car gives NA);
+        HF ε when its formula is 0/0 (one error df: two participants, no between factor);
+        with no error variance F is Inf (as car; NaN when SS is 0 too) and ε is NaN.
+        Effect names join factors with ``:``, between factors first.
 
     Raises
     ------

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 
 import pandas as pd
 
-__all__ = ["format_p", "format_df", "format_effect", "format_contrast", "format_comparison", "anova_text",
+__all__ = ["format_p", "format_f", "format_es", "format_df", "format_effect", "format_contrast", "format_comparison", "anova_text",
            "markdown_table", "html_table", "sphericity_corrected"]
 
 
@@ -26,6 +26,18 @@ def format_p(p: float) -> str:
     if p < 0.001:
         return f"p = {p:.4f}"
     return f"p = {p:.3f}"
+
+
+def format_f(F: float) -> str:
+    """An F value with two decimals; ``∞`` with no error variance, ``n/a`` when undefined."""
+    if math.isnan(F):
+        return "n/a"
+    return "∞" if math.isinf(F) else f"{F:.2f}"
+
+
+def format_es(x: float) -> str:
+    """An effect size with three decimals, ``n/a`` when undefined (0/0)."""
+    return "n/a" if math.isnan(x) else f"{x:.3f}"
 
 
 def format_df(x: float) -> str:
@@ -64,20 +76,23 @@ def format_effect(row: Mapping, alpha: float = 0.05, pes: bool = True) -> str:
     row = dict(row)
     if sphericity_corrected(row, alpha):
         e = row["gg_eps"]
-        text = (f"F*({format_df(row['num_df'] * e)}, {format_df(row['den_df'] * e)}) = {row['F']:.2f}, "
+        text = (f"F*({format_df(row['num_df'] * e)}, {format_df(row['den_df'] * e)}) = {format_f(row['F'])}, "
                 f"{format_p(row['p_gg'])}, ε = {e:.3f}")
     else:
-        text = f"F({format_df(row['num_df'])}, {format_df(row['den_df'])}) = {row['F']:.2f}, {format_p(row['p'])}"
+        text = (f"F({format_df(row['num_df'])}, {format_df(row['den_df'])}) = {format_f(row['F'])}, "
+                f"{format_p(row['p'])}")
     if pes:
-        text += f", ηp² = {row['pes']:.3f}"
+        text += f", ηp² = {format_es(row['pes'])}"
+    if row.get("note"):
+        text += f" ({row['note']})"
     return text
 
 
 def format_contrast(row: Mapping) -> str:
     """A contrast row as ``F(1, 32) = 68.50, p < 0.0001, ηp² = 0.682``."""
     row = dict(row)
-    return (f"F({format_df(row['num_df'])}, {format_df(row['den_df'])}) = {row['F']:.2f}, "
-            f"{format_p(row['p'])}, ηp² = {row['pes']:.3f}")
+    return (f"F({format_df(row['num_df'])}, {format_df(row['den_df'])}) = {format_f(row['F'])}, "
+            f"{format_p(row['p'])}, ηp² = {format_es(row['pes'])}")
 
 
 def format_comparison(row: Mapping) -> str:

@@ -5,36 +5,57 @@ from __future__ import annotations
 import numpy as np
 from scipy import special
 
-__all__ = ["mauchly", "gg_epsilon", "hf_epsilon", "is_singular"]
+__all__ = ["mauchly", "gg_epsilon", "hf_epsilon", "is_singular", "error_rank"]
+
+#: Relative tolerance below which a quantity that is zero in exact arithmetic is taken as zero.
+RTOL = 1e-9
+
+
+def error_rank(S: np.ndarray) -> int:
+    """Numerical rank of the error SSP matrix ``S`` (0 for an all-zero or empty matrix)."""
+    d = S.shape[0]
+    scale = np.abs(S).max() if d else 0.0
+    if d == 0 or scale == 0:
+        return 0
+    return int(np.linalg.matrix_rank(S, tol=scale * d * np.finfo(float).eps * 1e3))
 
 
 def is_singular(S: np.ndarray) -> bool:
     """True when the error SSP matrix ``S`` is rank-deficient (car then skips Mauchly)."""
     d = S.shape[0]
-    if d == 0:
-        return True
-    tol = np.abs(S).max() * d * np.finfo(float).eps * 1e3
-    return bool(np.linalg.matrix_rank(S, tol=tol) < d)
+    return d == 0 or error_rank(S) < d
 
 
 def gg_epsilon(S: np.ndarray) -> float:
     """Greenhouse–Geisser epsilon of an error SSP matrix in an orthonormal contrast basis.
 
     ``(tr S)² / (d · tr S²)`` — the trace formula, also defined when ``S`` is singular
-    (more effect df than error df). NaN for one-df effects.
+    (more effect df than error df; with one error df it is the lower bound 1/d). NaN for
+    one-df effects and for ``S = 0`` (no error variance).
     """
     d = S.shape[0]
-    if d < 2:
+    ss = float(np.sum(S * S))
+    if d < 2 or ss == 0:
         return float("nan")
-    tr = np.trace(S)
-    return float(tr * tr / (d * np.sum(S * S)))
+    tr = float(np.trace(S))
+    return tr * tr / (d * ss)
 
 
 def hf_epsilon(gg: float, error_df: float, d: int) -> float:
-    """Huynh–Feldt epsilon from GG as car computes it (not capped at 1)."""
+    """Huynh–Feldt epsilon from GG as car computes it (not capped at 1).
+
+    ``((e + 1)·d·ε_GG − 2) / (d·(e − d·ε_GG))`` with ``e`` error df. NaN where that is
+    undefined: one-df effects, an undefined GG ε, and a denominator of zero. The latter
+    happens whenever ``e = 1`` (two participants and no between factor: ε_GG = 1/d, so
+    the formula is 0/0) and, more rarely, when the error SSP matrix has rank ``e < d``
+    with equal non-zero eigenvalues.
+    """
     if d < 2 or not np.isfinite(gg):
         return float("nan")
-    return float(((error_df + 1) * d * gg - 2) / (d * (error_df - d * gg)))
+    den = d * (error_df - d * gg)
+    if den <= RTOL * d * error_df:
+        return float("nan")
+    return ((error_df + 1) * d * gg - 2) / den
 
 
 def mauchly(S: np.ndarray, error_df: float, n_cells: int) -> tuple[float, float]:
@@ -53,10 +74,11 @@ def mauchly(S: np.ndarray, error_df: float, n_cells: int) -> tuple[float, float]
     Returns
     -------
     W, p : float
-        NaN for one-df effects and for singular ``S``.
+        NaN for one-df effects and for singular ``S`` (always so with fewer error df
+        than effect df).
     """
     d = S.shape[0]
-    if d < 2 or is_singular(S):
+    if d < 2 or error_df < d or is_singular(S):
         return float("nan"), float("nan")
     sign, logdet = np.linalg.slogdet(S)
     if sign <= 0:
