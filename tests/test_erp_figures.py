@@ -16,67 +16,13 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
-from matplotlib.transforms import Bbox  # noqa: E402
 
 from analysis.erp import figures as figs  # noqa: E402
+from figure_checks import overlaps  # noqa: E402
 
 LEVELS = {"stylisation": [0, 1, 2, 3, 4, 5], "emotion": ["angry", "neutral", "happy"]}
 FACTORS = ["stylisation", "emotion"]
 WINDOWS = {"N170": (0.150, 0.190), "EPN": (0.250, 0.400), "LPP": (0.400, 0.600)}
-
-
-def _visible_ticks(axis, lim) -> list:
-    lo, hi = sorted(lim)
-    return [lab for t in axis.get_major_ticks() if t.get_visible() and lo - 1e-9 <= t.get_loc() <= hi + 1e-9
-            for lab in (t.label1, t.label2) if lab.get_visible() and lab.get_text()]
-
-
-def _labels(fig) -> list[tuple[str, int | None, object]]:
-    """Every piece of text drawn: (name, index of its axes or None, artist)."""
-    out = [("suptitle", None, fig._suptitle)] if fig._suptitle is not None else []
-    for i, ax in enumerate(fig.axes):
-        for name, t in [("title", ax.title), ("xlabel", ax.xaxis.label), ("ylabel", ax.yaxis.label)]:
-            if t.get_visible() and t.get_text():
-                out.append((f"axes {i} {name} {t.get_text()!r}", i, t))
-        out += [(f"axes {i} x tick {t.get_text()!r}", i, t) for t in _visible_ticks(ax.xaxis, ax.get_xlim())]
-        out += [(f"axes {i} y tick {t.get_text()!r}", i, t) for t in _visible_ticks(ax.yaxis, ax.get_ylim())]
-        out += [(f"axes {i} text {t.get_text()!r}", i, t) for t in ax.texts if t.get_visible() and t.get_text()]
-        if ax.get_legend() is not None:
-            out.append((f"axes {i} legend", i, ax.get_legend()))
-    return out
-
-
-def _meet(a, b) -> bool:
-    inter = Bbox.intersection(a, b)
-    return inter is not None and inter.width > 1 and inter.height > 1
-
-
-def overlaps(fig) -> list[str]:
-    """Labels whose boxes intersect each other or another plot's area, and texts or legends
-    drawn over plotted lines or bars."""
-    fig.canvas.draw()
-    r = fig.canvas.get_renderer()
-    boxes = [(name, i, a.get_window_extent(r)) for name, i, a in _labels(fig)]
-    found = [f"{n1} / {n2}" for (n1, _, b1), (n2, _, b2) in itertools.combinations(boxes, 2) if _meet(b1, b2)]
-    for name, i, b in boxes:
-        found += [f"{name} / plot area of axes {j}" for j, ax in enumerate(fig.axes)
-                  if j != i and _meet(b, ax.get_window_extent(r))]
-    for i, ax in enumerate(fig.axes):
-        over = [(f"axes {i} text {t.get_text()!r}", t.get_window_extent(r)) for t in ax.texts if t.get_text()]
-        if ax.get_legend() is not None:
-            over.append((f"axes {i} legend", ax.get_legend().get_window_extent(r)))
-        for line in ax.lines:
-            xy = ax.transData.transform(np.asarray(line.get_xydata(), float))
-            if len(xy) < 3:
-                continue  # axhline / axvline: reference lines, not data
-            for name, b in over:
-                if np.any((xy[:, 0] > b.x0) & (xy[:, 0] < b.x1) & (xy[:, 1] > b.y0) & (xy[:, 1] < b.y1)):
-                    found.append(f"{name} over line {line.get_label()!r}")
-        bars = [c for c in ax.containers if hasattr(c, "patches")]
-        for name, b in over:
-            if any(_meet(bar.get_window_extent(r), b) for c in bars for bar in c.patches):
-                found.append(f"{name} over a bar")
-    return found
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["save_figure", "interaction_plot", "bar_plot", "realism_vs_appeal_plot"]
+__all__ = ["save_figure", "interaction_plot", "bar_plot", "realism_vs_appeal_plot", "realism_vs_appeal_figure"]
+
+#: Node markers of :func:`realism_vs_appeal_plot`, one per ``point`` level (cycled beyond ten).
+MARKERS = ["o", "s", "^", "D", "v", "P", "X", "<", ">", "*"]
 
 
 def _plt():
@@ -92,6 +95,16 @@ def bar_plot(ci: pd.DataFrame, factor: str, ylabel: str, stem: str | Path, title
 def realism_vs_appeal_plot(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, point: str, stem: str | Path,
                            x_label: str = "realism", y_label: str = "appeal",
                            lim: tuple[float, float] | None = (1, 7)) -> list[Path]:
+    """Realism-vs-appeal diagram (thesis Fig. 6.16) saved as ``stem.png`` and ``stem.svg``.
+
+    See :func:`realism_vs_appeal_figure` for the parameters.
+    """
+    return save_figure(realism_vs_appeal_figure(x_ci, y_ci, line, point, x_label, y_label, lim), stem)
+
+
+def realism_vs_appeal_figure(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, point: str,
+                             x_label: str = "realism", y_label: str = "appeal",
+                             lim: tuple[float, float] | None = (1, 7)):
     """Realism-vs-appeal diagram (thesis Fig. 6.16): one graph per ``line`` level, nodes = ``point`` levels.
 
     Parameters
@@ -100,29 +113,45 @@ def realism_vs_appeal_plot(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, po
         :func:`analysis.stats.intervals.within_ci` tables of the two scales with
         ``factors=[line, point]``.
     line, point : str
-        E.g. ``"shape"`` (one graph per shape level) and ``"material"`` (its nodes).
+        E.g. ``"shape"`` (one graph per shape level, told apart by colour) and ``"material"``
+        (its nodes, told apart by marker).
+    x_label, y_label : str
+        The two scales' names.
+    lim : (float, float) or None
+        Both axes' range (the rating scale).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     plt = _plt()
     key = [line, point]
     merged = x_ci.merge(y_ci, on=key, suffixes=("_x", "_y"))
     lines = list(dict.fromkeys(x_ci[line]))
     points = list(dict.fromkeys(x_ci[point]))
-    fig, ax = plt.subplots(figsize=(5.4, 4.4))
+    # nodes are told apart by marker (a legend of its own), not by text beside each node:
+    # with 5 x 5 nodes such labels collide with each other and with the error bars
+    markers = [MARKERS[i % len(MARKERS)] for i in range(len(points))]
+    fig, ax = plt.subplots(figsize=(6.6, 4.4), layout="constrained")
     colors = plt.get_cmap("plasma")(np.linspace(0, 0.85, len(lines)))
     for lv, col in zip(lines, colors):
         part = merged[merged[line] == lv].set_index(point).reindex(points)
-        ax.plot(part["mean_x"], part["mean_y"], "-", color=col, lw=1.5, label=f"{line} {lv}")
-        ax.errorbar(part["mean_x"], part["mean_y"], xerr=part["ci_x"], yerr=part["ci_y"], fmt="o", ms=4,
-                    color=col, capsize=2, lw=0.8)
-        for p, r in part.iterrows():
-            ax.annotate(str(p), (r["mean_x"], r["mean_y"]), textcoords="offset points", xytext=(3, 3), fontsize=6,
-                        color=col)
+        ax.plot(part["mean_x"], part["mean_y"], "-", color=col, lw=1.5, label=str(lv))
+        ax.errorbar(part["mean_x"], part["mean_y"], xerr=part["ci_x"], yerr=part["ci_y"], fmt="none",
+                    ecolor=col, capsize=2, lw=0.8)
+        for (p, r), m in zip(part.iterrows(), markers):
+            ax.plot(r["mean_x"], r["mean_y"], m, color=col, ms=5, mec="white", mew=0.5, label="_nolegend_")
     if lim:
         ax.set_xlim(*lim)
         ax.set_ylim(*lim)
     ax.set_xlabel(f"mean {x_label}")
     ax.set_ylabel(f"mean {y_label}")
     ax.set_title(f"{x_label} vs {y_label}: one graph per {line}, nodes = {point}", fontsize=10)
-    ax.legend(fontsize=7, frameon=False)
+    first = ax.legend(title=line, fontsize=7, title_fontsize=8, frameon=False, loc="upper left",
+                      bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
+    ax.add_artist(first)
+    handles = [plt.Line2D([], [], ls="none", marker=m, color="0.35", ms=5) for m in markers]
+    ax.legend(handles, [str(p) for p in points], title=point, fontsize=7, title_fontsize=8, frameon=False,
+              loc="lower left", bbox_to_anchor=(1.02, 0.0), borderaxespad=0)
     ax.grid(alpha=0.3)
-    return save_figure(fig, stem)
+    return fig
