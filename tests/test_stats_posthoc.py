@@ -100,3 +100,12 @@ def test_unknown_effect_and_adjust():
         _run(W2, "A:C")
     with pytest.raises(AppealInputError, match="adjust: expected one of tukey, holm, bonferroni, none .got 'sidak'"):
         _run(W2, "A", adjust="sidak")
+
+
+def test_holm_leaves_undefined_p_values_out_of_the_family():
+    """As R: p.adjust(c(0.01, NA, 0.04), "holm") is 0.02, NA, 0.04 (n counts non-NA values only)."""
+    from analysis.stats.posthoc import _adjust
+
+    got = _adjust(np.array([0.01, np.nan, 0.04]), "holm")
+    assert got[0] == pytest.approx(0.02) and np.isnan(got[1]) and got[2] == pytest.approx(0.04)
+    assert _adjust(np.array([0.01, np.nan, 0.04]), "bonferroni")[[0, 2]] == pytest.approx([0.02, 0.08])

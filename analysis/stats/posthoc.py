@@ -103,16 +103,19 @@ def marginal_means(fit: AnovaFit, effect: str | Sequence[str]) -> pd.DataFrame:
 
 
 def _adjust(p: np.ndarray, method: str) -> np.ndarray:
-    m = len(p)
-    if method == "bonferroni":
-        return np.minimum(1.0, p * m)
-    if method == "holm":
-        order = np.argsort(p)
-        adj = np.minimum(1.0, np.maximum.accumulate(p[order] * (m - np.arange(m))))
-        out = np.empty_like(adj)
-        out[order] = adj
-        return out
-    return p
+    """Holm or Bonferroni adjusted p values (statsmodels' ``multipletests``), others unchanged.
+
+    Undefined (NaN) p values stay NaN and do not count in the family, as R's ``p.adjust``.
+    """
+    if method not in ("holm", "bonferroni"):
+        return p
+    from statsmodels.stats.multitest import multipletests
+
+    out = np.array(p, dtype=float)
+    ok = ~np.isnan(out)
+    if ok.any():
+        out[ok] = multipletests(out[ok], method=method)[1]
+    return out
 
 
 def pairwise_comparisons(fit: AnovaFit, effect: str | Sequence[str], adjust: str = "tukey") -> pd.DataFrame:
