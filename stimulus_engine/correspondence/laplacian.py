@@ -65,10 +65,14 @@ def cotangent_laplacian(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matri
     return (off - sp.diags(diag)).tocsr()
 
 
-def voronoi_areas(vertices: np.ndarray, faces: np.ndarray, floor: float = 1e-12) -> np.ndarray:
+def voronoi_areas(vertices: np.ndarray, faces: np.ndarray, floor: float = 1e-3) -> np.ndarray:
     """Mixed Voronoi area per vertex (Meyer et al. 2003); obtuse triangles split ½ / ¼ / ¼.
 
-    Vertices used by no triangle get the mean area (they are otherwise inert).
+    Vertices used by no triangle get the mean area (they are otherwise inert). Areas below
+    ``floor`` times the median area are raised to it: the energy weighs each vertex by
+    ``1 / A_i``, and a region that the fairing has collapsed (far from every reference point
+    a faired real scan's neck or ears flatten to areas ~1e-16 of the median) would otherwise
+    make the system numerically singular (CHOLMOD: "not positive definite").
     """
     n = len(vertices)
     v = vertices[faces]
@@ -91,7 +95,7 @@ def voronoi_areas(vertices: np.ndarray, faces: np.ndarray, floor: float = 1e-12)
     used = np.bincount(faces.ravel(), minlength=n) > 0
     if (~used).any():
         out[~used] = out[used].mean() if used.any() else 1.0
-    return np.maximum(out, floor * max(out.max(), 1e-300))
+    return np.maximum(out, floor * max(float(np.median(out)), 1e-300))
 
 
 def bilaplacian(L: sp.spmatrix, areas: np.ndarray) -> sp.csr_matrix:

@@ -1,0 +1,50 @@
+"""Correspondence on real meshes as a user brings them (issue 14, item 3): never an internal error."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from appeal.cli import main
+from stimulus_engine.correspondence.landmark_sets import LANDMARK_SUBSET_16, read_ljson, reorder_landmarks
+from stimulus_engine.correspondence.laplacian import voronoi_areas
+from stimulus_engine.ict import ict_regions
+from stimulus_engine.mesh_io import load_mesh
+
+
+def test_collapsed_areas_are_floored_relative_to_the_median():
+    """A vertex whose triangles collapsed gets floor x median area, not ~0 (1/A would be ~1e16)."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0.5, 0], [2, 0, 0], [2, 1, 0]], float)
+    f = np.array([[0, 1, 4], [1, 3, 4], [3, 2, 4], [2, 0, 4], [1, 5, 6], [1, 6, 3]])
+    a = voronoi_areas(v, f)
+    v2 = v.copy()
+    v2[[5, 6]] = v2[1] + [[1e-9, 0, 0], [1e-9, 1e-9, 0]]  # two triangles squashed onto vertex 1
+    a2 = voronoi_areas(v2, f)
+    assert a2[5] == pytest.approx(1e-3 * np.median(voronoi_areas(v2, f, floor=0.0)), rel=1e-12)
+    assert np.allclose(a[:5], voronoi_areas(v, f, floor=0.0)[:5])  # ordinary areas untouched
+
+
+@pytest.mark.slow
+def test_ict_head_onto_james_with_16_landmarks(shared_data, tmp_path, capsys):
+    """The issue's reproduction: ICT vertices 0-9408 (face, scalp, neck) onto the james scan with
+    16 iBUG landmarks. The joint fairing flattened james's neck to areas ~1e-18 of the median and
+    CHOLMOD stopped with 'matrix is not positive definite' (SuperLU: 'exactly singular')."""
+    d = shared_data / "meshes"
+    ict = load_mesh(d / "ict-facekit" / "generic_neutral_mesh.obj.gz")
+    faces = np.asarray(ict.faces)
+    src = tmp_path / "ict_9409.obj"
+    trimesh.Trimesh(np.asarray(ict.vertices)[:9409], faces[(faces < 9409).all(axis=1)], process=False).export(src)
+    lm_src = np.asarray(ict_regions(d / "ict-facekit" / "vertex_indices.json")["landmarks"])[LANDMARK_SUBSET_16]
+    pts, order = read_ljson(d / "menpo3d-james" / "james.ljson")
+    lm_tgt = reorder_landmarks(pts, order)[LANDMARK_SUBSET_16]
+    pairs = tmp_path / "L.json"
+    pairs.write_text(json.dumps({"source": lm_src.tolist(), "target": lm_tgt.tolist()}))
+    out = tmp_path / "out"
+    assert main(["stimuli", "correspond", str(src), str(d / "menpo3d-james" / "james.obj"), "--landmarks", str(pairs),
+                 "--out", str(out), "--no-sheet"]) == 0, capsys.readouterr().err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["flipped_triangles"] == 0
+    assert metrics["median_dist_rel"] < 1e-3  # the face lies on the scan; scalp and neck have no counterpart
