@@ -100,6 +100,9 @@ def _check_mesh(mesh: trimesh.Trimesh, role: str) -> None:
     name = mesh.metadata.get("source_path", role)
     if len(mesh.faces) == 0:
         raise AppealInputError(f"{name}: {role} mesh has no triangles")
+    lo, hi = np.asarray(mesh.vertices).min(axis=0), np.asarray(mesh.vertices).max(axis=0)
+    if float(mesh.area) <= 1e-12 * float(np.sum((hi - lo) ** 2)):
+        raise AppealInputError(f"{name}: {role} mesh has no area (every triangle is degenerate); expected a surface")
     counts = edge_face_counts(mesh.faces)
     if (counts > 2).any():
         n_bad = len(np.unique(edge_keys(mesh.faces)[counts > 2]))

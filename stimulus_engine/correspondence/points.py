@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from appeal.errors import AppealInputError
 from stimulus_engine.correspondence.closest import SurfaceIndex
 
-__all__ = ["SurfacePoints", "Correspondences", "parse_points", "parse_pairs", "load_pairs_file"]
+__all__ = ["SurfacePoints", "Correspondences", "parse_points", "parse_pairs", "load_pairs_file", "check_spread"]
 
 
 @dataclass
@@ -158,6 +158,8 @@ def parse_points(entries, mesh, where: str = "landmarks", snap_tolerance: float 
         elif isinstance(e, (list, tuple, np.ndarray)) and len(e) == 3 and all(
             isinstance(x, (int, float, np.floating, np.integer)) and not isinstance(x, bool) for x in e
         ):
+            if not all(np.isfinite(float(x)) for x in e):
+                raise AppealInputError(f"{here}: expected finite coordinates [x, y, z] (got {list(e)!r})")
             snap_idx.append(k)
             snap_pts.append([float(x) for x in e])
         else:
@@ -183,7 +185,32 @@ def parse_pairs(data, source_mesh, target_mesh, where: str = "landmarks") -> Cor
         )
     src = parse_points(s, source_mesh, f"{where}: source")
     tgt = parse_points(t, target_mesh, f"{where}: target")
+    for side, pts, mesh in (("source", src, source_mesh), ("target", tgt, target_mesh)):
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        check_spread(pts.positions(v), f"{where}: {side}", float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))))
     return Correspondences(src, tgt)
+
+
+def check_spread(points: np.ndarray, where: str, scale: float, rtol: float = 1e-6) -> None:
+    """Raise unless ``points`` span a triangle (the alignment needs 3 points not on one line).
+
+    Parameters
+    ----------
+    points : (M, 3) array
+    where : str
+        Names the points in the message.
+    scale : float
+        The mesh's size (bounding-box diagonal).
+    rtol : float
+        Spread below ``rtol * scale`` counts as one point; a second singular value of the
+        centred points below ``rtol`` times the first counts as one line.
+    """
+    if len(points) < 3:
+        return  # too few: the caller's count check says so
+    sv = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    if sv[0] <= rtol * scale or sv[1] <= rtol * sv[0]:
+        what = "all at one point" if sv[0] <= rtol * scale else "on one line"
+        raise AppealInputError(f"{where}: the {len(points)} points are {what}; expected at least 3 points spanning a triangle")
 
 
 def load_pairs_file(path, source_mesh, target_mesh) -> Correspondences:
