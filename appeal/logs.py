@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import sys
 from pathlib import Path
 
 __all__ = ["logger", "set_log_level", "add_log_file", "remove_log_file"]
@@ -11,11 +12,25 @@ logger = logging.getLogger("appeal")
 _FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 
 
+class _CurrentStderrHandler(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is at the time of each message (not the stream of the
+    moment the handler was made: a replaced and closed stderr — pytest's capture, a notebook —
+    would otherwise turn every later message into a 'Logging error' traceback)."""
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
+
+
 def _stderr_handler() -> logging.Handler:
     for h in logger.handlers:
         if getattr(h, "_appeal_stderr", False):
             return h
-    h = logging.StreamHandler()
+    h = _CurrentStderrHandler()
     h.setFormatter(logging.Formatter("appeal: %(message)s"))
     h._appeal_stderr = True  # type: ignore[attr-defined]
     logger.addHandler(h)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 import pytest
 
@@ -163,3 +164,21 @@ def test_output_files_are_as_readable_as_the_umask_says(tmp_path, umask):
     assert any(n.endswith("_beh.tsv") for n in names) and any(n.endswith("_beh.json") for n in names)
     modes = {str(p.relative_to(tmp_path)): oct(p.stat().st_mode & 0o777) for p in files}
     assert set(modes.values()) == {oct(0o666 & ~umask)}, modes
+
+
+def test_log_messages_follow_a_replaced_stderr(monkeypatch):
+    """The stderr handler writes to the sys.stderr of each message: after the stream it first saw
+    is replaced and closed (pytest capture, notebooks), messages still arrive and nothing raises."""
+    import io
+
+    from appeal.logs import logger, set_log_level
+
+    first = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", first)
+    set_log_level("info")
+    logger.info("one")
+    first.close()
+    second = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", second)
+    logger.info("two")
+    assert second.getvalue() == "appeal: two\n"
