@@ -38,6 +38,7 @@ __all__ = [
     "build_trimesh",
     "load_mesh",
     "load_parts",
+    "validate_surface",
     "save_mesh",
     "select_region",
     "mesh_uv_layout",
@@ -175,11 +176,21 @@ def _scene_parts(scene: trimesh.Scene, path: Path) -> dict[str, trimesh.Trimesh]
     return parts
 
 
-def _validate(mesh: trimesh.Trimesh, path: Path) -> trimesh.Trimesh:
+def validate_surface(mesh: trimesh.Trimesh, name: str | os.PathLike) -> trimesh.Trimesh:
+    """``mesh`` if it is a surface: triangles, finite coordinates and some area.
+
+    Raises
+    ------
+    AppealInputError
+        One line starting with ``name`` (the file, or the mesh's role).
+    """
     if len(mesh.vertices) == 0 or len(mesh.faces) == 0:
-        raise AppealInputError(f"{path}: mesh has no triangles (expected a surface mesh)")
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise AppealInputError(f"{path}: vertex coordinates must be finite numbers (found NaN/inf)")
+        raise AppealInputError(f"{name}: mesh has no triangles (expected a surface mesh)")
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    if not np.all(np.isfinite(v)):
+        raise AppealInputError(f"{name}: vertex coordinates must be finite numbers (found NaN/inf)")
+    if float(mesh.area) <= 1e-12 * float(np.sum((v.max(axis=0) - v.min(axis=0)) ** 2)):
+        raise AppealInputError(f"{name}: mesh has no area (every triangle is degenerate; expected a surface mesh)")
     return mesh
 
 
@@ -215,20 +226,20 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     _check_exists(path)
     if _suffix(path) in (".obj", ".obj.gz"):
         mesh, _ = _load_obj(path)
-        return _validate(mesh, path)
+        return validate_surface(mesh, path)
     loaded = _load_trimesh_any(path)
     if isinstance(loaded, trimesh.Scene):
         parts = _scene_parts(loaded, path)
         if not parts:
             raise AppealInputError(f"{path}: scene holds no triangle meshes")
         if len(parts) == 1:
-            return _validate(next(iter(parts.values())), path)
+            return validate_surface(next(iter(parts.values())), path)
         mesh = trimesh.util.concatenate(list(parts.values()))
         mesh.metadata["source_path"] = str(path)
-        return _validate(mesh, path)
+        return validate_surface(mesh, path)
     if not isinstance(loaded, trimesh.Trimesh):
         raise AppealInputError(f"{path}: expected a triangle mesh (got {type(loaded).__name__})")
-    return _validate(_from_trimesh(loaded, path), path)
+    return validate_surface(_from_trimesh(loaded, path), path)
 
 
 def load_parts(path: str | os.PathLike) -> dict[str, trimesh.Trimesh]:
@@ -253,7 +264,7 @@ def load_parts(path: str | os.PathLike) -> dict[str, trimesh.Trimesh]:
     _check_exists(path)
     if _suffix(path) in (".obj", ".obj.gz"):
         mesh, data = _load_obj(path)
-        _validate(mesh, path)
+        validate_surface(mesh, path)
         if data.groups and (data.face_group >= 0).any():
             labels, names = data.face_group, data.groups
         elif data.materials and (data.face_material >= 0).any():

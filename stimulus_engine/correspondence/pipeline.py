@@ -18,8 +18,9 @@ from stimulus_engine.correspondence.points import Correspondences, SurfacePoints
 from stimulus_engine.correspondence.laplacian import fairing_operator, voronoi_areas
 from stimulus_engine.correspondence.metrics import fit_metrics
 from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
+from stimulus_engine.correspondence.repair import repair_mesh
 from stimulus_engine.correspondence.untangle import untangle
-from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
+from stimulus_engine.mesh_io import mesh_uv_layout, texture_image, validate_surface
 from stimulus_engine.mesh_ops import edge_face_counts, edge_keys
 
 #: The weights of eq. 3.7-3.13 mix unitless curvature energies with squared distances, so
@@ -98,17 +99,14 @@ class CorrespondenceResult:
 
 def _check_mesh(mesh: trimesh.Trimesh, role: str) -> None:
     name = mesh.metadata.get("source_path", role)
-    if len(mesh.faces) == 0:
-        raise AppealInputError(f"{name}: {role} mesh has no triangles")
-    lo, hi = np.asarray(mesh.vertices).min(axis=0), np.asarray(mesh.vertices).max(axis=0)
-    if float(mesh.area) <= 1e-12 * float(np.sum((hi - lo) ** 2)):
-        raise AppealInputError(f"{name}: {role} mesh has no area (every triangle is degenerate); expected a surface")
+    validate_surface(mesh, f"{name} ({role})")
     counts = edge_face_counts(mesh.faces)
     if (counts > 2).any():
         n_bad = len(np.unique(edge_keys(mesh.faces)[counts > 2]))
         raise AppealInputError(
             f"{name}: {role} mesh is non-manifold ({n_bad} edges shared by more "
-            "than two triangles); expected a manifold surface"
+            "than two triangles); expected a manifold surface: remove duplicate faces and non-manifold edges "
+            "first (e.g. MeshLab: Filters > Cleaning and Repairing)"
         )
 
 
@@ -153,12 +151,42 @@ def correspond(
     _check_mesh(target, "target")
     if len(corr) < 3:
         raise AppealInputError(f"landmarks: need at least 3 correspondences (got {len(corr)})")
+    # the geometry is solved on repaired copies (seams welded, winding made consistent, stray
+    # target islands left out) and mapped back: the user's vertices, faces and UVs are kept
+    t = time.perf_counter()
+    rs = repair_mesh(source.vertices, source.faces)
+    rt = repair_mesh(target.vertices, target.faces, drop_islands=True,
+                     keep_vertices=corr.target.vertices[corr.target.weights > 0])
+    repair_seconds = time.perf_counter() - t
+    if not (rs.changed or rt.changed):
+        return _correspond(source.vertices, source.faces, target.vertices, target.faces, corr, params)
+    logger.info("repaired for the fit: source %d -> %d vertices, %d faces flipped; target %d -> %d vertices, "
+                "%d -> %d faces, %d flipped", len(rs.vertex_map), len(rs.vertices), int(rs.flipped.sum()),
+                len(rt.vertex_map), len(rt.vertices), len(target.faces), len(rt.faces), int(rt.flipped.sum()))
+    corr_r = Correspondences(SurfacePoints(rs.vertex_map[corr.source.vertices], corr.source.weights),
+                             SurfacePoints(rt.vertex_map[corr.target.vertices], corr.target.weights))
+    res = _correspond(rs.vertices, rs.faces, rt.vertices, rt.faces, corr_r, params)
+    res.seconds["repair"] = repair_seconds
+    vm = rs.vertex_map
+    face, bary = rt.original_bary(res.target_face[vm], res.target_bary[vm])
+    res.metrics.update(n_source_vertices=len(vm), n_target_vertices=len(rt.vertex_map))
+    return CorrespondenceResult(
+        vertices=res.vertices[vm], faces=np.asarray(source.faces), faired_source=res.faired_source[vm],
+        faired_target=res.faired_target[rt.vertex_map], registered_base=res.registered_base[vm],
+        alignment=res.alignment, target_face=face, target_bary=bary, valid=res.valid[vm],
+        metrics=res.metrics, seconds=res.seconds,
+    )
+
+
+def _correspond(source_vertices, source_faces, target_vertices, target_faces, corr: Correspondences,
+                params: CorrespondParams) -> CorrespondenceResult:
+    """:func:`correspond` on checked, repaired arrays."""
     t_all = time.perf_counter()
     seconds: dict[str, float] = {}
-    vs0 = np.asarray(source.vertices, dtype=np.float64)
-    vt0 = np.asarray(target.vertices, dtype=np.float64)
-    fs = np.asarray(source.faces, dtype=np.int64)
-    ft = np.asarray(target.faces, dtype=np.int64)
+    vs0 = np.asarray(source_vertices, dtype=np.float64)
+    vt0 = np.asarray(target_vertices, dtype=np.float64)
+    fs = np.asarray(source_faces, dtype=np.int64)
+    ft = np.asarray(target_faces, dtype=np.int64)
 
     t = time.perf_counter()
     if params.align:
@@ -166,7 +194,8 @@ def correspond(
     else:
         sim = Similarity(1.0, np.eye(3), np.zeros(3))
     # work in a normalised frame: target bbox centred, diagonal NORMALISED_DIAGONAL
-    lo, hi = vt0.min(0), vt0.max(0)
+    used = vt0[np.unique(ft)]  # vertices of no face (or of a dropped island) do not set the frame
+    lo, hi = used.min(0), used.max(0)
     centre, diag = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / NORMALISED_DIAGONAL
     if diag <= 0:
         raise AppealInputError("target mesh: all vertices coincide (bounding-box diagonal is 0)")
