@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from stimulus_engine.mesh_ops import face_normals, vertex_adjacency
+
 __all__ = ["RepairedMesh", "repair_mesh", "weld", "consistent_winding", "main_components"]
 
 
@@ -89,21 +91,43 @@ def weld(vertices: np.ndarray, rtol: float = 1e-9) -> tuple[np.ndarray, np.ndarr
     return v[first[order]], rank[inverse.ravel()]
 
 
+def _face_components(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Connected piece of each face (pieces joined by a shared vertex count as one)."""
+    from scipy.sparse.csgraph import connected_components
+
+    _, labels = connected_components(vertex_adjacency(faces, n_vertices), directed=False)
+    return labels[faces[:, 0]]
+
+
+def _wound_consistently(faces: np.ndarray) -> bool:
+    """True when no directed edge occurs twice (neighbours traverse their shared edge oppositely)."""
+    a, b = faces.ravel(), faces[:, [1, 2, 0]].ravel()
+    key = a * (int(faces.max()) + 1) + b
+    return len(np.unique(key)) == len(key)
+
+
 def consistent_winding(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Faces wound consistently within each connected piece (trimesh's ``fix_winding``), each
-    piece facing outwards: ``Σ area · n · (centroid_f − centroid)`` > 0, the sign of the
-    volume for a closed piece and of the bulge for an open face mask. (``fix_winding`` follows
-    whichever face it starts from, which may be a flipped one.)"""
+    """Faces wound consistently within each connected piece (trimesh's ``fix_winding``, run
+    only when some neighbours disagree), each piece facing outwards:
+    ``Σ area · n · (centroid_f − centroid)`` > 0, the sign of the volume for a closed piece
+    and of the bulge for an open face mask (``fix_winding`` follows whichever face it starts
+    from, which may be a flipped one)."""
     faces = np.asarray(faces, dtype=np.int64)
-    mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
-    trimesh.repair.fix_winding(mesh)
-    wound = np.asarray(mesh.faces, dtype=np.int64)
-    v = np.asarray(vertices, dtype=np.float64)[wound]
-    centre = v.mean(axis=1)
-    normal_area = 0.5 * np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-    labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(faces))
+    if len(faces) == 0:
+        return faces.copy()
+    if _wound_consistently(faces):
+        wound = faces.copy()
+    else:
+        mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
+        trimesh.repair.fix_winding(mesh)
+        wound = np.asarray(mesh.faces, dtype=np.int64)
+    v = np.asarray(vertices, dtype=np.float64)
+    centre = v[wound].mean(axis=1)
+    normal, area = face_normals(v, wound)
+    normal_area = normal * area[:, None]
+    labels = _face_components(wound, len(vertices))
     n = np.bincount(labels)
-    mid = np.stack([np.bincount(labels, weights=centre[:, k]) / n for k in range(3)], axis=1)
+    mid = np.stack([np.bincount(labels, weights=centre[:, k]) / np.maximum(n, 1) for k in range(3)], axis=1)
     bulge = np.bincount(labels, weights=np.einsum("ij,ij->i", normal_area, centre - mid[labels]))
     inward = (bulge < 0)[labels]
     wound[inward] = wound[inward][:, ::-1]
@@ -117,10 +141,11 @@ def main_components(vertices: np.ndarray, faces: np.ndarray, keep_vertices: np.n
     A piece is kept when its area is at least ``min_fraction`` of the largest piece's or it
     holds one of ``keep_vertices`` (landmarks).
     """
-    mesh = trimesh.Trimesh(vertices, faces, process=False, validate=False)
-    labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(faces))
-    area = np.bincount(labels, weights=mesh.area_faces)
-    keep = area >= min_fraction * area.max()
+    faces = np.asarray(faces, dtype=np.int64)
+    labels = _face_components(faces, len(vertices))
+    _, area = face_normals(np.asarray(vertices, dtype=np.float64), faces)
+    piece_area = np.bincount(labels, weights=area)
+    keep = piece_area >= min_fraction * piece_area.max()
     held = np.isin(faces, np.asarray(keep_vertices, dtype=np.int64)).any(axis=1)
     keep[np.unique(labels[held])] = True
     return keep[labels]
