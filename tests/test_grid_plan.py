@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from collections import Counter
 
+import pytest
+
 from appeal.studyfile import validate_data
 from stimulus_engine.grid.plan import material_sources, plan_images, plan_photos
 from stimulus_engine.grid_schema import GridFile
@@ -78,3 +80,26 @@ def test_every_character_has_one_kind_with_a_rig_builder():
                          GridFile, source="g.yaml", check_paths=False)
     assert [character_kind(c) for c in grid.characters] == ["procedural", "ict"]
     assert set(CHARACTER_KINDS) == {"ict", "procedural"}
+
+
+#: Images per shipped grid as the thesis designs them (§6.3.1 Exp. 1a: 3 shapes x 3 materials x 5
+#: expressions; §6.3.2 Exp. 1b: 3 baseline characters x 2 shadings x 3 lightings x 5 expressions;
+#: §6.3.3 Exp. 1c: 3 shapes x 5 materials, neutral; §6.4 Exp. 2: 2 characters x 5 x 5 x 5 expressions;
+#: §7.3 / Fig. 7.4 ERP: 2 characters x 6 stylisation levels x 3 emotions).
+THESIS_IMAGES = {"exp1a_shape_material": 45, "exp1b_shading_lighting": 90, "exp1c_texture": 15,
+                 "exp2_stylisation": 250, "erp_stylisation": 36}
+
+
+@pytest.mark.parametrize("name", sorted(THESIS_IMAGES))
+def test_shipped_grid_counts_match_the_thesis_and_their_header(name):
+    import re
+
+    from appeal.assets import protocols_dir
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid.plan import plan_images, plan_photos
+
+    path = protocols_dir() / "grids" / f"{name}.yaml"
+    grid = load_study_file(path, GridFile)
+    assert len(plan_images(grid)) + len(plan_photos(grid)) == THESIS_IMAGES[name]
+    header = " ".join(line for line in path.read_text(encoding="utf-8").splitlines() if line.startswith("#"))
+    assert re.search(rf"= {THESIS_IMAGES[name]} images", header), f"{path.name}: the header states another count"
