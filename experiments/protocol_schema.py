@@ -14,8 +14,10 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from appeal.studyfile import InputFile, OutputPath, StudyModel
 from appeal.errors import AppealInputError
+from appeal.levels import level_key
+from appeal.studyfile import InputFile, OutputPath, StudyModel
+from appeal.triggers import trigger_table
 
 __all__ = [
     "Protocol", "StimulusSource", "Selection", "ScreenSpec", "TimingSpec", "OrderSpec", "BreakSpec",
@@ -26,20 +28,6 @@ __all__ = [
 Name = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)]
 Level = str | int | float | bool
 Seconds = Annotated[float, Field(ge=0, le=3600)]
-
-
-def level_key(value: Any) -> str:
-    """The string form a factor level is compared by (``0``, ``0.0`` and ``'0'`` are equal)."""
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, float) and value.is_integer():
-        return str(int(value))
-    text = str(value).strip()
-    try:
-        num = float(text)
-    except ValueError:
-        return text
-    return str(int(num)) if num.is_integer() else text
 
 
 class Selection(StudyModel):
@@ -245,23 +233,7 @@ class TriggerSpec(StudyModel):
     @field_validator("codes")
     @classmethod
     def _codes(cls, v: list[dict[str, Any]]) -> list[dict[str, Any]]:
-        seen: dict[int, int] = {}
-        conditions: dict[tuple, int] = {}
-        for i, entry in enumerate(v):
-            code = entry.get("code")
-            if code is None:
-                raise ValueError(f"codes[{i}]: expected a 'code' key (got {sorted(entry)})")
-            if isinstance(code, bool) or not isinstance(code, int) or not 1 <= code <= 255:
-                raise ValueError(f"codes[{i}]: code must be an integer 1-255 (got {code!r})")
-            if code in seen:
-                raise ValueError(f"codes[{i}]: code {code} is used twice (also codes[{seen[code]}])")
-            seen[code] = i
-            cond = tuple(sorted((k, level_key(x)) for k, x in entry.items() if k != "code"))
-            if not cond:
-                raise ValueError(f"codes[{i}]: code {code} names no factor level")
-            if cond in conditions:
-                raise ValueError(f"codes[{i}]: condition {dict(cond)} already has a code (codes[{conditions[cond]}])")
-            conditions[cond] = i
+        trigger_table(v)  # the rules the ERP analysis reads the table by (appeal.triggers)
         return v
 
     @model_validator(mode="after")

@@ -6,8 +6,9 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from appeal.levels import level_key
 from experiments.display import PhaseTiming, Presenter
-from experiments.protocol_schema import ClassificationSpec, LikertSpec, level_key
+from experiments.protocol_schema import ClassificationSpec, LikertSpec
 from experiments.simulate import SimulatedParticipant
 
 __all__ = ["SessionAborted", "HumanResponder", "ModelResponder", "ShowFn"]

@@ -8,9 +8,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from appeal.levels import level_key
 from experiments.datafile import TsvWriter
 from experiments.display import PhaseTiming, Presenter
-from experiments.protocol_schema import ClassificationSpec, LikertSpec, Protocol, level_key
+from experiments.protocol_schema import ClassificationSpec, LikertSpec, Protocol
 from experiments.screens import markdown_to_text, save_back_buffer
 from experiments.triggers import TriggerSender
 from experiments.trials import Trial

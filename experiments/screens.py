@@ -161,7 +161,7 @@ class Screens:
 
     def draw_classification(self, spec: ClassificationSpec, *, with_stimulus: bool, chosen: str | None = None) -> None:
         """Draw the choice buttons (``chosen``: the value to highlight)."""
-        from experiments.protocol_schema import level_key
+        from appeal.levels import level_key
 
         self._thumb(with_stimulus)
         if spec.prompt:

@@ -29,8 +29,9 @@ import numpy as np
 from pydantic import Field
 
 from appeal.errors import AppealInputError
+from appeal.levels import level_key
 from appeal.studyfile import StudyModel, load_study_file
-from experiments.protocol_schema import ChoiceSpec, LikertSpec, level_key
+from experiments.protocol_schema import ChoiceSpec, LikertSpec
 
 __all__ = ["ParticipantModel", "SimulatedParticipant", "load_participant_model", "DEFAULT_MODEL"]
 

@@ -6,12 +6,15 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
 from appeal.errors import AppealInputError
-from experiments.protocol_schema import Selection, StimulusSource, level_key
+from appeal.levels import level_key, sort_levels
+
+if TYPE_CHECKING:  # annotations only: the schema imports this module (input_problems)
+    from experiments.protocol_schema import Selection, StimulusSource
 
 __all__ = ["StimulusSet", "load_stimuli", "select_stimuli", "IMAGE_SUFFIXES"]
 
@@ -46,17 +49,6 @@ class StimulusSet:
         present = set(self.table[factor].unique())
         declared = [v for v in self.order.get(factor, []) if v in present]
         return declared + sort_levels(present - set(declared))
-
-
-def sort_levels(levels: Sequence[Any]) -> list[str]:
-    """Sort level strings naturally: numeric ones by value, then the rest alphabetically."""
-    def key(v: str) -> tuple:
-        try:
-            return (0, float(v), "")
-        except ValueError:
-            m = re.match(r"^(\D*)(\d+)$", v)
-            return (1, float(m.group(2)), m.group(1)) if m else (2, 0.0, v)
-    return sorted((str(v) for v in levels), key=key)
 
 
 def _read_table(path: Path, what: str) -> pd.DataFrame:

@@ -15,11 +15,13 @@ import numpy as np
 import pandas as pd
 
 from appeal.errors import AppealInputError
+from appeal.levels import level_key
+from appeal.triggers import trigger_table
 from experiments.ordering import constrained_order
-from experiments.protocol_schema import ExtraTrialsSpec, Protocol, level_key
+from experiments.protocol_schema import ExtraTrialsSpec, Protocol
 from experiments.stimuli import StimulusSet, select_stimuli
 
-__all__ = ["Trial", "seconds_to_frames", "fixation_frame_range", "build_trials", "trigger_table", "trials_frame"]
+__all__ = ["Trial", "seconds_to_frames", "fixation_frame_range", "build_trials", "protocol_trigger_codes", "trials_frame"]
 
 
 @dataclass
@@ -70,11 +72,13 @@ def fixation_frame_range(lo_s: float, hi_s: float, refresh_hz: float) -> tuple[i
     return max(lo, 1), max(hi, 1)
 
 
-def trigger_table(protocol: Protocol) -> list[tuple[int, dict[str, str]]]:
-    """The protocol's trigger codes as ``(code, {factor: level-string})`` pairs."""
+def protocol_trigger_codes(protocol: Protocol) -> list[tuple[int, dict[str, str]]]:
+    """The protocol's trigger codes as ``(code, {factor: level-string})`` pairs (the table of
+    :func:`appeal.triggers.trigger_table`, which the ERP analysis reads too)."""
     if protocol.triggers is None:
         return []
-    return [(int(e["code"]), {k: level_key(v) for k, v in e.items() if k != "code"}) for e in protocol.triggers.codes]
+    table = trigger_table(protocol.triggers.codes)
+    return [(code, {k: level_key(v) for k, v in levels.items()}) for code, levels in table.items()]
 
 
 def _code_for(factors: Mapping[str, str], table: list[tuple[int, dict[str, str]]]) -> list[int]:
@@ -82,7 +86,7 @@ def _code_for(factors: Mapping[str, str], table: list[tuple[int, dict[str, str]]
 
 
 def _assign_triggers(main: pd.DataFrame, protocol: Protocol, source: str) -> dict[str, int]:
-    table = trigger_table(protocol)
+    table = protocol_trigger_codes(protocol)
     out: dict[str, int] = {}
     problems = []
     for _, row in main.iterrows():

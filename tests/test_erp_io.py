@@ -162,7 +162,7 @@ def test_protocol_codes_and_config_errors(tmp_path):
     assert "bad.yaml: montage: unknown montage 'biosemi129' (did you mean 'biosemi128'?)" in text
     proto = tmp_path / "proto.yaml"
     proto.write_text("triggers:\n  codes:\n    - {code: x1, emotion: angry}\n")
-    with pytest.raises(StudyFileError, match=r"proto.yaml: triggers.codes\[0\].code: expected an integer"):
+    with pytest.raises(StudyFileError, match=r"proto.yaml: triggers.codes\[0\]: code must be an integer 1-255 \(got .x1.\)"):
         read_protocol_codes(proto)
     q = tmp_path / "q.yaml"
     q.write_text(f"kind: erp\nrecordings: x.bdf\nevents: {{protocol: {proto.name}}}\nfactors: [emotion]\n")

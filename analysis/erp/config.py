@@ -8,7 +8,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from appeal.errors import AppealInputError, StudyFileError
+from appeal.levels import level_value, sort_levels
 from appeal.studyfile import load_study_file, load_yaml
+from appeal.triggers import trigger_table
 
 from analysis.erp_schema import ErpConfig, ProtocolEvents
 
@@ -30,48 +32,27 @@ def load_erp_config(path: str | Path) -> ErpConfig:
     return load_study_file(path, ErpConfig)
 
 
-def _level(value):
-    """Levels as written: ints stay ints ("0" from YAML keys too), others become str."""
-    if isinstance(value, bool):
-        return str(value)
-    if isinstance(value, (int, float)):
-        return int(value) if float(value).is_integer() else float(value)
-    return str(value)
-
-
 def read_protocol_codes(path: str | Path) -> dict[int, dict[str, object]]:
     """The ``triggers.codes`` section of a runner protocol: code -> factor levels.
 
-    The section is a list of mappings ``{code: 11, character: c1, stylisation: 0, emotion: angry}``.
-    Only this section is read; the rest of the protocol is not interpreted here.
+    The section is a list of mappings ``{code: 11, character: c1, stylisation: 0, emotion: angry}``,
+    validated by the rules the runner sends them by (:func:`appeal.triggers.trigger_table`) and
+    levels typed by :func:`appeal.levels.level_value`. Only this section is read; the rest of the
+    protocol is not interpreted here (the analysis does not need :mod:`experiments`).
 
     Raises
     ------
     StudyFileError
-        When the section is missing or an entry is not a mapping with an integer ``code``.
+        When the section is missing or an entry is not valid (see ``trigger_table``).
     """
     path = Path(path)
     doc = load_yaml(path)
     codes = ((doc or {}).get("triggers") or {}).get("codes") if isinstance(doc, dict) else None
-    if not isinstance(codes, list) or not codes:
-        raise StudyFileError(f"{path}: triggers.codes: expected a list of {{code: INT, <factor>: <level>, ...}} "
-                             f"mappings (got {type(codes).__name__ if codes is not None else 'nothing'})")
-    out: dict[int, dict[str, object]] = {}
-    for i, entry in enumerate(codes):
-        where = f"{path}: triggers.codes[{i}]"
-        if not isinstance(entry, dict) or "code" not in entry:
-            raise StudyFileError(f"{where}: expected a mapping with a 'code' key (got {entry!r})")
-        try:
-            code = int(entry["code"])
-        except (TypeError, ValueError):
-            raise StudyFileError(f"{where}.code: expected an integer (got {entry['code']!r})") from None
-        levels = {str(k): _level(v) for k, v in entry.items() if k != "code"}
-        if not levels:
-            raise StudyFileError(f"{where}: code {code} names no factor levels")
-        if code in out:
-            raise StudyFileError(f"{where}.code: code {code} appears twice")
-        out[code] = levels
-    return out
+    try:
+        table = trigger_table(codes if codes is not None else [])
+    except ValueError as exc:
+        raise StudyFileError(f"{path}: triggers.{exc}" if str(exc).startswith("codes[") else f"{path}: triggers.codes: {exc}") from None
+    return {code: {f: level_value(v) for f, v in levels.items()} for code, levels in table.items()}
 
 
 @dataclass(frozen=True)
@@ -106,12 +87,6 @@ class EventMap:
         return "/".join(f"{f}={v}" for f, v in zip(self.factors, cell))
 
 
-def _sort_levels(values: list) -> list:
-    if all(isinstance(v, (int, float)) for v in values):
-        return sorted(values)
-    return values
-
-
 def event_map(cfg: ErpConfig, source: str | Path = "config") -> EventMap:
     """Resolve the config's ``events`` (inline or from a protocol) into an :class:`EventMap`.
 
@@ -123,7 +98,7 @@ def event_map(cfg: ErpConfig, source: str | Path = "config") -> EventMap:
     if isinstance(cfg.events, ProtocolEvents):
         raw = read_protocol_codes(cfg.events.protocol)
     else:
-        raw = {int(k): {str(f): _level(v) for f, v in d.items()} for k, d in cfg.events.items()}
+        raw = {int(k): {str(f): level_value(v) for f, v in d.items()} for k, d in cfg.events.items()}
     all_factors: list[str] = []
     for levels in raw.values():
         for f in levels:
@@ -143,13 +118,13 @@ def event_map(cfg: ErpConfig, source: str | Path = "config") -> EventMap:
     for f in factors:
         seen = list(dict.fromkeys(d[f] for d in codes.values()))
         if f in cfg.levels:
-            given = [_level(v) for v in cfg.levels[f]]
+            given = [level_value(v) for v in cfg.levels[f]]
             extra = [v for v in seen if v not in given]
             if extra or len(given) != len(set(given)):
                 raise StudyFileError(f"{source}: levels.{f}: expected each of {seen} exactly once (got {given})")
             levels[f] = [v for v in given if v in seen]
         else:
-            levels[f] = _sort_levels(seen)
+            levels[f] = sort_levels(seen)
     for f in cfg.levels:
         if f not in factors:
             raise StudyFileError(f"{source}: levels.{f}: not a factor (expected one of: {', '.join(factors)})")

@@ -53,9 +53,9 @@ def grand_averages(result: ErpResult) -> tuple[dict, list[str], np.ndarray, obje
 
 def _contrast_pairs(cfg: ErpConfig, levels: list) -> list[tuple]:
     if cfg.source.contrasts:
-        from analysis.erp.config import _level
+        from appeal.levels import level_value
 
-        return [(_level(a), _level(b)) for a, b in cfg.source.contrasts]
+        return [(level_value(a), level_value(b)) for a, b in cfg.source.contrasts]
     return [(levels[-1], levels[0]), (levels[0], levels[-1])]
 
 
