@@ -14,7 +14,6 @@ temporo-occipital clusters, LPP (400-600 ms) over a parietal cluster. Example::
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
@@ -240,16 +239,6 @@ class ErpConfig(StudyModel):
     figures: FiguresConfig = Field(default_factory=FiguresConfig)
     source: SourceConfig = Field(default_factory=SourceConfig)
     n_jobs: int | None = Field(None, ge=1)
-
-    def input_problems(self, source: str | Path) -> list[str]:
-        """Problems with the inputs this analysis needs: ``recordings`` entries that find no file.
-
-        ``appeal validate`` reports these after the schema checks (recordings are usually
-        made after the config is written, so the schema does not require them).
-        """
-        from analysis.erp.config import recording_problems
-
-        return recording_problems(self, source)
 
     @field_validator("events", mode="before")
     @classmethod

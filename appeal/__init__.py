@@ -1,7 +1,7 @@
 """Appeal Lab: the cross-cutting core (study files, outputs, provenance, parallel map, reports).
 
 This package depends on none of the three rooms (``stimulus_engine``, ``experiments``,
-``analysis``); only :mod:`appeal.cli` imports them.
+``analysis``); only :mod:`appeal_cli` imports them.
 """
 
 __version__ = "0.1.0"

@@ -1,6 +1,6 @@
 """The end-to-end demo: stages run in order, each writing into its own folder.
 
-A stage is registered by a module in ``appeal/cli/demo_stages/`` that defines
+A stage is registered by a module in ``appeal_cli/demo_stages/`` that defines
 ``STAGE = DemoStage(...)``. This module only knows how to run stages and write the page.
 """
 

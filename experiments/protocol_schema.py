@@ -14,7 +14,6 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from appeal.errors import AppealInputError
 from appeal.levels import level_key
 from appeal.studyfile import InputFile, OutputPath, StudyModel
 from appeal.triggers import trigger_table
@@ -346,21 +345,6 @@ class Protocol(StudyModel):
             if isinstance(r, ClassificationSpec) and r.intensity is not None:
                 out.append(r.intensity.name)
         return out
-
-    def input_problems(self, source: str | Path) -> list[str]:
-        """Problems with the inputs this protocol needs to run: its stimuli (missing manifest,
-        folder, table or image files, missing factor columns, empty selections).
-
-        ``appeal validate`` reports these after the schema checks. They are kept out of the
-        schema because a protocol is normally written before its stimuli are rendered.
-        """
-        from experiments.stimuli import load_stimuli
-
-        try:
-            load_stimuli(self.stimuli, protocol_file=source)
-        except AppealInputError as exc:
-            return exc.lines
-        return []
 
 
 def protocol_base_dir(path: str | Path) -> Path:

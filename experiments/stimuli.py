@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -13,10 +13,10 @@ import pandas as pd
 from appeal.errors import AppealInputError
 from appeal.levels import level_key, sort_levels
 
-if TYPE_CHECKING:  # annotations only: the schema imports this module (input_problems)
-    from experiments.protocol_schema import Selection, StimulusSource
+if TYPE_CHECKING:  # annotations only
+    from experiments.protocol_schema import Protocol, Selection, StimulusSource
 
-__all__ = ["StimulusSet", "load_stimuli", "select_stimuli", "IMAGE_SUFFIXES"]
+__all__ = ["protocol_input_problems", "StimulusSet", "load_stimuli", "select_stimuli", "IMAGE_SUFFIXES"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".gif")
 
@@ -181,3 +181,17 @@ def select_stimuli(sset: StimulusSet, selection: Selection | None) -> StimulusSe
         for other in selection.match[1:]:
             mask &= keys(other) == first
     return StimulusSet(table[mask].reset_index(drop=True), sset.factors, sset.source, sset.order)
+
+
+def protocol_input_problems(protocol: Protocol, source: str | Path) -> list[str]:
+    """Problems with the inputs a protocol needs to run: its stimuli (missing manifest,
+    folder, table or image files, missing factor columns, empty selections).
+
+    ``appeal validate`` reports these after the schema checks. They are kept out of the
+    schema because a protocol is normally written before its stimuli are rendered.
+    """
+    try:
+        load_stimuli(protocol.stimuli, protocol_file=source)
+    except AppealInputError as exc:
+        return exc.lines
+    return []

@@ -8,7 +8,7 @@ import sys
 import click
 import pytest
 
-from appeal.cli import _hoist_global_flags, _load_commands, cli, main
+from appeal_cli import _hoist_global_flags, _load_commands, cli, main
 
 
 def _all_commands():
@@ -77,7 +77,7 @@ def test_global_flags_anywhere():
 
 
 def test_internal_error_exit_1(monkeypatch, capsys):
-    from appeal.cli import demo as demo_mod
+    from appeal_cli import demo as demo_mod
 
     def boom():
         raise RuntimeError("kaput")
@@ -95,5 +95,5 @@ def test_out_refuses_non_empty(tmp_path, capsys):
 
 
 def test_console_script_runs():
-    res = subprocess.run([sys.executable, "-m", "appeal", "--help"], capture_output=True, text=True, check=False)
+    res = subprocess.run([sys.executable, "-m", "appeal_cli", "--help"], capture_output=True, text=True, check=False)
     assert res.returncode == 0 and "stimuli" in res.stdout

@@ -8,7 +8,7 @@ from __future__ import annotations
 import click
 import pytest
 
-from appeal.cli import _load_commands, cli, main
+from appeal_cli import _load_commands, cli, main
 
 
 def _leaf_commands():

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from appeal.cli import main
+from appeal_cli import main
 from stimulus_engine.correspondence.synthetic import synthetic_pair
 
 

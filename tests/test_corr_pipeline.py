@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from appeal.cli import main
+from appeal_cli import main
 from appeal.errors import AppealInputError
 from stimulus_engine import (
     blend_images,

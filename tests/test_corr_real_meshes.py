@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from appeal.cli import main
+from appeal_cli import main
 from stimulus_engine.correspondence.landmark_sets import LANDMARK_SUBSET_16, read_ljson, reorder_landmarks
 from stimulus_engine.correspondence.laplacian import voronoi_areas
 from stimulus_engine.ict import ict_regions

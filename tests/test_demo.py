@@ -8,8 +8,8 @@ import shutil
 
 import pytest
 
-from appeal.cli import main
-from appeal.cli.demo import discover_stages
+from appeal_cli import main
+from appeal_cli.demo import discover_stages
 from appeal.demo import DemoStage, run_demo
 from appeal.report import ReportSection
 
@@ -60,7 +60,7 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     import sys
 
     out = tmp_path / "demo"
-    res = subprocess.run([sys.executable, "-m", "appeal", "-q", "demo", "--out", str(out)],
+    res = subprocess.run([sys.executable, "-m", "appeal_cli", "-q", "demo", "--out", str(out)],
                          capture_output=True, text=True, check=False, timeout=1200)
     assert res.returncode == 0, res.stderr[-2000:]
     prov = json.loads((out / "provenance.json").read_text())

@@ -8,7 +8,7 @@ import pandas as pd
 import yaml
 
 from appeal.assets import protocols_dir
-from appeal.cli import main
+from appeal_cli import main
 
 CONFIG = protocols_dir() / "analysis" / "erp_biosemi_sample.yaml"
 

@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from analysis.erp.simulate import SimulationDesign, simulate_study
-from appeal.cli import main
+from appeal_cli import main
 
 DESIGN = SimulationDesign(n_subjects=8, trials_per_cell=8, sfreq=128, spacing_mm=12.0, seed=3)
 

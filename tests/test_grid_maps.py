@@ -9,7 +9,7 @@ import pytest
 import trimesh
 from PIL import Image
 
-from appeal.cli import main
+from appeal_cli import main
 from appeal.errors import AppealInputError, StudyFileError
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid import run_grid

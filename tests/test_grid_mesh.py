@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from appeal.cli import main
+from appeal_cli import main
 from appeal.errors import StudyFileError
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid import run_grid

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from appeal.cli import main
+from appeal_cli import main
 from appeal.errors import StudyFileError
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid import prepare_grid, run_grid, sheet_layout

@@ -15,11 +15,11 @@ import pandas as pd
 import yaml
 
 from appeal.assets import protocols_dir
-from appeal.cli import main
+from appeal_cli import main
 
 
 def _session(protocol, out, stimuli, participant, seed):
-    cmd = [sys.executable, "-m", "appeal", "-q", "run", str(protocol), "--participant", participant,
+    cmd = [sys.executable, "-m", "appeal_cli", "-q", "run", str(protocol), "--participant", participant,
            "--out", str(out), "--simulate", "default", "--stimuli", str(stimuli), "--seed", str(seed), "--no-window"]
     res = subprocess.run(cmd, capture_output=True, text=True, check=False, timeout=600)
     assert res.returncode == 0, res.stderr

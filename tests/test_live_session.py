@@ -125,7 +125,7 @@ class Participant:
 def start(display: str, protocol: Path, participant: str, out: Path, *extra: str,
           refresh: bool = True) -> subprocess.Popen:
     """``appeal run`` on ``display`` (``refresh=False``: the refresh rate is measured, as by default)."""
-    cmd = [sys.executable, "-m", "appeal", "run", str(protocol), "--participant", participant, "--out", str(out),
+    cmd = [sys.executable, "-m", "appeal_cli", "run", str(protocol), "--participant", participant, "--out", str(out),
            *(["--refresh-hz", "60"] if refresh else []), *extra]
     return subprocess.Popen(cmd, env={**os.environ, "DISPLAY": display}, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
@@ -235,7 +235,7 @@ def test_live_session_mouse_then_escape_and_printed_resume(tmp_path, display):
     line = next(ln for ln in err.splitlines() if ln.startswith("Continue with: "))
     words = shlex.split(line.removeprefix("Continue with: "))
     assert {"--stimuli", "--windowed", "--refresh-hz", "--resume"} <= set(words)
-    proc = subprocess.Popen([sys.executable, "-m", "appeal", *words[1:]], env={**os.environ, "DISPLAY": display},
+    proc = subprocess.Popen([sys.executable, "-m", "appeal_cli", *words[1:]], env={**os.environ, "DISPLAY": display},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     person = Participant(display, proc)
     person.play(["space", "3"])

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from appeal.cli import main
+from appeal_cli import main
 from appeal.errors import AppealInputError
 from stimulus_engine.morphpca import (
     detect_faceframe,

@@ -153,7 +153,7 @@ def test_output_files_are_as_readable_as_the_umask_says(tmp_path, umask):
     protocol = yaml.safe_load((tmp_path / "protocols" / "exp2_stylisation.yaml").read_text(encoding="utf-8"))
     levels = {"character": ["c1"], **protocol["stimuli"]["levels"], "expression": ["neutral"]}
     draw_face_grid((tmp_path / "protocols" / protocol["stimuli"]["manifest"]).parent, levels, size=(40, 30))
-    res = subprocess.run([sys.executable, "-m", "appeal", "-q", "run", "protocols/exp2_stylisation.yaml",
+    res = subprocess.run([sys.executable, "-m", "appeal_cli", "-q", "run", "protocols/exp2_stylisation.yaml",
                           "--participant", "01", "--simulate", "default", "--no-window"],
                          cwd=tmp_path, env={**os.environ, "MPLBACKEND": "Agg"}, capture_output=True, text=True,
                          timeout=600, check=False, preexec_fn=lambda: os.umask(umask))

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from appeal.assets import protocols_dir
-from appeal.cli import main
+from appeal_cli import main
 from appeal.errors import AppealInputError
 from appeal.studyfile import load_study_file
 from experiments.protocol_schema import Protocol

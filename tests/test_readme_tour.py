@@ -35,7 +35,7 @@ def _tour_commands() -> list[list[str]]:
 
 def _appeal(argv: list[str], cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    return subprocess.run([sys.executable, "-m", "appeal", "-q", *argv[1:]], cwd=cwd, env=env,
+    return subprocess.run([sys.executable, "-m", "appeal_cli", "-q", *argv[1:]], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=600, check=False)
 
 

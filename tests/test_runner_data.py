@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from appeal.cli import main
+from appeal_cli import main
 from appeal.errors import AppealInputError
 from experiments import TsvWriter, read_completed, run_session
 from experiments.drawn_faces import draw_face_grid
@@ -174,7 +174,7 @@ def test_sigkill_at_20_random_trials_then_resume(tmp_path, manifest):
     model.write_text(yaml.safe_dump(FAST_MODEL))
     out = tmp_path / "killed"
     beh = out / "sub-07_ses-1_task-fast_beh.tsv"
-    cmd = [sys.executable, "-m", "appeal", "-q", "run", str(proto), "--participant", "07", "--out", str(out),
+    cmd = [sys.executable, "-m", "appeal_cli", "-q", "run", str(proto), "--participant", "07", "--out", str(out),
            "--simulate", str(model), "--no-window", "--realtime", "--seed", "11"]
     targets = sorted(np.random.default_rng(20240607).choice(np.arange(2, 47), size=20, replace=False))
     killed_at = []
@@ -327,7 +327,7 @@ def test_sigterm_marks_crashed_and_printed_command_resumes(tmp_path, manifest):
     model.write_text(yaml.safe_dump({**FAST_MODEL, "rt": {"median_s": 0.05, "sigma": 0.2, "min_s": 0.02}}))
     out = tmp_path / "folder with space"
     beh = out / "sub-09_ses-2_task-fast_beh.tsv"
-    cmd = [sys.executable, "-m", "appeal", "run", str(proto), "--participant", "09", "--session", "2",
+    cmd = [sys.executable, "-m", "appeal_cli", "run", str(proto), "--participant", "09", "--session", "2",
            "--stimuli", str(manifest), "--out", str(out), "--simulate", str(model), "--no-window", "--realtime",
            "--refresh-hz", "120", "--trigger-backend", "file"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -342,7 +342,7 @@ def test_sigterm_marks_crashed_and_printed_command_resumes(tmp_path, manifest):
     line = next(ln for ln in err.splitlines() if ln.startswith("Continue with: "))
     words = shlex.split(line.removeprefix("Continue with: "))
     assert words[:2] == ["appeal", "run"] and "--resume" in words and "--stimuli" in words
-    done = subprocess.run([sys.executable, "-m", "appeal", *words[1:]], capture_output=True, text=True, check=False)
+    done = subprocess.run([sys.executable, "-m", "appeal_cli", *words[1:]], capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     final = pd.read_csv(beh, sep="\t")
     assert final["trial"].tolist() == list(range(1, 49)) and (final["session"] == 2).all()

@@ -26,7 +26,7 @@ GRID = {"character": ["c1"], "shape": [0, 1, 2], "material": [0, 2],
 
 def appeal(args, timeout=240):
     """``appeal ...`` in a subprocess, under xvfb-run when there is no display."""
-    cmd = [sys.executable, "-m", "appeal", "-q", *map(str, args)]
+    cmd = [sys.executable, "-m", "appeal_cli", "-q", *map(str, args)]
     if not os.environ.get("DISPLAY"):
         if shutil.which("xvfb-run") is None:
             pytest.fail("GUI tests need a display or xvfb-run")

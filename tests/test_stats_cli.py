@@ -13,7 +13,7 @@ from analysis import rm_anova
 from analysis.ratings_schema import RatingsAnalysis
 from analysis.stats.reporting import anova_text, format_effect, markdown_table
 from analysis.stats.simulate import ScaleModel, exp2_design, simulate_ratings, write_bids
-from appeal.cli import main
+from appeal_cli import main
 from appeal.errors import StudyFileError
 from appeal.studyfile import validate_data
 from r_reference_numbers import r_reference

@@ -5,7 +5,7 @@ from __future__ import annotations
 import yaml
 
 from appeal.assets import protocols_dir
-from appeal.cli import main
+from appeal_cli import main
 
 
 def _protocol(tmp_path, stimuli: dict) -> str:

@@ -27,7 +27,7 @@ def component_anovas(amplitudes: pd.DataFrame, factors: Sequence[str], dv: str =
     pandas.DataFrame
         ``component`` then the columns of :func:`analysis.rm_anova`.
     """
-    from analysis import rm_anova
+    from analysis.stats.anova import rm_anova
 
     out = []
     for comp, sub in amplitudes.groupby("component", sort=False):
@@ -49,7 +49,7 @@ def component_contrasts(amplitudes: pd.DataFrame, factors: Sequence[str], levels
     pandas.DataFrame
         ``component`` then the columns of :func:`analysis.polynomial_contrasts`.
     """
-    from analysis import polynomial_contrasts
+    from analysis.stats.contrasts import polynomial_contrasts
 
     out = []
     for comp, sub in amplitudes.groupby("component", sort=False):

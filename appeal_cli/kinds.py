@@ -19,10 +19,27 @@ KINDS: dict[str, str] = {
 }
 
 
+#: kind -> "module:function" listing problems with the inputs a valid file needs to run (files
+#: made by an earlier stage, so not part of the schema): ``function(model, path) -> [lines]``.
+INPUT_CHECKS: dict[str, str] = {
+    "protocol": "experiments.stimuli:protocol_input_problems",
+    "erp": "analysis.erp.config:recording_problems",
+}
+
+
+def _load(spec: str):
+    module, _, name = spec.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def input_problems(kind: str, model: BaseModel, path: str | Path) -> list[str]:
+    """Problems with the inputs of a validated study file (none for kinds without a check)."""
+    return _load(INPUT_CHECKS[kind])(model, path) if kind in INPUT_CHECKS else []
+
+
 def model_for_kind(kind: str) -> type[BaseModel]:
     """The pydantic model of a study-file kind."""
-    module, _, name = KINDS[kind].partition(":")
-    return getattr(importlib.import_module(module), name)
+    return _load(KINDS[kind])
 
 
 def load_any_study_file(path: str | Path) -> tuple[str, BaseModel]:

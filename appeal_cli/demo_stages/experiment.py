@@ -21,7 +21,7 @@ from appeal.report import ReportSection
 
 
 def _session(protocol: Path, out: Path, shots: Path, stimuli: Path, seed: int, window: bool) -> None:
-    cmd = [sys.executable, "-m", "appeal", "-q", "run", str(protocol), "--participant", "demo", "--out", str(out),
+    cmd = [sys.executable, "-m", "appeal_cli", "-q", "run", str(protocol), "--participant", "demo", "--out", str(out),
            "--force", "--simulate", "default", "--stimuli", str(stimuli), "--seed", str(seed)]
     cmd += ["--screenshots", str(shots)] if window else ["--no-window"]
     res = subprocess.run(cmd, capture_output=True, text=True, check=False, timeout=600)

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from appeal.cli.groups import CONTEXT, cli
+from appeal_cli.groups import CONTEXT, cli
 
 
 @cli.command(context_settings=CONTEXT, epilog="""\b

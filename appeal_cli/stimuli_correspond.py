@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from appeal.cli.groups import CONTEXT, stimuli
-from appeal.cli.options import out_options
+from appeal_cli.groups import CONTEXT, stimuli
+from appeal_cli.options import out_options
 from appeal.errors import AppealInputError
 
 
@@ -17,21 +17,6 @@ def _refuse_existing(path: Path, force: bool) -> None:
         raise AppealInputError(f"{path}: output file exists (use --force to overwrite)")
     if not path.parent.exists():
         raise AppealInputError(f"{path}: output folder {path.parent} does not exist")
-
-
-def _landmark_pairs(spec: str, src, tgt):
-    from stimulus_engine.correspondence import load_pairs_file, parse_pairs
-
-    p = Path(spec)
-    if p.suffix.lower() == ".json" or p.exists():
-        return load_pairs_file(p, src, tgt)
-    try:
-        data = json.loads(spec)
-    except json.JSONDecodeError as exc:
-        raise AppealInputError(
-            f"--landmarks: expected a JSON file or inline JSON {{\"source\": [...], \"target\": [...]}} ({exc.msg})"
-        ) from None
-    return parse_pairs(data, src, tgt, where="--landmarks")
 
 
 @stimuli.command(context_settings=CONTEXT, epilog="""\b
@@ -76,54 +61,18 @@ def correspond(source: Path, target: Path, landmarks: str, boundary: str | None,
     median_dist_rel, flipped_triangles, n_source_vertices, n_target_vertices, stage seconds)
     and DIR/contact_sheet.png (source, faired meshes, registered base, result, target).
     """
-    import dataclasses
-
-    import numpy as np
-
-    from appeal.atomic import atomic_write_bytes, atomic_write_text
+    from appeal.atomic import atomic_write_text
     from appeal.outputs import output_run
-    from stimulus_engine.correspondence import CorrespondParams, boundary_correspondences, correspond as run
-    from stimulus_engine.correspondence.pipeline import deformed_mesh
-    from stimulus_engine.mesh_io import load_mesh, save_mesh
+    from stimulus_engine.correspondence.workflow import read_correspondence_job, run_correspondence
 
-    src = load_mesh(source)
-    tgt = load_mesh(target)
-    corr = _landmark_pairs(landmarks, src, tgt)
-    if boundary:
-        try:
-            anchors = json.loads(Path(boundary).read_text() if Path(boundary).exists() else boundary)
-        except json.JSONDecodeError as exc:
-            raise AppealInputError(f"--boundary: expected JSON [[src_vertex, tgt_vertex], ...] ({exc.msg})") from None
-        if not isinstance(anchors, list) or not all(isinstance(a, list) and len(a) == 2 for a in anchors):
-            raise AppealInputError("--boundary: expected JSON [[src_vertex, tgt_vertex], ...]")
-        corr = corr.concat(boundary_correspondences(src.vertices, src.faces, tgt.vertices, tgt.faces, anchors))
+    job = read_correspondence_job(source, target, landmarks, boundary=boundary, lambda1=lambda1,
+                                  fairing_iterations=fairing_iterations)
     if json_out is not None and not json_out.parent.exists():
         raise AppealInputError(f"{json_out}: --json folder {json_out.parent} does not exist")
-    if lambda1 <= 0 or fairing_iterations < 1:
-        raise AppealInputError("--lambda1 must be > 0 and --fairing-iterations >= 1")
-    params = dataclasses.replace(CorrespondParams(), lambda1=lambda1, fairing_iterations=fairing_iterations)
     with output_run(out, force=force, resume=resume, inputs=[source, target]) as orun:
-        res = run(src, tgt, corr, params)
-        save_mesh(deformed_mesh(src, res.vertices), orun.path("deformed.obj"))
-        import io
-
-        buf = io.BytesIO()
-        np.savez_compressed(buf, target_face=res.target_face, target_bary=res.target_bary, valid=res.valid)
-        atomic_write_bytes(orun.path("correspondence.npz"), buf.getvalue())
-        metrics = dict(res.metrics)
-        metrics["stage_seconds"] = res.seconds
-        text = json.dumps(metrics, indent=2)
-        atomic_write_text(orun.path("metrics.json"), text)
+        metrics = run_correspondence(job, orun.out, sheet=not no_sheet)
         if json_out is not None:
-            atomic_write_text(json_out, text)
-        if not no_sheet:
-            from stimulus_engine.correspondence.metrics import flipped_triangles
-            from stimulus_engine.correspondence.sheet import correspondence_sheet, result_panels
-
-            correspondence_sheet(
-                result_panels(res, src, tgt), orun.path("contact_sheet.png"),
-                flipped=flipped_triangles(res.vertices, res.faces, res.alignment.apply(src.vertices)),
-            )
+            atomic_write_text(json_out, json.dumps(metrics, indent=2))
         orun.extra["metrics"] = metrics
         click.echo(
             f"deformed.obj: {metrics['n_source_vertices']} vertices; hausdorff {metrics['hausdorff_rel']:.3%}, "

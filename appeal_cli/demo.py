@@ -8,16 +8,16 @@ from pathlib import Path
 
 import click
 
-from appeal.cli import demo_stages
-from appeal.cli.groups import CONTEXT, cli
-from appeal.cli.options import out_options, seed_option
+from appeal_cli import demo_stages
+from appeal_cli.groups import CONTEXT, cli
+from appeal_cli.options import out_options, seed_option
 from appeal.demo import DemoStage, run_demo
 from appeal.errors import AppealInputError
 from appeal.outputs import output_run
 
 
 def discover_stages() -> list[DemoStage]:
-    """Every ``STAGE`` defined by a module of :mod:`appeal.cli.demo_stages`."""
+    """Every ``STAGE`` defined by a module of :mod:`appeal_cli.demo_stages`."""
     stages = []
     for mod in pkgutil.iter_modules(demo_stages.__path__):
         stage = getattr(importlib.import_module(f"{demo_stages.__name__}.{mod.name}"), "STAGE", None)

@@ -1,7 +1,7 @@
 """The ``appeal`` command line: the only code that imports all three rooms.
 
 Command modules in this package attach themselves to the groups of
-:mod:`appeal.cli.groups`; :func:`main` imports them all, runs the command and turns
+:mod:`appeal_cli.groups`; :func:`main` imports them all, runs the command and turns
 errors into exit codes (0 ok, 2 bad input, 1 internal error) without tracebacks.
 """
 
@@ -15,7 +15,7 @@ import traceback
 import click
 
 from appeal.errors import AppealInputError
-from appeal.cli.groups import cli
+from appeal_cli.groups import cli
 
 __all__ = ["cli", "main"]
 

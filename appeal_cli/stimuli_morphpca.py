@@ -9,8 +9,8 @@ from pathlib import Path
 import click
 
 from appeal.atomic import atomic_write_text
-from appeal.cli.groups import CONTEXT, stimuli
-from appeal.cli.options import out_options
+from appeal_cli.groups import CONTEXT, stimuli
+from appeal_cli.options import out_options
 from appeal.errors import AppealInputError
 
 _JSON_HELP = "Also write the metrics (explained variance, PSNR/SSIM, seconds) to this JSON file."
@@ -39,20 +39,6 @@ def _write_metrics(run, metrics: dict, json_path: Path | None) -> None:
     if json_path is not None:
         atomic_write_text(json_path, text)
     run.extra["metrics"] = metrics
-
-
-def _load_keypoints(spec: str | None, files: list[Path], images):
-    """Faceframes for ``files``: a CSV path, 'tem' (templates beside the images) or 'detect'."""
-    from stimulus_engine.morphpca.keypoints import detect_faceframe, faceframe_from_tem, read_keypoints_csv, read_tem
-    import numpy as np
-
-    if spec is None:
-        return None
-    if spec == "tem":
-        return np.stack([faceframe_from_tem(read_tem(f.with_suffix(".tem")), f.with_suffix(".tem")) for f in files])
-    if spec == "detect":
-        return np.stack([detect_faceframe(img, str(f)) for f, img in zip(files, images)])
-    return read_keypoints_csv(spec, files)
 
 
 @morphpca.command(context_settings=CONTEXT, epilog="""\b
@@ -85,58 +71,13 @@ def build(images, out, force, resume, keypoints, register, size, components, var
     Writes DIR/model.npz (+ model.json metadata), DIR/mean.png, DIR/components.png (the mean
     ± 2 SD along the first components), DIR/metrics.json and, with --keypoints, the faceframe.
     """
-    import numpy as np
-
     from appeal.outputs import output_run
-    from stimulus_engine.morphpca import build_model, psnr, save_image, save_model, ssim
-    from stimulus_engine.morphpca.io import list_images, parse_size, read_images, register_faces
-    from stimulus_engine.morphpca.mimicry import save_contact_sheet
+    from stimulus_engine.morphpca.workflow import build_morph_model, read_morph_inputs
 
-    t0 = time.perf_counter()
-    files = list_images(images)
-    if len(files) < 2:
-        raise AppealInputError(f"IMAGES: a model needs at least 2 images (got {len(files)}"
-                               f"{': ' + files[0].name if files else ''})")
-    shape = parse_size(size) if size else None
-    if register and keypoints is None:
-        raise AppealInputError("--register: needs --keypoints FILE, 'tem' or 'detect' (the eye centres to align)")
-    imgs = read_images(files, None if register else shape)
-    frames = _load_keypoints(keypoints, files, imgs)
-    if register:
-        imgs, frames = register_faces(imgs, frames, shape or (240, 200))
-    names = [f.name for f in files]
-    ref = int(reference) if reference.isdigit() else (names.index(reference) if reference in names else -1)
-    if not 0 <= ref < len(files):
-        raise AppealInputError(f"--reference: expected an index 0..{len(files) - 1} or one of the image names (got {reference!r})")
-    n_train = len(files) - holdout
-    if n_train < 2:
-        raise AppealInputError(f"--holdout: leaves {n_train} training image(s) (expected at least 2)")
-    with output_run(out, force=force, resume=resume, inputs=files) as run:
-        model = build_model(imgs[:n_train], n_components=components, variance=variance, reference_index=min(ref, n_train - 1),
-                            backend=backend, faceframes=None if frames is None else frames[:n_train], names=names[:n_train])
-        save_model(model, run.path("model.npz"))
-        mean = model.mean_image()
-        save_image(run.path("mean.png"), mean)
-        sd = np.sqrt(model.variances[: min(4, model.n_components)])
-        rows = []
-        for j, s in enumerate(sd):
-            lo = np.zeros((3, model.n_components), np.float32)
-            lo[0, j], lo[2, j] = -2 * s, 2 * s
-            rows.append(list(model.reconstruct(lo)))
-        save_contact_sheet(run.path("components.png"), rows, [f"PC{j + 1}" for j in range(len(rows))], ["-2 SD", "mean", "+2 SD"])
-        train_rec = model.reconstruct(model.loadings)
-        metrics = {"n_images": n_train, "n_components": model.n_components,
-                   "explained_variance": float(model.explained_variance_ratio.sum()),
-                   "explained_variance_ratio": [float(v) for v in model.explained_variance_ratio[:20]],
-                   "train_psnr_db": float(np.mean([psnr(a, b) for a, b in zip(imgs[:n_train], train_rec)])),
-                   "train_ssim": float(np.mean([ssim(a, b) for a, b in zip(imgs[:n_train], train_rec)])),
-                   "seconds_build": model.meta["seconds_total"]}
-        if holdout:
-            test = imgs[n_train:]
-            rec = model.reconstruct(model.project(model.encode(test)))
-            metrics.update(holdout_psnr_db=float(np.mean([psnr(a, b) for a, b in zip(test, rec)])),
-                           holdout_ssim=float(np.mean([ssim(a, b) for a, b in zip(test, rec)])))
-        metrics["seconds"] = time.perf_counter() - t0
+    inputs = read_morph_inputs(images, keypoints=keypoints, register=register, size=size, reference=reference,
+                               holdout=holdout)  # bad input: one-line errors before any output folder is made
+    with output_run(out, force=force, resume=resume, inputs=inputs.files) as run:
+        model, metrics = build_morph_model(inputs, run.out, components=components, variance=variance, backend=backend)
         _write_metrics(run, metrics, json_path)
     click.echo(f"{run.out / 'model.npz'}: {model.n_components} components, "
                f"{100 * metrics['explained_variance']:.1f}% variance, train PSNR {metrics['train_psnr_db']:.1f} dB")

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import click
 
-from appeal.cli.groups import CONTEXT, cli
-from appeal.cli.kinds import load_any_study_file
+from appeal_cli.groups import CONTEXT, cli
+from appeal_cli.kinds import input_problems, load_any_study_file
 from appeal.errors import AppealInputError
 
 
@@ -35,8 +35,7 @@ def validate(files: tuple[Path, ...], schema_only: bool) -> None:
         except AppealInputError as exc:
             problems.extend(exc.lines)
             continue
-        check_inputs = getattr(model, "input_problems", None)
-        missing = [] if schema_only or check_inputs is None else check_inputs(f)
+        missing = [] if schema_only else input_problems(kind, model, f)
         if missing:
             problems.extend(missing)
         else:

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import click
 
-from appeal.cli.groups import CONTEXT, analyze
-from appeal.cli.options import out_options
+from appeal_cli.groups import CONTEXT, analyze
+from appeal_cli.options import out_options
 from appeal.errors import AppealInputError
 
 

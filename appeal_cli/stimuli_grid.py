@@ -6,8 +6,8 @@ from pathlib import Path
 
 import click
 
-from appeal.cli.groups import CONTEXT, stimuli
-from appeal.cli.options import out_options, parallel_options
+from appeal_cli.groups import CONTEXT, stimuli
+from appeal_cli.options import out_options, parallel_options
 from appeal.errors import AppealInputError
 
 

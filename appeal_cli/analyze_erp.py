@@ -6,8 +6,8 @@ from pathlib import Path
 
 import click
 
-from appeal.cli.groups import CONTEXT, analyze
-from appeal.cli.options import out_options, parallel_options, seed_option
+from appeal_cli.groups import CONTEXT, analyze
+from appeal_cli.options import out_options, parallel_options, seed_option
 from appeal.errors import AppealInputError
 
 
@@ -47,9 +47,9 @@ def erp(config: Path, out: Path, force: bool, resume: bool, seed: int, n_jobs: i
     from analysis.erp.config import load_erp_config
     from analysis.erp.report import analyze_erp
 
-    load_erp_config(config)  # bad config: one-line errors before any output folder is made
+    cfg = load_erp_config(config)  # bad config: one-line errors before any output folder is made
     with output_run(out, force=force, resume=resume, seed=seed, inputs=[config]) as run:
-        result, outputs = analyze_erp(config, run.out, seed=seed, n_jobs=n_jobs, scheduler=scheduler,
+        result, outputs = analyze_erp(cfg, run.out, source=config, seed=seed, n_jobs=n_jobs, scheduler=scheduler,
                                       n_permutations=n_permutations)
         run.add_inputs(s.path for s in result.subjects)
         run.extra["failed_subjects"] = [f"{f.label}: {f.error}" for f in result.failures]

@@ -1,5 +1,0 @@
-import sys
-
-from appeal.cli import main
-
-sys.exit(main())

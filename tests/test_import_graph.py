@@ -1,0 +1,120 @@
+"""The house drawn from its imports: no arrow runs back up between folders, no import circle.
+
+Folders: the core ``appeal`` (errors, study files, outputs, levels, triggers ...), three rooms
+(``stimulus_engine``, ``experiments``, ``analysis``) and the roof ``appeal_cli`` (the command
+line). The core imports no room and not the roof; a room imports the core only, never another
+room or the roof. Between modules there is no circle at all.
+
+Every ``import`` statement counts, at module level and inside functions (a lazy import is still
+an arrow: it runs when the function does); imports under ``if TYPE_CHECKING:`` do not (they
+never run). ``from pkg import name`` is an arrow to ``pkg.name`` when that is a module, else to
+``pkg`` (its ``__init__``).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+CORE, ROOF = "appeal", "appeal_cli"
+ROOMS = ("stimulus_engine", "experiments", "analysis")
+PACKAGES = (CORE, ROOF, *ROOMS)
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for pkg in PACKAGES:
+        for f in (ROOT / pkg).rglob("*.py"):
+            parts = f.relative_to(ROOT).with_suffix("").parts
+            out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = f
+    return out
+
+
+def _type_checking_nodes(tree: ast.AST) -> set[int]:
+    skip = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skip |= {id(n) for stmt in node.body for n in ast.walk(stmt)}
+    return skip
+
+
+def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    skip = _type_checking_nodes(tree)
+    is_pkg = path.name == "__init__.py"
+    out = set()
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = name.split(".") if is_pkg else name.split(".")[:-1]
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                base = ".".join(anchor + ([base] if base else []))
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
+        else:
+            continue
+        for t in targets:
+            while t and t not in modules:
+                t = t.rpartition(".")[0]  # `import a.b.c` of a package path: its deepest module
+            if t and t != name:
+                out.add(t)
+    return out
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    modules = _modules()
+    return {name: _imports(name, path, modules) for name, path in modules.items()}
+
+
+def _folder(module: str) -> str:
+    return module.split(".")[0]
+
+
+def test_the_graph_sees_the_house(graph):
+    assert len(graph) > 140 and all(_folder(m) in PACKAGES for m in graph)
+    assert "appeal.levels" in graph["experiments.trials"] and "appeal.triggers" in graph["analysis.erp.config"]
+
+
+def test_no_arrow_runs_back_up(graph):
+    allowed = {CORE: {CORE}, ROOF: set(PACKAGES), **{room: {room, CORE} for room in ROOMS}}
+    wrong = sorted(f"{m} -> {t}" for m, ts in graph.items() for t in ts if _folder(t) not in allowed[_folder(m)])
+    assert wrong == []
+
+
+def test_no_import_circle(graph):
+    """Tarjan's strongly connected components: every one is a single module."""
+    index, low, on_stack, stack, circles = {}, {}, set(), [], []
+
+    def visit(v: str) -> None:  # recursive; the graph is shallow enough
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                circles.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert circles == []
