@@ -21,7 +21,7 @@ from stimulus_engine.render._pyrender import pyrender
 from stimulus_engine.render.camera import CameraSpec, fit_camera
 from stimulus_engine.render.lighting import LightSpec, lighting_preset
 
-__all__ = ["RenderPart", "render_mesh", "release_renderers"]
+__all__ = ["RenderPart", "render_mesh", "release_renderers", "split_uv_seams"]
 
 
 @dataclass
@@ -88,6 +88,36 @@ def _smooth_mesh(mesh: trimesh.Trimesh, material: Any) -> Any:
     return pyrender.Mesh(primitives=[prim])
 
 
+def split_uv_seams(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """A copy of ``mesh`` for drawing, with a vertex per (vertex, UV) pair of its exact layout.
+
+    A textured scan keeps one position per vertex but several UVs where its texture charts meet
+    (an OBJ's per-corner ``vt`` indices, kept by :func:`stimulus_engine.mesh_io.load_mesh` as
+    ``uv_coords``/``face_uv``); drawn with one UV per vertex, every triangle along such a seam
+    samples across the texture's empty background — on the menpo3d james scan a jagged black
+    band down the middle of the face. Normals are the unsplit mesh's, so shading stays smooth
+    across the seam. Meshes without such seams are returned as they are.
+    """
+    from stimulus_engine.mesh_io import mesh_uv_layout
+
+    if "uv_coords" not in mesh.metadata or getattr(mesh.visual, "kind", None) != "texture":
+        return mesh  # one UV per vertex: nothing to split
+    layout = mesh_uv_layout(mesh)
+    if layout is None:
+        return mesh
+    uv, fuv = layout
+    faces = np.asarray(mesh.faces)
+    pairs = np.stack([faces.ravel(), np.asarray(fuv).ravel()], axis=1)
+    unique, inverse = np.unique(pairs, axis=0, return_inverse=True)
+    if len(unique) == len(mesh.vertices) and np.array_equal(unique[:, 0], np.arange(len(mesh.vertices))) \
+            and np.allclose(uv[unique[:, 1]], getattr(mesh.visual, "uv", uv[unique[:, 1]])):
+        return mesh
+    out = trimesh.Trimesh(np.asarray(mesh.vertices)[unique[:, 0]], inverse.reshape(-1, 3), process=False,
+                          visual=trimesh.visual.TextureVisuals(uv=uv[unique[:, 1]], material=mesh.visual.material))
+    out.vertex_normals = np.asarray(mesh.vertex_normals)[unique[:, 0]]
+    return out
+
+
 def _as_parts(meshes: MeshLike | Sequence[MeshLike]) -> list[Any]:
     items = [meshes] if not isinstance(meshes, (list, tuple)) else list(meshes)
     flat: list[Any] = []
@@ -101,11 +131,11 @@ def _as_parts(meshes: MeshLike | Sequence[MeshLike]) -> list[Any]:
         if isinstance(m, pyrender.Mesh):
             out.append(m)
         elif isinstance(m, RenderPart) and m.material is not None and m.smooth:
-            out.append(_smooth_mesh(m.mesh, m.material))
+            out.append(_smooth_mesh(split_uv_seams(m.mesh), m.material))
         elif isinstance(m, RenderPart):
-            out.append(pyrender.Mesh.from_trimesh(m.mesh, material=m.material, smooth=m.smooth))
+            out.append(pyrender.Mesh.from_trimesh(split_uv_seams(m.mesh), material=m.material, smooth=m.smooth))
         elif isinstance(m, trimesh.Trimesh):
-            out.append(pyrender.Mesh.from_trimesh(m, smooth=True))
+            out.append(pyrender.Mesh.from_trimesh(split_uv_seams(m), smooth=True))
         else:
             raise TypeError(f"render_mesh: item {i} is a {type(m).__name__}, expected trimesh.Trimesh, "
                             "RenderPart or pyrender.Mesh")
