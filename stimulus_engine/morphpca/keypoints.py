@@ -24,7 +24,7 @@ import numpy as np
 from appeal.errors import AppealInputError
 
 __all__ = ["FRAME_COLUMNS", "read_tem", "faceframe_from_tem", "read_keypoints_csv", "write_keypoints_csv",
-           "detect_landmarks", "detect_faceframe"]
+           "detect_landmarks", "detect_landmarks_scored", "detect_faceframe"]
 
 FRAME_COLUMNS = ("left_eye_x", "left_eye_y", "right_eye_x", "right_eye_y", "philtrum_x", "philtrum_y")
 _TEM_PUPILS = (0, 1)
@@ -127,6 +127,12 @@ def detect_landmarks(image: np.ndarray, name: str = "image", max_side: int = 480
     The image is shrunk to at most ``max_side`` pixels for the detector; the shape predictor
     then runs at full resolution inside the (scaled-back) face box.
     """
+    return detect_landmarks_scored(image, name, max_side)[0]
+
+
+def detect_landmarks_scored(image: np.ndarray, name: str = "image", max_side: int = 480) -> tuple[np.ndarray, float]:
+    """:func:`detect_landmarks` and the detector's score for that face (higher: more face-like;
+    dlib reports faces from score 0 up)."""
     import cv2
 
     m = _dlib_models()
@@ -138,17 +144,18 @@ def detect_landmarks(image: np.ndarray, name: str = "image", max_side: int = 480
     img = np.ascontiguousarray(img[..., :3])
     scale = min(1.0, max_side / max(img.shape[:2]))
     small = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) if scale < 1 else img
-    rects = m["detector"](small, 1)
+    rects, scores, _ = m["detector"].run(small, 1, 0.0)
     if len(rects) == 0 and small.shape[0] < 400:
         up = cv2.resize(small, None, fx=2, fy=2, interpolation=cv2.INTER_CUBIC)
-        rects, scale = m["detector"](up, 1), scale * 2
+        (rects, scores, _), scale = m["detector"].run(up, 1, 0.0), scale * 2
     if len(rects) == 0:
         raise AppealInputError(f"{name}: no face found by the landmark detector (expected a frontal face; "
                                "give --keypoints FILE or .tem templates instead)")
-    r = max(rects, key=lambda r: r.width() * r.height())
+    k = max(range(len(rects)), key=lambda i: rects[i].width() * rects[i].height())
+    r = rects[k]
     box = m["rect"](int(r.left() / scale), int(r.top() / scale), int(r.right() / scale), int(r.bottom() / scale))
     shape = m["predictor"](img, box)
-    return np.array([[p.x, p.y] for p in shape.parts()], dtype=np.float64)
+    return np.array([[p.x, p.y] for p in shape.parts()], dtype=np.float64), float(scores[k])
 
 
 def detect_faceframe(image: np.ndarray, name: str = "image") -> np.ndarray:

@@ -1,0 +1,240 @@
+"""The 68 iBUG landmarks of a face mesh, found automatically (``landmarks: auto``, issue 14).
+
+A mesh is rendered (pyrender, its own texture; a mesh without one is shaded light grey) and
+dlib's 68-point detector (:func:`stimulus_engine.morphpca.keypoints.detect_landmarks_scored`,
+offline weights) finds the face in the image; each 2D point is lifted onto the surface through
+the depth buffer, and the views are combined:
+
+1. **Which way is the front?** A scan's axes are whatever its scanner used. The mesh is rendered
+   from the six axis directions (each with a perpendicular up) and the view where dlib's face
+   score is highest is the front. Meshes with no face in any of them are refused (one line).
+2. **Nearby views.** From the front and four views around it (yaw ±``yaw_deg``, pitch
+   ±``pitch_deg``) the 68 points are detected and lifted: pixel -> camera ray -> the depth
+   buffer's distance -> a 3D point, snapped to the closest surface point. A point whose pixel
+   shows no surface (a jaw point on the silhouette) is looked up in its 5 x 5 neighbourhood.
+3. **Combination.** Per landmark, the median of its lifted points over the views that saw it.
+   Its confidence is the share of views that saw it times ``exp(-spread / (1 % of the mesh's
+   bounding-box diagonal))``, with spread the median distance of the views' points from the
+   combined point — points on which the views agree, seen by all, score near 1.
+
+The jaw line (points 0-16) is a silhouette in a 2D detector: where it lies on the 3D surface
+depends on the view, so its confidence is lower and its error larger than the inner points'.
+Measured by ``benchmarks/auto_landmarks.py`` (mean / largest error in % of the bounding-box
+diagonal; inner points 17-67 and jaw 0-16): see docs/correspondence.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from appeal.errors import AppealInputError
+from stimulus_engine.correspondence.points import SurfacePoints
+
+__all__ = ["MeshLandmarks", "detect_mesh_landmarks", "merge_landmarks", "AXIS_VIEWS"]
+
+#: (view direction from the mesh's centre towards the camera, image up) tried for the front.
+AXIS_VIEWS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
+    "+z": ((0, 0, 1), (0, 1, 0)), "-z": ((0, 0, -1), (0, 1, 0)),
+    "+x": ((1, 0, 0), (0, 1, 0)), "-x": ((-1, 0, 0), (0, 1, 0)),
+    "+y": ((0, 1, 0), (0, 0, 1)), "-y": ((0, -1, 0), (0, 0, 1)),
+}
+
+
+@dataclass
+class MeshLandmarks:
+    """Landmarks of a mesh in iBUG 68 order.
+
+    Attributes
+    ----------
+    points : (68, 3) array
+        On the surface.
+    surface : SurfacePoints
+        The same points as (triangle corners, barycentric weights).
+    confidence : (68,) array in [0, 1]
+    front : str
+        The axis view (:data:`AXIS_VIEWS`) taken as the front, or "given".
+    views : int
+        Views the face was found in.
+    scores : list of float
+        dlib's face score per view.
+    """
+
+    points: np.ndarray
+    surface: SurfacePoints
+    confidence: np.ndarray
+    front: str
+    views: int
+    scores: list[float]
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, deg: float) -> np.ndarray:
+    a = axis / np.linalg.norm(axis)
+    t = math.radians(deg)
+    return v * math.cos(t) + np.cross(a, v) * math.sin(t) + a * np.dot(a, v) * (1 - math.cos(t))
+
+
+def _drawable(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """The mesh as drawn for the detector: its texture, or light grey when it has none."""
+    from stimulus_engine.mesh_io import texture_image
+
+    if texture_image(mesh) is not None:
+        return mesh
+    grey = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    grey.visual = trimesh.visual.ColorVisuals(grey, vertex_colors=np.tile([190, 190, 190, 255], (len(mesh.vertices), 1)))
+    return grey
+
+
+class _View:
+    """A camera around the mesh and its render (image, depth)."""
+
+    def __init__(self, mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, direction: np.ndarray,
+                 up: np.ndarray, size: int, yfov_deg: float = 30.0) -> None:
+        from stimulus_engine.render import CameraSpec, render_mesh
+
+        self.size, self.yfov = size, math.radians(yfov_deg)
+        dist = radius / math.tan(self.yfov / 2) * 1.05
+        self.camera = CameraSpec(tuple(centre + direction * dist), tuple(centre), yfov_deg, tuple(up))
+        self.image, self.depth = render_mesh(mesh, width=size, height=size, camera=self.camera, lighting="gi_soft",
+                                             shadows=False, return_depth=True)
+
+    def lift(self, xy: np.ndarray, window: int = 2) -> np.ndarray:
+        """3D points under image points ``xy`` (n, 2); NaN where no surface is near the pixel."""
+        out = np.full((len(xy), 3), np.nan)
+        rot, pos = self.camera.rotation(), np.asarray(self.camera.position, float)
+        t = math.tan(self.yfov / 2)
+        for i, (x, y) in enumerate(xy):
+            xi, yi = int(round(x)), int(round(y))
+            if not (0 <= xi < self.size and 0 <= yi < self.size):
+                continue
+            d = self.depth[yi, xi]
+            if d <= 0:  # on the silhouette: the nearest surface pixel around it
+                y0, x0 = max(yi - window, 0), max(xi - window, 0)
+                patch = self.depth[y0: yi + window + 1, x0: xi + window + 1]
+                hit = np.argwhere(patch > 0)
+                if len(hit) == 0:
+                    continue
+                j = hit[np.argmin(((hit - [yi - y0, xi - x0]) ** 2).sum(axis=1))]
+                yi, xi, d = y0 + j[0], x0 + j[1], patch[j[0], j[1]]
+            xn = (xi + 0.5) / self.size * 2 - 1
+            yn = 1 - (yi + 0.5) / self.size * 2
+            out[i] = rot @ np.array([xn * t * d, yn * t * d, -d]) + pos
+        return out
+
+
+def _find_front(mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, size: int,
+                name: str) -> tuple[str, np.ndarray, np.ndarray]:
+    from stimulus_engine.morphpca.keypoints import detect_landmarks_scored
+
+    best: tuple[float, str] | None = None
+    for key, (d, up) in AXIS_VIEWS.items():
+        view = _View(mesh, centre, radius, np.asarray(d, float), np.asarray(up, float), size)
+        try:
+            _, score = detect_landmarks_scored(view.image, name)
+        except AppealInputError:
+            continue
+        if best is None or score > best[0]:
+            best = (score, key)
+    if best is None:
+        raise AppealInputError(f"{name}: landmarks: auto: no face found in renders from the six axis directions "
+                               "(expected a face mesh; give the landmarks by hand instead)")
+    d, up = AXIS_VIEWS[best[1]]
+    return best[1], np.asarray(d, float), np.asarray(up, float)
+
+
+def detect_mesh_landmarks(mesh: trimesh.Trimesh, *, name: str = "mesh", size: int = 640, yaw_deg: float = 15.0,
+                          pitch_deg: float = 10.0, front: str | None = None) -> MeshLandmarks:
+    """The 68 iBUG landmarks of a face mesh, detected in renders and lifted onto the surface.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        A face or head mesh (textured or not), any orientation.
+    name : str
+        Names the mesh in errors.
+    size : int
+        Render size in pixels (square).
+    yaw_deg, pitch_deg : float
+        The side views' angles around the front.
+    front : str, optional
+        A key of :data:`AXIS_VIEWS` to use as the front instead of searching for it.
+
+    Returns
+    -------
+    MeshLandmarks
+
+    Raises
+    ------
+    AppealInputError
+        When no face is found (one line naming the mesh).
+    """
+    from stimulus_engine.correspondence.closest import SurfaceIndex
+    from stimulus_engine.morphpca.keypoints import detect_landmarks_scored
+
+    drawn = _drawable(mesh)
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    centre, radius, diag = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2, float(np.linalg.norm(hi - lo))
+    if front is None:
+        front, direction, up = _find_front(drawn, centre, radius, size // 2, name)
+    else:
+        if front not in AXIS_VIEWS:
+            raise AppealInputError(f"{name}: landmarks: front: expected one of {', '.join(AXIS_VIEWS)} (got {front!r})")
+        direction, up = (np.asarray(x, float) for x in AXIS_VIEWS[front])
+    right = np.cross(up, direction)
+    turns = [(up, 0.0), (up, yaw_deg), (up, -yaw_deg), (right, pitch_deg), (right, -pitch_deg)]
+    lifted, scores = [], []
+    for axis, deg in turns:
+        d = _rotate(direction, axis, deg)
+        u = _rotate(up, axis, deg)
+        view = _View(drawn, centre, radius, d, u, size)
+        try:
+            xy, score = detect_landmarks_scored(view.image, name, max_side=size)
+        except AppealInputError:
+            continue
+        lifted.append(view.lift(xy))
+        scores.append(score)
+    if not lifted:
+        raise AppealInputError(f"{name}: landmarks: auto: no face found around the {front} view "
+                               "(expected a face mesh; give the landmarks by hand instead)")
+    stack = np.stack(lifted)  # (views, 68, 3)
+    seen = ~np.isnan(stack[..., 0])
+    if not seen.any(axis=0).all():
+        missing = np.flatnonzero(~seen.any(axis=0)).tolist()
+        raise AppealInputError(f"{name}: landmarks: auto: points {missing} not on the surface in any view "
+                               "(give them by hand)")
+    combined = np.nanmedian(stack, axis=0)
+    spread = np.nanmedian(np.linalg.norm(stack - combined[None], axis=2), axis=0)
+    index = SurfaceIndex(v, np.asarray(mesh.faces))
+    hit = index.query(combined)
+    surface = SurfacePoints.from_faces(np.asarray(mesh.faces), hit.face, hit.bary)
+    confidence = seen.mean(axis=0) * np.exp(-spread / (0.01 * diag))
+    return MeshLandmarks(surface.positions(v), surface, confidence, front, len(lifted), scores)
+
+
+def merge_landmarks(auto: MeshLandmarks, given: Mapping[int, np.ndarray], mesh: trimesh.Trimesh) -> MeshLandmarks:
+    """``auto`` with the points in ``given`` (iBUG index -> 3D point) put in their place.
+
+    Given points are snapped to the surface and get confidence 1.
+    """
+    from stimulus_engine.correspondence.closest import SurfaceIndex
+
+    if not given:
+        return auto
+    bad = [k for k in given if not (isinstance(k, (int, np.integer)) and 0 <= int(k) < 68)]
+    if bad:
+        raise AppealInputError(f"landmarks: expected iBUG indices 0-67 (got {bad})")
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    idx = np.array(sorted(int(k) for k in given))
+    hit = SurfaceIndex(v, np.asarray(mesh.faces)).query(np.array([given[k] for k in idx], dtype=np.float64))
+    verts, weights = auto.surface.vertices.copy(), auto.surface.weights.copy()
+    fresh = SurfacePoints.from_faces(np.asarray(mesh.faces), hit.face, hit.bary)
+    verts[idx], weights[idx] = fresh.vertices, fresh.weights
+    surface = SurfacePoints(verts, weights)
+    confidence = auto.confidence.copy()
+    confidence[idx] = 1.0
+    return MeshLandmarks(surface.positions(v), surface, confidence, auto.front, auto.views, auto.scores)
