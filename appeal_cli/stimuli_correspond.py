@@ -24,6 +24,7 @@ Examples:
   appeal stimuli correspond src.obj tgt.obj --landmarks pairs.json --out corr/
   appeal stimuli correspond head.obj.gz scan.obj --landmarks '{"source": [12, 40, 99], "target": [[0,1,2], 17, {"face": 3, "bary": [0.2,0.3,0.5]}]}' --out corr/ --json metrics.json
   appeal stimuli correspond src.obj cartoon.ply --landmarks pairs.json --lambda1 10 --out corr/ --force   # extreme pair
+  appeal stimuli correspond head.obj scan.obj --landmarks auto --out corr/   # landmarks found in renders
 
 \b
 Sparse solver: CHOLMOD (pip install 'appeal-lab[fast]'; make installs it) when available, else
@@ -32,7 +33,8 @@ SciPy's SuperLU; APPEAL_SPARSE_SOLVER=superlu|cholmod chooses.""")
 @click.argument("target", type=click.Path(path_type=Path))
 @click.option("--landmarks", "landmarks", required=True, metavar="PAIRS",
               help='Pairs file (.json) or inline JSON {"source": [...], "target": [...]}; each entry a '
-                   'vertex index, a point [x, y, z] snapped to the surface, or {"face": f, "bary": [a, b, c]}.')
+                   'vertex index, a point [x, y, z] snapped to the surface, or {"face": f, "bary": [a, b, c]}. '
+                   '"auto": the 68 iBUG landmarks found in renders of both meshes (inner points, confident on both).')
 @click.option("--boundary", "boundary", default=None, metavar="PAIRS",
               help='Optional boundary-loop anchors as JSON [[src_vertex, tgt_vertex], ...]; every other vertex '
                    'of those source loops is matched by relative arc length (thesis Fig. 3.5).')

@@ -20,7 +20,7 @@ Relative paths resolve against the grid file's folder.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -43,9 +43,11 @@ class ProceduralSpec(StudyModel):
 class MeshSpec(StudyModel):
     """Any face mesh, made a character by corresponding the character's rig onto it (ElastiFace).
 
-    ``landmarks`` maps rig landmark names (``nose_tip``, ``eye_right_outer``, ``mouth_left``,
-    ``chin`` ...; the error message lists them) to points on this mesh: a vertex index or
-    ``[x, y, z]``. ``texture`` is the mesh's albedo in *its own* UV layout (default: the mesh
+    ``landmarks``: ``auto`` (the default: found in renders of the mesh, see
+    :func:`stimulus_engine.mesh_character.auto_landmark_points`), or a mapping of rig landmark
+    names (``nose_tip``, ``eye_right_outer``, ``mouth_left``, ``chin`` ...; the error message
+    lists them) to points on this mesh — a vertex index or ``[x, y, z]``, at least 6 — or such a
+    mapping with ``auto: true``, whose points then replace single automatic ones. ``texture`` is the mesh's albedo in *its own* UV layout (default: the mesh
     file's own texture, if any); it is re-laid into the rig's layout. ``region``: the part of
     the rig to correspond — default all skin; ``front`` (skin in front of the ears) for a
     face-only mesh; or an ICT region name (``narrow_face``, ``face``). ``normal_map`` (RGB,
@@ -57,9 +59,28 @@ class MeshSpec(StudyModel):
     texture: InputFile | None = None
     normal_map: InputFile | None = None
     specular_map: InputFile | None = None
-    landmarks: dict[str, int | tuple[float, float, float]] = Field(min_length=6)
+    landmarks: Literal["auto"] | dict[str, int | tuple[float, float, float]] = "auto"
     region: str | None = None
     texture_size: int = Field(1024, ge=64, le=4096)
+
+    @field_validator("landmarks", mode="before")
+    @classmethod
+    def _landmarks(cls, v: Any) -> Any:
+        if isinstance(v, dict) and "auto" in v:
+            if v["auto"] is not True:
+                raise ValueError(f"auto: expected true (automatic landmarks filling in the others; got {v['auto']!r})")
+        elif isinstance(v, dict) and len(v) < 6:
+            raise ValueError(f"expected 'auto' or at least 6 landmarks (got {len(v)}; add 'auto: true' to fill in the rest)")
+        return v
+
+    def given_landmarks(self) -> dict[str, int | tuple[float, float, float]]:
+        """The hand-given landmarks (none for ``auto``)."""
+        return {} if self.landmarks == "auto" else {k: v for k, v in self.landmarks.items() if k != "auto"}
+
+    @property
+    def auto_landmarks(self) -> bool:
+        """True when landmarks are found automatically (all, or those not given)."""
+        return self.landmarks == "auto" or "auto" in self.landmarks
 
 
 class CharacterSpec(StudyModel):

@@ -17,7 +17,7 @@ import numpy as np
 from appeal.errors import AppealInputError
 from stimulus_engine.expressions import facs_recipes
 from stimulus_engine.mesh_io import read_json
-from stimulus_engine.rig import FaceRig
+from stimulus_engine.rig import IBUG_LANDMARKS, LANDMARK_NAMES, FaceRig
 
 __all__ = ["ICT_GEOMETRY_RANGES", "ict_regions", "load_ict_rig"]
 
@@ -121,23 +121,13 @@ def _ict_eyes(v: np.ndarray, faces: np.ndarray, face_part: np.ndarray, uv: np.nd
 
 def _ict_landmarks(v: np.ndarray, lm: np.ndarray, regions: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Named landmark sets from the 68 Multi-PIE landmarks (iBUG order) of the ICT README."""
-    one = lambda i: np.array([lm[i]])  # noqa: E731
-    pair = lambda i, j: np.array([lm[i], lm[j]])  # noqa: E731
     face = regions["face"]
     fv = v[face]
     mid = face[(np.abs(fv[:, 0]) < 0.6) & (fv[:, 2] > 0)]
     top = mid[np.argmax(v[mid, 1])]
-    return {
-        "eye_right": regions["eyeball_right"], "eye_left": regions["eyeball_left"],
-        "eye_right_outer": one(36), "eye_right_inner": one(39), "eye_right_top": pair(37, 38),
-        "eye_right_bottom": pair(40, 41),
-        "eye_left_outer": one(45), "eye_left_inner": one(42), "eye_left_top": pair(43, 44),
-        "eye_left_bottom": pair(46, 47),
-        "nasion": one(27), "subnasale": one(33), "nose_tip": one(30), "nose_right": one(31), "nose_left": one(35),
-        "mouth_right": one(48), "mouth_left": one(54), "mouth_top": one(51), "mouth_bottom": one(57),
-        "chin": one(8), "face_right": one(0), "face_left": one(16), "forehead_top": np.array([top]),
-        "brow_right": lm[17:22], "brow_left": lm[22:27],
-    }
+    special = {"eye_right": regions["eyeball_right"], "eye_left": regions["eyeball_left"],
+               "forehead_top": np.array([top])}
+    return {name: special[name] if name in special else lm[list(IBUG_LANDMARKS[name])] for name in LANDMARK_NAMES}
 
 
 def _ict_dir(path: str | os.PathLike) -> Path:

@@ -29,7 +29,7 @@ from appeal.errors import AppealInputError
 from appeal.logs import logger
 from stimulus_engine.rig import FaceRig
 
-__all__ = ["MeshCharacter", "correspond_rig", "front_region", "rig_skin_mesh", "source_landmark_names"]
+__all__ = ["MeshCharacter", "auto_landmark_points", "correspond_rig", "front_region", "rig_skin_mesh", "source_landmark_names"]
 
 
 def front_region(rig: FaceRig) -> np.ndarray:
@@ -239,6 +239,32 @@ def _socket_similarity(v0: np.ndarray, new_v: np.ndarray, ball: np.ndarray, skin
     if len(near) < 6:
         near = skin[np.argsort(d)[:12]]
     return umeyama(v0[near], new_v[near])
+
+
+def auto_landmark_points(rig: FaceRig, mesh: trimesh.Trimesh, region: np.ndarray | None = None, *,
+                         name: str = "mesh", min_confidence: float = 0.4) -> dict[str, tuple[float, float, float]]:
+    """Rig landmarks found on ``mesh`` automatically (``landmarks: auto``).
+
+    The mesh's 68 iBUG points come from
+    :func:`stimulus_engine.correspondence.auto_landmarks.detect_mesh_landmarks`; each usable rig
+    landmark inside ``region`` (default: all skin) with an iBUG counterpart
+    (:data:`stimulus_engine.rig.IBUG_LANDMARKS`) gets the mean of its points, unless their mean
+    confidence is below ``min_confidence`` (the jaw line, a silhouette for the detector, often is).
+    """
+    from stimulus_engine.correspondence.auto_landmarks import detect_mesh_landmarks
+    from stimulus_engine.rig import IBUG_LANDMARKS
+
+    found = detect_mesh_landmarks(mesh, name=name)
+    usable = set(source_landmark_names(rig))
+    region = np.asarray(rig.skin if region is None else region, np.int64)
+    out = {}
+    for landmark, idx in IBUG_LANDMARKS.items():
+        ids = list(idx)
+        if landmark in usable and np.isin(rig.landmarks[landmark], region).all() \
+                and found.confidence[ids].mean() >= min_confidence:
+            out[landmark] = tuple(float(x) for x in found.points[ids].mean(axis=0))
+    logger.info("%s: automatic landmarks (front %s, %d views): %s", name, found.front, found.views, ", ".join(out))
+    return out
 
 
 def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, object], *,

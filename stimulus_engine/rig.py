@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-__all__ = ["LANDMARK_NAMES", "FaceRig"]
+__all__ = ["LANDMARK_NAMES", "IBUG_LANDMARKS", "FaceRig"]
 
 #: Landmark names every rig defines (vertex sets; a landmark point is the mean of its set).
 LANDMARK_NAMES: tuple[str, ...] = (
@@ -26,6 +26,18 @@ LANDMARK_NAMES: tuple[str, ...] = (
     "mouth_right", "mouth_left", "mouth_top", "mouth_bottom",
     "chin", "face_right", "face_left", "forehead_top", "brow_right", "brow_left",
 )
+
+#: iBUG 68 points (0-based) whose mean is each rig landmark, where the 68-point markup has one
+#: ("right" is the subject's right, iBUG's 36-41 eye; the eye centres and the top of the
+#: forehead have no iBUG point).
+IBUG_LANDMARKS: dict[str, tuple[int, ...]] = {
+    "eye_right_outer": (36,), "eye_right_inner": (39,), "eye_right_top": (37, 38), "eye_right_bottom": (40, 41),
+    "eye_left_outer": (45,), "eye_left_inner": (42,), "eye_left_top": (43, 44), "eye_left_bottom": (46, 47),
+    "nasion": (27,), "subnasale": (33,), "nose_tip": (30,), "nose_right": (31,), "nose_left": (35,),
+    "mouth_right": (48,), "mouth_left": (54,), "mouth_top": (51,), "mouth_bottom": (57,),
+    "chin": (8,), "face_right": (0,), "face_left": (16,),
+    "brow_right": (17, 18, 19, 20, 21), "brow_left": (22, 23, 24, 25, 26),
+}
 
 
 @dataclass

@@ -50,3 +50,34 @@ def test_ict_head_onto_james_with_16_landmarks(shared_data, tmp_path, capsys):
     # where a few fold-overs survive the untangling (4 of 18,461 triangles when this was written)
     assert metrics["median_dist_rel"] < 1e-3
     assert metrics["flipped_triangles"] <= 1e-3 * 18461
+
+
+@pytest.mark.slow
+@pytest.mark.render
+@pytest.mark.parametrize(("source", "target"), [
+    ("ict-facekit/generic_neutral_mesh.obj.gz", "leeperrysmith/LeePerrySmith.obj"),
+    ("menpo3d-james/james.obj", "leeperrysmith/LeePerrySmith.obj"),
+])
+def test_scan_pairs_with_automatic_landmarks(shared_data, tmp_path, capsys, source, target):
+    """Whole meshes as shipped, landmarks found in renders. Both stopped with 'CHOLMOD: matrix is
+    not positive definite' while pieces without landmarks (ICT's eyeballs, teeth and lashes;
+    james's 9 islands) were in the fit; they now ride along with the nearest fitted vertex."""
+    d = shared_data / "meshes"
+    out = tmp_path / "out"
+    rc = main(["stimuli", "correspond", str(d / source), str(d / target), "--landmarks", "auto", "--out", str(out),
+               "--no-sheet"])
+    assert rc == 0, capsys.readouterr().err
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["median_dist_rel"] < 5e-4 and m["riding_vertices"] > 0
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_makehuman_base_mesh_without_a_visible_face_is_one_line(shared_data, tmp_path, capsys):
+    """MakeHuman's base mesh carries helper geometry over the face: no face is found, and the
+    user is told to give landmarks by hand (no internal error)."""
+    d = shared_data / "meshes"
+    rc = main(["stimuli", "correspond", str(d / "makehuman-cc0" / "base.obj"), str(d / "menpo3d-james" / "james.obj"),
+               "--landmarks", "auto", "--out", str(tmp_path / "o"), "--no-sheet"])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert rc == 2 and len(err) == 1 and "no face found" in err[0] and "give the landmarks by hand" in err[0]

@@ -127,23 +127,36 @@ class _View:
 
 
 def _find_front(mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, size: int,
-                name: str) -> tuple[str, np.ndarray, np.ndarray]:
+                name: str) -> tuple[str, np.ndarray, np.ndarray, np.ndarray, float]:
+    """The axis view with dlib's best face score: (key, direction, up, centre, radius) of it.
+
+    Each view is tried framing the whole mesh, then (when no face was found in any) framing the
+    top eighth of the mesh along the view's up: a head on a whole body is too small otherwise.
+    """
     from stimulus_engine.morphpca.keypoints import detect_landmarks_scored
 
-    best: tuple[float, str] | None = None
-    for key, (d, up) in AXIS_VIEWS.items():
-        view = _View(mesh, centre, radius, np.asarray(d, float), np.asarray(up, float), size)
-        try:
-            _, score = detect_landmarks_scored(view.image, name)
-        except AppealInputError:
-            continue
-        if best is None or score > best[0]:
-            best = (score, key)
-    if best is None:
-        raise AppealInputError(f"{name}: landmarks: auto: no face found in renders from the six axis directions "
-                               "(expected a face mesh; give the landmarks by hand instead)")
-    d, up = AXIS_VIEWS[best[1]]
-    return best[1], np.asarray(d, float), np.asarray(up, float)
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    for zoom in (False, True):
+        best: tuple[float, str, np.ndarray, float] | None = None
+        for key, (d, up) in AXIS_VIEWS.items():
+            c, r = centre, radius
+            if zoom:
+                height = v @ np.asarray(up, float)
+                extent = float(height.max() - height.min())
+                c = centre + np.asarray(up, float) * (height.max() - extent / 16 - centre @ np.asarray(up, float))
+                r = extent / 12
+            view = _View(mesh, c, r, np.asarray(d, float), np.asarray(up, float), size)
+            try:
+                _, score = detect_landmarks_scored(view.image, name)
+            except AppealInputError:
+                continue
+            if best is None or score > best[0]:
+                best = (score, key, c, r)
+        if best is not None:
+            d, up = AXIS_VIEWS[best[1]]
+            return best[1], np.asarray(d, float), np.asarray(up, float), best[2], best[3]
+    raise AppealInputError(f"{name}: landmarks: auto: no face found in renders from the six axis directions "
+                           "(expected a face mesh; give the landmarks by hand instead)")
 
 
 def detect_mesh_landmarks(mesh: trimesh.Trimesh, *, name: str = "mesh", size: int = 640, yaw_deg: float = 15.0,
@@ -180,7 +193,7 @@ def detect_mesh_landmarks(mesh: trimesh.Trimesh, *, name: str = "mesh", size: in
     lo, hi = v.min(axis=0), v.max(axis=0)
     centre, radius, diag = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2, float(np.linalg.norm(hi - lo))
     if front is None:
-        front, direction, up = _find_front(drawn, centre, radius, size // 2, name)
+        front, direction, up, centre, radius = _find_front(drawn, centre, radius, size // 2, name)
     else:
         if front not in AXIS_VIEWS:
             raise AppealInputError(f"{name}: landmarks: front: expected one of {', '.join(AXIS_VIEWS)} (got {front!r})")

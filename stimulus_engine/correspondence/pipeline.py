@@ -151,31 +151,51 @@ def correspond(
     _check_mesh(target, "target")
     if len(corr) < 3:
         raise AppealInputError(f"landmarks: need at least 3 correspondences (got {len(corr)})")
-    # the geometry is solved on repaired copies (seams welded, winding made consistent, stray
-    # target islands left out) and mapped back: the user's vertices, faces and UVs are kept
+    # the geometry is solved on repaired copies (seams welded, winding made consistent, pieces
+    # without landmarks left out) and mapped back: the user's vertices, faces and UVs are kept
     t = time.perf_counter()
-    rs = repair_mesh(source.vertices, source.faces)
-    rt = repair_mesh(target.vertices, target.faces, drop_islands=True,
-                     keep_vertices=corr.target.vertices[corr.target.weights > 0])
+    rs = repair_mesh(source.vertices, source.faces, keep_vertices=corr.source.vertices[corr.source.weights > 0])
+    rt = repair_mesh(target.vertices, target.faces, keep_vertices=corr.target.vertices[corr.target.weights > 0])
     repair_seconds = time.perf_counter() - t
     if not (rs.changed or rt.changed):
         return _correspond(source.vertices, source.faces, target.vertices, target.faces, corr, params)
-    logger.info("repaired for the fit: source %d -> %d vertices, %d faces flipped; target %d -> %d vertices, "
-                "%d -> %d faces, %d flipped", len(rs.vertex_map), len(rs.vertices), int(rs.flipped.sum()),
-                len(rt.vertex_map), len(rt.vertices), len(target.faces), len(rt.faces), int(rt.flipped.sum()))
+    logger.info("repaired for the fit: source %d -> %d vertices (%d riding along), %d faces flipped; target %d -> %d "
+                "vertices, %d -> %d faces, %d flipped", len(rs.vertex_map), len(rs.vertices), len(rs.left_out),
+                int(rs.flipped.sum()), len(rt.vertex_map), len(rt.vertices), len(target.faces), len(rt.faces),
+                int(rt.flipped.sum()))
     corr_r = Correspondences(SurfacePoints(rs.vertex_map[corr.source.vertices], corr.source.weights),
                              SurfacePoints(rt.vertex_map[corr.target.vertices], corr.target.weights))
     res = _correspond(rs.vertices, rs.faces, rt.vertices, rt.faces, corr_r, params)
     res.seconds["repair"] = repair_seconds
-    vm = rs.vertex_map
+    vm = _nearest_kept(np.asarray(source.vertices, dtype=np.float64), rs)
+    riders = rs.left_out
+    # vertices of left-out pieces move with their nearest fitted vertex (in the aligned frame)
+    aligned = res.alignment.apply(np.asarray(source.vertices, dtype=np.float64)[riders])
+    moved = {k: getattr(res, k)[vm] for k in ("vertices", "faired_source", "registered_base")}
+    for k, out in moved.items():
+        out[riders] = aligned + (getattr(res, k) - res.alignment.apply(rs.vertices))[vm[riders]]
+    valid = res.valid[vm]
+    valid[riders] = False
     face, bary = rt.original_bary(res.target_face[vm], res.target_bary[vm])
-    res.metrics.update(n_source_vertices=len(vm), n_target_vertices=len(rt.vertex_map))
+    faired_target = np.full((len(rt.vertex_map), 3), np.nan)
+    faired_target[rt.vertex_map >= 0] = res.faired_target[rt.vertex_map[rt.vertex_map >= 0]]
+    res.metrics.update(n_source_vertices=len(vm), n_target_vertices=len(rt.vertex_map), riding_vertices=len(riders))
     return CorrespondenceResult(
-        vertices=res.vertices[vm], faces=np.asarray(source.faces), faired_source=res.faired_source[vm],
-        faired_target=res.faired_target[rt.vertex_map], registered_base=res.registered_base[vm],
-        alignment=res.alignment, target_face=face, target_bary=bary, valid=res.valid[vm],
-        metrics=res.metrics, seconds=res.seconds,
+        vertices=moved["vertices"], faces=np.asarray(source.faces), faired_source=moved["faired_source"],
+        faired_target=faired_target, registered_base=moved["registered_base"], alignment=res.alignment,
+        target_face=face, target_bary=bary, valid=valid, metrics=res.metrics, seconds=res.seconds,
     )
+
+
+def _nearest_kept(vertices: np.ndarray, repaired) -> np.ndarray:
+    """Original vertex -> repaired vertex; a left-out vertex gets its nearest kept one's."""
+    vm = repaired.vertex_map.copy()
+    out = vm < 0
+    if out.any():
+        from scipy.spatial import cKDTree
+
+        vm[out] = cKDTree(repaired.vertices).query(vertices[out])[1]
+    return vm
 
 
 def _correspond(source_vertices, source_faces, target_vertices, target_faces, corr: Correspondences,

@@ -9,14 +9,18 @@ and maps its results back, so the user's vertex order, faces and UVs are kept:
   one, so the Laplacian sees one connected surface across seams;
 * :func:`consistent_winding` — faces flipped so that neighbours agree (trimesh's
   ``fix_winding``), since normals steer the closest-point search;
-* :func:`main_components` — islands far smaller than the main surface and holding no
-  landmark are left out of the target (they stretch the frame and attract nothing).
+* :func:`landmark_pieces` — connected pieces holding no landmark (a scan's stray fragments, a
+  rig's eyeballs, teeth and lashes) are left out of the fit: with no reference point their
+  fairing energy has a null space (the solve fails, "matrix is not positive definite"), and on
+  the target they stretch the frame and attract nothing. Left-out source vertices ride along
+  with the nearest fitted vertex.
 
 Measured on a synthetic face (``tests/test_corr_broken_meshes.py``): with one
 face in seven split off as along a seam, the fit's valid fraction fell from 0.93 to 0.56 and
 the Hausdorff distance rose from 1.1 % to 8.4 % of the diagonal; with half the faces flipped,
 to 0.38 and 4.8 %; a 1-triangle island 20 diagonals away made every vertex invalid. Repaired,
-each is as the clean mesh.
+each is as the clean mesh. The ICT Face Model's full mesh (eyeballs, teeth, lashes) and the
+james scan (9 small islands) as sources stopped the fairing before the pieces were left out.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import trimesh
 
 from stimulus_engine.mesh_ops import face_normals, vertex_adjacency
 
-__all__ = ["RepairedMesh", "repair_mesh", "weld", "consistent_winding", "main_components"]
+__all__ = ["RepairedMesh", "repair_mesh", "weld", "consistent_winding", "landmark_pieces"]
 
 
 @dataclass
@@ -38,11 +42,11 @@ class RepairedMesh:
     Attributes
     ----------
     vertices : (M, 3) array
-        Welded vertices.
+        Welded vertices of the kept faces.
     faces : (G, 3) int array
-        Kept faces in welded indices, consistently wound.
+        Kept faces in repaired vertex indices, consistently wound.
     vertex_map : (N,) int array
-        Original vertex -> welded vertex.
+        Original vertex -> repaired vertex, -1 for a vertex of no kept face.
     face_ids : (G,) int array
         Repaired face -> original face.
     flipped : (G,) bool array
@@ -64,6 +68,11 @@ class RepairedMesh:
         return not (len(self.vertices) == len(self.vertex_map) and len(self.face_ids) == self.n_faces
                     and np.array_equal(self.vertex_map, np.arange(len(self.vertex_map)))
                     and np.array_equal(self.face_ids, np.arange(len(self.face_ids))) and not self.flipped.any())
+
+    @property
+    def left_out(self) -> np.ndarray:
+        """Original vertices on no kept face."""
+        return np.flatnonzero(self.vertex_map < 0)
 
     def original_bary(self, face: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points on repaired faces (face, barycentric) as points on the original faces."""
@@ -134,45 +143,38 @@ def consistent_winding(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return wound
 
 
-def main_components(vertices: np.ndarray, faces: np.ndarray, keep_vertices: np.ndarray = (),
-                    min_fraction: float = 0.01) -> np.ndarray:
-    """Mask of faces in connected pieces worth keeping.
-
-    A piece is kept when its area is at least ``min_fraction`` of the largest piece's or it
-    holds one of ``keep_vertices`` (landmarks).
-    """
+def landmark_pieces(vertices: np.ndarray, faces: np.ndarray, keep_vertices: np.ndarray) -> np.ndarray:
+    """Mask of faces in connected pieces that hold one of ``keep_vertices`` (landmarks)."""
     faces = np.asarray(faces, dtype=np.int64)
     labels = _face_components(faces, len(vertices))
-    _, area = face_normals(np.asarray(vertices, dtype=np.float64), faces)
-    piece_area = np.bincount(labels, weights=area)
-    keep = piece_area >= min_fraction * piece_area.max()
     held = np.isin(faces, np.asarray(keep_vertices, dtype=np.int64)).any(axis=1)
+    keep = np.zeros(labels.max() + 1 if len(labels) else 0, dtype=bool)
     keep[np.unique(labels[held])] = True
     return keep[labels]
 
 
-def repair_mesh(vertices: np.ndarray, faces: np.ndarray, drop_islands: bool = False,
-                keep_vertices: np.ndarray = ()) -> RepairedMesh:
-    """Weld, drop collapsed faces (and, if asked, small islands), wind consistently.
+def repair_mesh(vertices: np.ndarray, faces: np.ndarray, keep_vertices: np.ndarray | None = None) -> RepairedMesh:
+    """Weld, drop collapsed faces (and pieces without landmarks), wind consistently.
 
     Parameters
     ----------
     vertices : (N, 3) array
     faces : (F, 3) int array
-    drop_islands : bool
-        Leave out pieces :func:`main_components` does not keep.
-    keep_vertices : array of int
-        Original vertices whose pieces are always kept (landmarks).
+    keep_vertices : array of int, optional
+        Original vertices of the landmarks: pieces holding none are left out. None keeps all.
     """
     welded, vmap = weld(vertices)
     f = vmap[np.asarray(faces, dtype=np.int64)]
     ok = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
-    if drop_islands:
-        ok &= main_components(welded, f, vmap[np.asarray(keep_vertices, dtype=np.int64)])
+    if keep_vertices is not None:
+        ok &= landmark_pieces(welded, f, vmap[np.asarray(keep_vertices, dtype=np.int64)])
     face_ids = np.flatnonzero(ok)
-    kept = f[face_ids]
-    wound = consistent_winding(welded, kept)
+    used = np.unique(f[face_ids])
+    compact = np.full(len(welded), -1, dtype=np.int64)
+    compact[used] = np.arange(len(used))
+    kept = compact[f[face_ids]]
+    wound = consistent_winding(welded[used], kept)
     # fix_winding reverses a face's corners or leaves them; anything else would be a bug
     flipped = ~(wound == kept).all(axis=1)
     assert np.array_equal(wound[flipped], kept[flipped][:, ::-1])
-    return RepairedMesh(welded, wound, vmap, face_ids, flipped, len(faces))
+    return RepairedMesh(welded[used], wound, compact[vmap], face_ids, flipped, len(faces))

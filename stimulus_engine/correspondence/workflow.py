@@ -20,11 +20,12 @@ import trimesh
 
 from appeal.atomic import atomic_write_bytes, atomic_write_text
 from appeal.errors import AppealInputError
+from appeal.logs import logger
 from stimulus_engine.correspondence.boundary import boundary_correspondences
 from stimulus_engine.correspondence.pipeline import CorrespondParams, correspond, deformed_mesh
 from stimulus_engine.correspondence.points import Correspondences, load_pairs_file, parse_pairs
 
-__all__ = ["CorrespondenceJob", "read_correspondence_job", "run_correspondence"]
+__all__ = ["CorrespondenceJob", "auto_pairs", "read_correspondence_job", "run_correspondence"]
 
 
 @dataclass
@@ -38,7 +39,31 @@ class CorrespondenceJob:
     files: tuple[Path, Path]
 
 
-def _landmark_pairs(spec: str, src: trimesh.Trimesh, tgt: trimesh.Trimesh) -> Correspondences:
+#: Automatic landmarks used as pairs: the inner iBUG points (brows, nose, eyes, mouth; the jaw
+#: line is a silhouette for the detector) found with at least this confidence on both meshes.
+AUTO_PAIR_POINTS, AUTO_MIN_CONFIDENCE = range(17, 68), 0.4
+
+
+def auto_pairs(src: trimesh.Trimesh, tgt: trimesh.Trimesh, names: tuple[str, str] = ("source", "target"),
+               min_confidence: float = AUTO_MIN_CONFIDENCE) -> Correspondences:
+    """Point pairs from the 68 iBUG landmarks found automatically on both meshes
+    (:func:`stimulus_engine.correspondence.auto_landmarks.detect_mesh_landmarks`)."""
+    from stimulus_engine.correspondence.auto_landmarks import detect_mesh_landmarks
+
+    a = detect_mesh_landmarks(src, name=names[0])
+    b = detect_mesh_landmarks(tgt, name=names[1])
+    idx = np.array([i for i in AUTO_PAIR_POINTS
+                    if a.confidence[i] >= min_confidence and b.confidence[i] >= min_confidence])
+    if len(idx) < 6:
+        raise AppealInputError(f"--landmarks auto: only {len(idx)} landmarks found with confidence >= {min_confidence} "
+                               "on both meshes (expected at least 6; give the pairs by hand)")
+    logger.info("automatic landmarks: %d pairs (fronts %s / %s)", len(idx), a.front, b.front)
+    return Correspondences(a.surface.subset(idx), b.surface.subset(idx))
+
+
+def _landmark_pairs(spec: str, src: trimesh.Trimesh, tgt: trimesh.Trimesh, names: tuple[str, str]) -> Correspondences:
+    if spec == "auto":
+        return auto_pairs(src, tgt, names)
     p = Path(spec)
     if p.suffix.lower() == ".json" or p.exists():
         return load_pairs_file(p, src, tgt)
@@ -70,7 +95,8 @@ def read_correspondence_job(source: Path, target: Path, landmarks: str, *, bound
     source, target : Path
         Mesh files (see :func:`stimulus_engine.mesh_io.load_mesh`).
     landmarks : str
-        A pairs file (``.json``) or inline JSON ``{"source": [...], "target": [...]}``.
+        A pairs file (``.json``), inline JSON ``{"source": [...], "target": [...]}``, or
+        ``"auto"`` (:func:`auto_pairs`).
     boundary : str, optional
         Boundary-loop anchors, JSON ``[[src_vertex, tgt_vertex], ...]`` (inline or a file).
     lambda1, fairing_iterations
@@ -87,7 +113,7 @@ def read_correspondence_job(source: Path, target: Path, landmarks: str, *, bound
         raise AppealInputError("--lambda1 must be > 0 and --fairing-iterations >= 1")
     src = load_mesh(source)
     tgt = load_mesh(target)
-    corr = _landmark_pairs(landmarks, src, tgt)
+    corr = _landmark_pairs(landmarks, src, tgt, (str(source), str(target)))
     if boundary:
         corr = corr.concat(_boundary_pairs(boundary, src, tgt))
     params = dataclasses.replace(CorrespondParams(), lambda1=lambda1, fairing_iterations=fairing_iterations)

@@ -139,7 +139,12 @@ def _corresponded(c: CharacterSpec, base: FaceRig, source: str) -> FaceRig:
     texture = load_texture(m.texture) if m.texture is not None else None
     maps = {kind: load_map(path, kind, None, f"{where}.{kind}_map")
             for kind, path in (("normal", m.normal_map), ("specular", m.specular_map)) if path is not None}
-    landmarks = {k: (list(v) if isinstance(v, tuple) else v) for k, v in m.landmarks.items()}
+    landmarks = {k: (list(v) if isinstance(v, tuple) else v) for k, v in m.given_landmarks().items()}
+    if m.auto_landmarks:
+        from stimulus_engine.mesh_character import auto_landmark_points
+
+        auto = {k: list(v) for k, v in auto_landmark_points(base, mesh, region, name=f"{where}.landmarks").items()}
+        landmarks = {**auto, **landmarks}
     logger.info("%s: corresponding %s onto %s", c.name, base.name, m.file)
     mc = correspond_rig(base, mesh, landmarks, region=region, texture=texture, texture_size=m.texture_size,
                         name=c.name, where=where, maps=maps)
