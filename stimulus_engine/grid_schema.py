@@ -53,6 +53,10 @@ class MeshSpec(StudyModel):
     face-only mesh; or an ICT region name (``narrow_face``, ``face``). ``normal_map`` (RGB,
     tangent space) and ``specular_map`` (greyscale, white = shiny), in the mesh's UV layout,
     are re-laid into the rig's layout like the texture and become the character's maps.
+    ``topology: scan`` draws the mesh itself — its own surface, texture and hair — moved by the
+    rig's expressions and stylised shapes (:mod:`stimulus_engine.scan_surface`): a scan's
+    realistic level is then the scan as photographed. Its albedo stays in its own UV layout,
+    so materials from other characters do not apply to it.
     """
 
     file: InputFile
@@ -60,6 +64,9 @@ class MeshSpec(StudyModel):
     normal_map: InputFile | None = None
     specular_map: InputFile | None = None
     landmarks: Literal["auto"] | dict[str, int | tuple[float, float, float]] = "auto"
+    topology: Literal["rig", "scan"] = Field(
+        "rig", description="what is drawn: the rig corresponded onto the mesh, wearing the mesh's texture re-laid "
+                           "('rig'), or the mesh itself with its own texture, posed through the rig ('scan')")
     region: str | None = None
     texture_size: int = Field(1024, ge=64, le=4096)
 

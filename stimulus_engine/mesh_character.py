@@ -59,6 +59,9 @@ class MeshCharacter:
     left_out : tuple of str
         Landmark pairs not used because their rig point is also another landmark's aimed
         elsewhere (a coarse rig's landmarks can share a vertex).
+    alignment : Similarity or None
+        The similarity that took the rig into the mesh's frame (its inverse brings the mesh
+        into the rig's frame, where the character lives).
     """
 
     rig: FaceRig
@@ -66,6 +69,7 @@ class MeshCharacter:
     metrics: dict = field(default_factory=dict)
     transferred: np.ndarray | None = None
     left_out: tuple[str, ...] = ()
+    alignment: object = None
 
 
 def source_landmark_names(rig: FaceRig) -> list[str]:
@@ -468,4 +472,4 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
         out = replace(out, texture=albedo, texture_masks=dict(masks))
         transferred = a[..., 0] > 0.5
     return MeshCharacter(rig=out, region=vid, metrics=dict(res.metrics), transferred=transferred,
-                         left_out=left_out)
+                         left_out=left_out, alignment=res.alignment)

@@ -18,10 +18,12 @@ import numpy as np
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
+from stimulus_engine.correspondence.alignment import Similarity
 from stimulus_engine.grid.cache import GRID_VERSION, file_sha, npz_cached, save_npz, sha
 from stimulus_engine.grid.inputs import load_map, load_texture
 from stimulus_engine.grid_schema import CharacterSpec
 from stimulus_engine.rig import FaceRig
+from stimulus_engine.scan_surface import ScanSurface
 
 __all__ = ["CHARACTER_KINDS", "Character", "base_rig", "character_albedo", "character_kind", "load_character"]
 
@@ -77,12 +79,15 @@ class Character:
     expression_rig : FaceRig
         The rig whose blendshapes make its expressions (the base rig; ``rig`` itself unless
         the character is a mesh).
+    scan : ScanSurface or None
+        With ``mesh.topology: scan``: the mesh drawn as itself, bound to ``rig``.
     """
 
     spec: CharacterSpec
     rig: FaceRig
     rig_hash: str
     expression_rig: FaceRig
+    scan: ScanSurface | None = None
 
 
 def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
@@ -101,12 +106,29 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
         maps = {k[4:]: d[k] for k in d.files if k.startswith("map_")}
         rig = replace(base.with_vertices(d["vertices"], name=c.name),
                       texture=d["texture"] if "texture" in d.files else None, texture_masks=masks, texture_maps=maps)
-        return Character(c, rig, h, base)
-    rig = _corresponded(c, base, source)
-    extra = {} if rig.texture is None else {"texture": rig.texture}
-    save_npz(p, {"vertices": rig.vertices, **extra, **{f"mask_{k}": v for k, v in rig.texture_masks.items()},
-                 **{f"map_{k}": v for k, v in rig.texture_maps.items()}})
-    return Character(c, rig, h, base)
+        alignment = Similarity(float(d["align_scale"]), d["align_rotation"], d["align_translation"])
+    else:
+        rig, alignment = _corresponded(c, base, source)
+        extra = {} if rig.texture is None else {"texture": rig.texture}
+        save_npz(p, {"vertices": rig.vertices, **extra, **{f"mask_{k}": v for k, v in rig.texture_masks.items()},
+                     **{f"map_{k}": v for k, v in rig.texture_maps.items()}, "align_scale": np.array(alignment.scale),
+                     "align_rotation": alignment.rotation, "align_translation": alignment.translation})
+    scan = _scan_surface(c, rig, alignment, source) if m.topology == "scan" else None
+    return Character(c, rig, h, base, scan)
+
+
+def _scan_surface(c: CharacterSpec, rig: FaceRig, alignment: Similarity, source: str) -> ScanSurface:
+    """The character's mesh as drawn itself (``topology: scan``), in the rig's frame, bound to ``rig``."""
+    from stimulus_engine.mesh_io import load_mesh, mesh_uv_layout
+    from stimulus_engine.scan_surface import bind_scan
+
+    mesh = load_mesh(c.mesh.file)
+    layout = mesh_uv_layout(mesh)
+    if layout is None:
+        raise AppealInputError(f"{source}: characters.{c.name}.mesh.topology: scan needs a mesh with texture "
+                               "coordinates (expected UVs; or use topology: rig)")
+    v = alignment.inverse().apply(np.asarray(mesh.vertices, np.float64))
+    return bind_scan(rig, v, np.asarray(mesh.faces), *layout, name=f"{c.name}_scan")
 
 
 def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | None:
@@ -127,7 +149,7 @@ def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | No
     return regions[region]
 
 
-def _corresponded(c: CharacterSpec, base: FaceRig, source: str) -> FaceRig:
+def _corresponded(c: CharacterSpec, base: FaceRig, source: str) -> tuple[FaceRig, Similarity]:
     """The character's mesh in the base rig's topology, with its texture and maps re-laid."""
     from stimulus_engine.mesh_character import correspond_rig
     from stimulus_engine.mesh_io import load_mesh
@@ -150,7 +172,7 @@ def _corresponded(c: CharacterSpec, base: FaceRig, source: str) -> FaceRig:
                         name=c.name, where=where, maps=maps)
     logger.info("%s: correspondence metrics %s", c.name,
                 {k: round(v, 5) for k, v in mc.metrics.items() if isinstance(v, float)})
-    return mc.rig
+    return mc.rig, mc.alignment
 
 
 def character_albedo(ch: Character, source: str, cache: Path | None = None) -> tuple[np.ndarray, dict]:
@@ -162,6 +184,16 @@ def character_albedo(ch: Character, source: str, cache: Path | None = None) -> t
     from stimulus_engine.materials import rig_albedo
 
     c, rig = ch.spec, ch.rig
+    if ch.scan is not None:  # drawn as itself: the mesh's own albedo in its own layout
+        from stimulus_engine.mesh_io import load_mesh, texture_image
+
+        if c.mesh.texture is not None:
+            return load_texture(c.mesh.texture), {}
+        own = texture_image(load_mesh(c.mesh.file))
+        if own is None:
+            raise AppealInputError(f"{source}: characters.{c.name}.mesh: topology: scan needs the mesh's texture "
+                                   "(expected a map_Kd texture in its .mtl, or mesh.texture)")
+        return np.asarray(own.convert("RGB")), {}
     if c.texture is not None:
         if rig.uv is None:
             raise AppealInputError(f"{source}: characters.{c.name}.texture: the mesh has no UVs, "

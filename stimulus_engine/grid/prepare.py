@@ -53,6 +53,10 @@ def _check_shared_uv(grid: GridFile, chars: dict[str, Character], source: str) -
             continue
         a = chars[m.from_character].rig
         for c in grid.characters:
+            if c.name != m.from_character and (chars[c.name].scan is not None or chars[m.from_character].scan is not None):
+                raise AppealInputError(
+                    f"{source}: materials.{m.name}: '{c.name}' and '{m.from_character}' cannot share an albedo: a "
+                    "character with mesh.topology: scan keeps its texture in its own UV layout (expected topology: rig)")
             b = chars[c.name].rig
             if b.uv is None or a.uv is None or a.uv.shape != b.uv.shape or not np.allclose(a.uv, b.uv):
                 raise AppealInputError(
@@ -184,8 +188,9 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
     for im in images:
         ch = chars[im.character]
         if im.character not in rig_files:
-            rig_files[im.character] = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash)}.npz"
-            save_rig(rig_files[im.character], ch.rig)
+            drawn = ch.rig if ch.scan is None else ch.scan.topology
+            rig_files[im.character] = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash, drawn.name)}.npz"
+            save_rig(rig_files[im.character], drawn)
         if (im.character, im.shape) not in shapes:
             shape_v = stylise(ch.rig, im.shape)
             shapes[im.character, im.shape] = (shape_v, _camera_for(ch, shape_v, grid))
@@ -195,6 +200,10 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
             geometry[gkey] = _geometry(ch, im, shape_v, grid, cache, source)
             lm_rows += _landmark_rows(ch, im, np.load(geometry[gkey][0]))
         gp, gh = geometry[gkey]
+        if ch.scan is not None:  # the posed rig carries the scan's own surface
+            gp = cache / "geometry" / f"{sha(gh, 'scan', ch.scan.topology.name)}.npy"
+            if not gp.exists():
+                save_npy(gp, ch.scan.pose(np.load(geometry[gkey][0])).astype(np.float32))
         look = looks[im.albedo_from, im.material.name]
         extra = () if look.maps_hash == "none" else (look.maps_hash,)  # hashes without maps as before
         ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(), *extra)

@@ -1,0 +1,60 @@
+"""A scan drawn as itself (mesh.topology: scan): its own surface and texture, posed through a rig."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from stimulus_engine.procedural_head import procedural_head
+from stimulus_engine.scan_surface import bind_scan
+
+
+def test_pose_follows_the_rig_and_keeps_the_neutral():
+    rig = procedural_head(0, texture_size=64, resolution=24)
+    skin = rig.faces[rig.face_part == rig.part_names.index("skin")]
+    # a "scan": points just off the rig's skin, with its own faces and UVs
+    rng = np.random.default_rng(0)
+    tri = skin[rng.choice(len(skin), 50, replace=False)]
+    pts = rig.vertices[tri].mean(axis=1) + rng.normal(0, 1e-3, (50, 3))
+    faces = np.array([[0, 1, 2], [2, 3, 4]])
+    uv = rng.random((5, 2))
+    scan = bind_scan(rig, pts, faces, uv, np.array([[0, 1, 2], [2, 3, 4]]))
+    np.testing.assert_allclose(scan.pose(rig.vertices), pts, atol=1e-12)  # the neutral is the scan itself
+    np.testing.assert_allclose(scan.pose(rig.vertices + [0.1, -0.2, 0.3]), pts + [0.1, -0.2, 0.3], atol=1e-12)
+    bumped = rig.vertices.copy()
+    bumped[np.unique(tri)] += [0, 0, 0.05]  # move the bound skin: the scan follows
+    assert np.allclose(scan.pose(bumped)[:, 2] - pts[:, 2], 0.05, atol=1e-9)
+    assert scan.topology.part_names == ("skin",) and len(scan.topology.faces) == 2
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_james_scan_drawn_as_itself_in_a_grid(shared_data, tmp_path):
+    """Realistic level = the scan's own vertices and texture (hair included); the rig's smile moves it."""
+    from appeal.studyfile import validate_data
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.mesh_io import load_mesh
+
+    d = shared_data / "meshes"
+    spec = validate_data({
+        "kind": "grid", "name": "scan",
+        "characters": [{"name": "james", "ict": str(d / "ict-facekit"),
+                        "mesh": {"file": str(d / "menpo3d-james" / "james.obj"), "region": "narrow_face",
+                                 "topology": "scan"}}],
+        "shapes": [0.0], "materials": ["original"], "expressions": ["neutral", "happiness"],
+        "lighting": ["gi_soft"], "shading": ["pbr"], "render": {"width": 320, "height": 240}}, GridFile, source="g.yaml")
+    run_grid(spec, tmp_path, source="g.yaml")
+    manifest = pd.read_csv(tmp_path / "manifest.csv")
+    assert list(manifest.status) == ["rendered", "rendered"]
+    geo = sorted((tmp_path / ".cache" / "geometry").glob("*.npy"), key=lambda p: p.stat().st_mtime)
+    james = load_mesh(d / "menpo3d-james" / "james.obj")
+    drawn = [np.load(p) for p in geo if len(np.load(p)) == len(james.vertices)]
+    assert len(drawn) == 2  # neutral and smile, in the scan's own topology
+    # the neutral is james (up to the similarity into the rig's frame): edge lengths scale uniformly
+    e = np.asarray(james.edges_unique)
+    ratio = [np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1) / np.linalg.norm(
+        np.asarray(james.vertices)[e[:, 0]] - np.asarray(james.vertices)[e[:, 1]], axis=1) for v in drawn]
+    assert min(np.ptp(r) for r in ratio) < 1e-4 * np.median(ratio[0])
+    assert np.abs(drawn[0] - drawn[1]).max() > 1e-3 * np.ptp(drawn[0], axis=0).max()  # the smile moved it
