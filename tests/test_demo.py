@@ -6,6 +6,8 @@ import json
 import re
 import shutil
 
+import pandas as pd
+
 import pytest
 
 from appeal_cli import main
@@ -73,6 +75,10 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     assert len(links) > 20
     missing = [link for link in links if not (out / link).exists()]
     assert not missing, missing
+    # the embedded real face, drawn as itself for every shape and expression
+    scan = pd.read_csv(out / "grid" / "scan" / "manifest.csv")
+    assert len(scan) == 24 and (scan.status == "rendered").all()
+    assert "grid/scan/contact_sheet_expressions.png" in links
 
 
 def test_report_page_fits_a_laptop_screen(tmp_path):

@@ -13,7 +13,8 @@ def _run(out: Path, seed: int) -> ReportSection:
     from appeal.atomic import atomic_write_text
     from appeal.studyfile import validate_data
     from stimulus_engine.grid import run_grid
-    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.data import EMBEDDED_SCAN
+    from stimulus_engine.grid_schema import CharacterSpec, GridFile
     from stimulus_engine.neoteny import neoteny_table, plot_neoteny
 
     import pandas as pd
@@ -40,6 +41,13 @@ def _run(out: Path, seed: int) -> ReportSection:
                                   "expressions": ["neutral"], "lighting": ["gi_soft", "direct_hard", "direct_soft"]})
     lit_dir = out / "lighting"
     _, lit_sheets = run_grid(lit, lit_dir, n_jobs=2)
+    # a real face without downloads: the embedded scan drawn as itself, posed through headA's rig
+    scan = grid.model_copy(update={
+        "characters": [validate_data({"name": "james", "procedural": {"seed": seed, "texture_size": 512, "resolution": 64},
+                                      "mesh": {"file": str(EMBEDDED_SCAN), "region": "front", "topology": "scan"}},
+                                     CharacterSpec, source=Path("demo_grid.yaml"))],
+        "materials": ["original", "blur50"], "lighting": ["gi_soft"]})
+    _, scan_sheets = run_grid(scan, out / "scan", n_jobs=2)
     table = neoteny_table(pd.read_csv(out / "landmarks.csv"))
     atomic_write_text(out / "neoteny.csv", table.to_csv(index=False))
     figs = plot_neoteny(table, out / "neoteny.png")
@@ -48,8 +56,11 @@ def _run(out: Path, seed: int) -> ReportSection:
             "shape stylisation levels 0, 0.5, 1 (artist-free operator: larger eyes, smaller nose and mouth, "
             "shorter jaw, larger cranium, smoother skin), materials original / blurred / flat / albedo of the other "
             "head, FACS-recipe expressions carried onto the stylised shapes by deformation transfer. Every face "
-            "is framed with the same size and eye position. Manifest: `manifest.csv`.")
-    return ReportSection(title="Stimulus grid", text=text, figures=[*sheets, *lit_sheets, figs[0]],
+            "is framed with the same size and eye position. Manifest: `manifest.csv`. "
+            "A real face: the embedded 3D scan (menpo3d's 'james', BSD-3) drawn as itself — its own surface, "
+            "photographic texture and hair — with its landmarks found automatically, posed through the procedural "
+            "head's rig for the same shapes and expressions (`scan/`).")
+    return ReportSection(title="Stimulus grid", text=text, figures=[*sheets, *scan_sheets, *lit_sheets, figs[0]],
                          tables=[out / "manifest.csv", out / "neoteny.csv"])
 
 
