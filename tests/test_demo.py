@@ -7,7 +7,6 @@ import re
 import shutil
 
 import pandas as pd
-
 import pytest
 
 from appeal_cli import main
