@@ -35,9 +35,13 @@ pytestmark = [pytest.mark.gui, pytest.mark.slow]
 SEED = 5
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def display():
-    """A private Xvfb screen (``:N``) for the module's sessions."""
+    """A private Xvfb screen (``:N``) for one session, answering before it is used.
+
+    One per test, not per module: under pytest-xdist a module's tests are spread over workers
+    and interleaved with other modules, and a module-wide server was seen gone (Qt: "could
+    not connect to display") when a later test of the module reached it."""
     for tool in ("Xvfb", "xdotool"):
         if shutil.which(tool) is None:
             pytest.fail(f"live-session tests need {tool} (bash scripts/system-deps.sh installs it)")
@@ -53,7 +57,15 @@ def display():
             pytest.fail("Xvfb did not start")
         number += chunk
     os.close(read)
-    yield f":{number.decode().strip()}"
+    name = f":{number.decode().strip()}"
+    deadline = time.monotonic() + 20
+    while subprocess.run(["xdotool", "getdisplaygeometry"], env={**os.environ, "DISPLAY": name},
+                         capture_output=True).returncode != 0:
+        if time.monotonic() > deadline or proc.poll() is not None:
+            proc.kill()
+            pytest.fail(f"Xvfb {name} does not answer")
+        time.sleep(0.1)
+    yield name
     proc.terminate()
     proc.wait(timeout=10)
 
