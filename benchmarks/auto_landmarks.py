@@ -49,10 +49,9 @@ def _picture(mesh, found, truth, front, path: Path) -> None:
 
     from stimulus_engine.correspondence.auto_landmarks import _drawable
 
-    v = np.asarray(mesh.vertices)
-    lo, hi = v.min(0), v.max(0)
+    lo, hi = found.min(0), found.max(0)  # framed on the face found, so the points can be judged
     d, up = (np.asarray(x, float) for x in AXIS_VIEWS[front])
-    view = _View(_drawable(mesh), (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2, d, up, 640)
+    view = _View(_drawable(mesh), (lo + hi) / 2, float(np.linalg.norm(hi - lo)) * 0.75, d, up, 640)
     img = Image.fromarray(view.image)
     draw = ImageDraw.Draw(img)
     rot, pos, t = view.camera.rotation(), np.asarray(view.camera.position), np.tan(view.yfov / 2)
