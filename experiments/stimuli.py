@@ -6,15 +6,13 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import pandas as pd
 
 from appeal.errors import AppealInputError
 from appeal.levels import level_key, sort_levels
-
-if TYPE_CHECKING:  # annotations only
-    from experiments.protocol_schema import Protocol, Selection, StimulusSource
+from experiments.protocol_schema import Protocol, Selection, StimulusSource
 
 __all__ = ["protocol_input_problems", "StimulusSet", "load_stimuli", "select_stimuli", "IMAGE_SUFFIXES"]
 
