@@ -8,6 +8,6 @@ __all__ = ["compare_trends", "cronbach_alpha", "mixed_model_anova", "polynomial_
            "tukey_hsd", "within_ci"]
 
 # ERP pipeline (issue 8); see analysis/erp and docs/erp.md.
-from analysis.erp import analyze_erp, run_erp, simulate_study  # noqa: E402
+from analysis.erp import run_erp, simulate_study  # noqa: E402
 
-__all__ += ["analyze_erp", "run_erp", "simulate_study"]
+__all__ += ["run_erp", "simulate_study"]

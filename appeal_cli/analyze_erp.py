@@ -45,12 +45,12 @@ def erp(config: Path, out: Path, force: bool, resume: bool, seed: int, n_jobs: i
     from appeal.outputs import output_run
 
     from analysis.erp.config import load_erp_config
-    from analysis.erp.report import analyze_erp
+    from analysis.erp.pipeline import run_erp
 
     cfg = load_erp_config(config)  # bad config: one-line errors before any output folder is made
     with output_run(out, force=force, resume=resume, seed=seed, inputs=[config]) as run:
-        result, outputs = analyze_erp(cfg, run.out, source=config, seed=seed, n_jobs=n_jobs, scheduler=scheduler,
-                                      n_permutations=n_permutations)
+        result, outputs = run_erp(cfg, run.out, source=config, seed=seed, n_jobs=n_jobs, scheduler=scheduler,
+                                  n_permutations=n_permutations)
         run.add_inputs(s.path for s in result.subjects)
         run.extra["failed_subjects"] = [f"{f.label}: {f.error}" for f in result.failures]
     click.echo(f"{len(result.subjects)} subjects analysed; report: {outputs.report}")

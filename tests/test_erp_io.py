@@ -1,16 +1,18 @@
-"""Readers on the real BioSemi files, and bad input -> one-line errors naming file and field."""
+"""Readers on the real BioSemi files, bad input -> one-line errors naming file and field, and the
+ERP workflow taking the config it is given."""
 
 from __future__ import annotations
 
 import shutil
 
 import numpy as np
+import pandas as pd
 import pytest
 import yaml
 
 from analysis.erp.config import event_map, load_erp_config, read_protocol_codes
 from analysis.erp.io import find_trigger_events, read_recording, select_events
-from analysis.erp.pipeline import preprocess
+from analysis.erp.pipeline import preprocess, run_erp
 from analysis.erp.simulate import SimulationDesign, simulate_study
 from appeal.errors import AppealInputError, StudyFileError
 
@@ -108,6 +110,21 @@ def test_small_recording_runs(small):
     # the planted bad channel was found and interpolated
     assert qc["bad_channels"].split() == truth["bad_channels"]["01"]
     assert qc["pct_channels_interpolated"] == pytest.approx(100 * len(truth["bad_channels"]["01"]) / 128)
+
+
+def test_run_erp_takes_the_loaded_config(small, tmp_path):
+    """The workflow runs the model it is given and never reads the file again (the command and
+    the workflow each loaded it before): the file is gone and a change made only to the model shows."""
+    d, _ = small
+    config = d / "erp_once.yaml"
+    shutil.copy(d / "erp.yaml", config)
+    cfg = load_erp_config(config)
+    config.unlink()
+    n170 = cfg.model_copy(update={"components": {"N170": cfg.components["N170"]}})
+    result, outputs = run_erp(n170, tmp_path, source=config, n_jobs=1, n_permutations=10)
+    assert len(result.subjects) == 1 and result.failures == []
+    assert set(pd.read_csv(outputs.amplitudes).component) == {"N170"}
+    assert n170.source.n_permutations == cfg.source.n_permutations != 10  # the override copies the model
 
 
 def test_truncated_file(small, tmp_path):

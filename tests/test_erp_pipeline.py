@@ -154,7 +154,7 @@ def test_amplitudes_equal_plain_mne_script(study):
 
 
 def test_shared_forward_equals_per_subject_forward(study):
-    """run_erp computes the montage's forward once; a subject's pick of it equals its own forward."""
+    """process_subjects computes the montage's forward once; a subject's pick of it equals its own forward."""
     import mne
 
     from analysis.erp.config import load_erp_config

@@ -1,8 +1,10 @@
-"""The ERP pipeline: one subject from file to measures, and the whole study in parallel.
+"""The ERP pipeline: one subject from file to measures, the whole study in parallel, and the
+workflow that ``appeal analyze erp`` calls.
 
 :func:`process_subject` runs in a worker process (one recording at a time, so memory stays
-bounded by one subject); :func:`run_erp` maps it over the recordings with
-:func:`appeal.parallel.parallel_map`, reports failing subjects and carries on with the rest.
+bounded by one subject); :func:`process_subjects` maps it over the recordings with
+:func:`appeal.parallel.parallel_map`, reports failing subjects and carries on with the rest;
+:func:`run_erp` runs them and writes every output (:mod:`analysis.erp.report`).
 """
 
 from __future__ import annotations
@@ -19,9 +21,11 @@ from appeal.logs import logger
 from appeal.parallel import parallel_map
 
 from analysis.erp.config import EventMap, event_map, find_recordings, subject_id
+from analysis.erp.report import ErpOutputs, write_erp_outputs
 from analysis.erp_schema import ErpConfig
 
-__all__ = ["SubjectResult", "ErpResult", "process_subject", "preprocess", "run_erp", "resolve_components"]
+__all__ = ["SubjectResult", "ErpResult", "process_subject", "process_subjects", "preprocess", "run_erp",
+           "resolve_components"]
 
 
 @dataclass
@@ -193,8 +197,8 @@ def _head_info(cfg: ErpConfig, first: Path):
     return raw.pick("eeg").info
 
 
-def run_erp(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: int | None = None,
-            scheduler: str | None = None, seed: int = 0) -> ErpResult:
+def process_subjects(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: int | None = None,
+                     scheduler: str | None = None, seed: int = 0) -> ErpResult:
     """Run the scalp (and source) pipeline over every recording of ``cfg``.
 
     Parameters
@@ -251,6 +255,42 @@ def run_erp(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: int | None
     if not ok:
         raise AppealInputError([f"{f.label}: {f.error}" for f in res.failures] or [f"{source}: no subject succeeded"])
     return ErpResult(subjects=ok, failures=res.failures, emap=emap, head=head)
+
+
+def run_erp(cfg: ErpConfig, out: Path, *, source: str | Path = "config", seed: int = 0,
+            n_jobs: int | None = None, scheduler: str | None = None,
+            n_permutations: int | None = None) -> tuple[ErpResult, ErpOutputs]:
+    """The ERP workflow: run every subject (:func:`process_subjects`) and write all outputs into
+    ``out`` (:func:`analysis.erp.report.write_erp_outputs`). ``appeal analyze erp`` calls this.
+
+    Parameters
+    ----------
+    cfg : ErpConfig
+        The validated config (:func:`analysis.erp.config.load_erp_config`, loaded once by the
+        caller; the file is not read again).
+    out : Path
+        Output folder, existing (create it with :func:`appeal.outputs.output_run`).
+    source : str | Path
+        The config file: relative paths resolve against it and errors name it.
+    seed : int
+        Seed of ICA and permutations.
+    n_jobs : int | None
+        Local worker processes (default ``cfg.n_jobs``, else all cores).
+    scheduler : str | None
+        Dask scheduler address.
+    n_permutations : int | None
+        Override ``source.n_permutations`` (quick runs); ``cfg`` itself is not changed.
+
+    Returns
+    -------
+    tuple of (ErpResult, ErpOutputs)
+        The subjects' results and the paths written.
+    """
+    if n_permutations is not None:
+        cfg = cfg.model_copy(update={"source": cfg.source.model_copy(update={"n_permutations": int(n_permutations)})})
+    result = process_subjects(cfg, source=source, n_jobs=n_jobs, scheduler=scheduler, seed=seed)
+    outputs = write_erp_outputs(result, cfg, Path(out), seed=seed, config_name=Path(source).name)
+    return result, outputs
 
 
 def _process_item(item, cfg, emap, head, seed):

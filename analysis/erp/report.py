@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -11,10 +12,12 @@ import pandas as pd
 from appeal.atomic import atomic_write_text
 from appeal.logs import logger
 
-from analysis.erp.pipeline import ErpResult, run_erp
 from analysis.erp_schema import ErpConfig
 
-__all__ = ["ErpOutputs", "analyze_erp", "grand_averages", "level_peaks", "source_contrasts", "write_erp_outputs"]
+if TYPE_CHECKING:  # annotations only: the pipeline imports this module to write its outputs
+    from analysis.erp.pipeline import ErpResult
+
+__all__ = ["ErpOutputs", "grand_averages", "level_peaks", "source_contrasts", "write_erp_outputs"]
 
 
 @dataclass
@@ -219,30 +222,3 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
     atomic_write_text(o.report, text)
     return o
 
-
-def analyze_erp(cfg: ErpConfig, out: Path, *, source: str | Path = "config", seed: int = 0,
-                n_jobs: int | None = None, scheduler: str | None = None,
-                n_permutations: int | None = None) -> tuple[ErpResult, ErpOutputs]:
-    """The ERP workflow: run every subject (:func:`analysis.erp.pipeline.run_erp`) and write all
-    outputs into ``out`` (an existing folder). ``appeal analyze erp`` calls this.
-
-    Parameters
-    ----------
-    cfg : ErpConfig
-        The validated config (:func:`analysis.erp.config.load_erp_config`, loaded once by the caller).
-    out : Path
-        Output folder (create it with :func:`appeal.outputs.output_run`).
-    source : path-like
-        The config file: relative paths resolve against it and errors name it.
-    seed : int
-        Seed of ICA and permutations.
-    n_jobs, scheduler
-        Parallel subjects: local processes or a Dask scheduler.
-    n_permutations : int | None
-        Override ``source.n_permutations`` (quick runs); ``cfg`` itself is not changed.
-    """
-    if n_permutations is not None:
-        cfg = cfg.model_copy(update={"source": cfg.source.model_copy(update={"n_permutations": int(n_permutations)})})
-    result = run_erp(cfg, source=source, n_jobs=n_jobs, scheduler=scheduler, seed=seed)
-    outputs = write_erp_outputs(result, cfg, Path(out), seed=seed, config_name=Path(source).name)
-    return result, outputs

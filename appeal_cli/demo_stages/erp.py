@@ -27,7 +27,7 @@ def _stage(out: Path, seed: int) -> ReportSection:
     import pandas as pd
 
     from analysis.erp.config import load_erp_config
-    from analysis.erp.report import analyze_erp
+    from analysis.erp.pipeline import run_erp
     from analysis.erp.simulate import SimulationDesign, simulate_study
 
     # 128 Hz keeps the stage short; the components (< 30 Hz low-pass) and windows are resolved,
@@ -46,7 +46,7 @@ def _stage(out: Path, seed: int) -> ReportSection:
     config = atomic_write_text(out / "erp_demo.yaml", yaml.safe_dump(cfg, sort_keys=False))
     results = out / "results"
     results.mkdir(exist_ok=True)
-    result, outputs = analyze_erp(load_erp_config(config), results, source=config, seed=seed, n_jobs=2)
+    result, outputs = run_erp(load_erp_config(config), results, source=config, seed=seed, n_jobs=2)
     contr = pd.read_csv(results / "stats" / "contrasts.csv")
 
     def p(comp: str, factor: str, kind: str) -> str:
