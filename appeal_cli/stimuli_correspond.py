@@ -166,28 +166,10 @@ def morph(meshes: tuple, weights: str, out: Path, force: bool) -> None:
     the textures blend too (OUT.png beside OUT.obj). Region blends (a nose from one face on
     another) are in the Python API: stimulus_engine.partial_blend.
     """
-    from stimulus_engine.mesh_io import load_mesh, save_mesh, texture_image
-    from stimulus_engine.morph import blend_images, blend_vertices, check_weights
-    from stimulus_engine.correspondence.pipeline import deformed_mesh
+    from stimulus_engine.mesh_io import save_mesh
+    from stimulus_engine.morph import blend_meshes
 
     paths, w = _split_weights(meshes, weights)
-    if len(paths) < 2:
-        raise AppealInputError(f"MESH...: expected at least two meshes to blend (got {len(paths)})")
-    w = check_weights(w, len(paths), "--weights")
     _refuse_existing(out, force)
-    loaded = [load_mesh(p) for p in paths]
-    f0 = loaded[0].faces
-    for p, m in zip(paths[1:], loaded[1:]):
-        if m.vertices.shape != loaded[0].vertices.shape or (m.faces.shape == f0.shape and (m.faces != f0).any()) or m.faces.shape != f0.shape:
-            raise AppealInputError(
-                f"{p}: not in correspondence with {paths[0]} (expected the same vertex count and faces; "
-                f"got {len(m.vertices)} vs {len(loaded[0].vertices)} vertices)"
-            )
-    result = deformed_mesh(loaded[0], blend_vertices([m.vertices for m in loaded], w))
-    images = [texture_image(m) for m in loaded]
-    if all(im is not None for im in images) and len({im.size for im in images}) == 1:
-        import trimesh
-
-        result.visual.material = trimesh.visual.material.SimpleMaterial(image=blend_images(images, w))
-    save_mesh(result, out)
+    save_mesh(blend_meshes(paths, w, "--weights"), out)
     click.echo(f"{out}: blend of {len(paths)} meshes, weights {', '.join(f'{x:g}' for x in w)}")

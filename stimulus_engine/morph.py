@@ -10,6 +10,9 @@ equal the base mesh's are kept as they are, so the blend region joins the rest s
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from pathlib import Path
+
 import numpy as np
 import scipy.sparse as sp
 from PIL import Image
@@ -18,7 +21,7 @@ from appeal.errors import AppealInputError
 from stimulus_engine.correspondence.laplacian import cotangent_laplacian
 from stimulus_engine.correspondence.solve import factorize
 
-__all__ = ["check_weights", "blend_vertices", "blend_images", "partial_blend"]
+__all__ = ["check_weights", "blend_vertices", "blend_images", "blend_meshes", "partial_blend"]
 
 
 def check_weights(weights, n: int, where: str = "weights") -> np.ndarray:
@@ -60,6 +63,55 @@ def blend_images(images, weights) -> Image.Image:
     w = check_weights(weights, len(arrs))
     out = np.einsum("k,k...->...", w, np.stack(arrs))
     return Image.fromarray(np.clip(np.rint(out), 0, 255).astype(np.uint8))
+
+
+def blend_meshes(paths: Sequence[str | Path], weights, where: str = "weights"):
+    """Load corresponded meshes and blend them: vertices always, textures when all have one of one size.
+
+    ``appeal stimuli morph`` calls this.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        At least two meshes in correspondence (same vertex count and faces), typically
+        ``deformed.obj`` files of correspondence runs from one source.
+    weights : sequence of float
+        One per mesh, summing to 1.
+    where : str
+        The option named in error messages.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        The first mesh's connectivity and UV layout with the blended vertices (and texture).
+
+    Raises
+    ------
+    AppealInputError
+        One line: too few meshes, bad weights, or a mesh not in correspondence with the first.
+    """
+    import trimesh
+
+    from stimulus_engine.correspondence.pipeline import deformed_mesh
+    from stimulus_engine.mesh_io import load_mesh, texture_image
+
+    paths = [Path(p) for p in paths]
+    if len(paths) < 2:
+        raise AppealInputError(f"MESH...: expected at least two meshes to blend (got {len(paths)})")
+    w = check_weights(weights, len(paths), where)
+    loaded = [load_mesh(p) for p in paths]
+    first = loaded[0]
+    for p, m in zip(paths[1:], loaded[1:]):
+        if m.vertices.shape != first.vertices.shape or m.faces.shape != first.faces.shape or (m.faces != first.faces).any():
+            raise AppealInputError(
+                f"{p}: not in correspondence with {paths[0]} (expected the same vertex count and faces; "
+                f"got {len(m.vertices)} vs {len(first.vertices)} vertices)"
+            )
+    result = deformed_mesh(first, blend_vertices([m.vertices for m in loaded], w))
+    images = [texture_image(m) for m in loaded]
+    if all(im is not None for im in images) and len({im.size for im in images}) == 1:
+        result.visual.material = trimesh.visual.material.SimpleMaterial(image=blend_images(images, w))
+    return result
 
 
 def partial_blend(vertex_sets, faces: np.ndarray, vertex_weights: np.ndarray, base: int = 0) -> np.ndarray:
