@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from appeal.assets import shared_data_dir
-from stimulus_engine.correspondence.auto_landmarks import AXIS_VIEWS, _View, detect_mesh_landmarks
+from stimulus_engine.correspondence.auto_landmarks import ALL_AXIS_VIEWS, _View, detect_mesh_landmarks
 from stimulus_engine.correspondence.landmark_sets import read_ljson, reorder_landmarks
 from stimulus_engine.ict import ict_regions
 from stimulus_engine.mesh_io import load_mesh
@@ -50,7 +50,7 @@ def _picture(mesh, found, truth, front, path: Path) -> None:
     from stimulus_engine.correspondence.auto_landmarks import _drawable
 
     lo, hi = found.min(0), found.max(0)  # framed on the face found, so the points can be judged
-    d, up = (np.asarray(x, float) for x in AXIS_VIEWS[front])
+    d, up = (np.asarray(x, float) for x in ALL_AXIS_VIEWS[front])
     view = _View(_drawable(mesh), (lo + hi) / 2, float(np.linalg.norm(hi - lo)) * 0.75, d, up, 640)
     img = Image.fromarray(view.image)
     draw = ImageDraw.Draw(img)
@@ -87,7 +87,7 @@ def main() -> None:
         from stimulus_engine.correspondence.auto_landmarks import _drawable
 
         view = _View(_drawable(mesh), (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2,
-                     *(np.asarray(x, float) for x in AXIS_VIEWS[lm.front]), 640)
+                     *(np.asarray(x, float) for x in ALL_AXIS_VIEWS[lm.front]), 640)
         detect_landmarks_scored(view.image, name, max_side=640)
         one = time.perf_counter() - t1
         truth = _truth(name, d, mesh)

@@ -5,9 +5,14 @@ dlib's 68-point detector (:func:`stimulus_engine.morphpca.keypoints.detect_landm
 offline weights) finds the face in the image; each 2D point is lifted onto the surface through
 the depth buffer, and the views are combined:
 
-1. **Which way is the front?** A scan's axes are whatever its scanner used. The mesh is rendered
-   from the six axis directions (each with a perpendicular up) and the view where dlib's face
-   score is highest is the front. Meshes with no face in any of them are refused (one line).
+1. **Which way is the front?** A scan's axes are whatever its scanner used, and dlib's detector
+   finds only upright faces, so both the view direction and the image's up are searched over
+   the mesh's axes: first the six views of the y-up and z-up conventions (:data:`AXIS_VIEWS`),
+   then the other 18 (direction, up) pairs (:data:`OTHER_AXIS_VIEWS`: on its side, upside
+   down); the view where dlib's face score is highest is the front. The axes, not the PCA axes,
+   because a head's principal axes (bust, neck, hair) need not point out of the face, whereas
+   a scan is almost always stored upright along some axis. Meshes with no face in any view are
+   refused (one line) - rotate them upright or give the landmarks by hand.
 2. **Nearby views.** From the front and four views around it (yaw ±``yaw_deg``, pitch
    ±``pitch_deg``) the 68 points are detected and lifted: pixel -> camera ray -> the depth
    buffer's distance -> a 3D point, snapped to the closest surface point. A point whose pixel
@@ -58,18 +63,31 @@ from appeal.errors import AppealInputError
 from stimulus_engine.correspondence.points import SurfacePoints
 
 __all__ = ["MeshLandmarks", "detect_mesh_landmarks", "merge_landmarks", "lift_views", "combine_views", "AXIS_VIEWS",
-           "OUTLIER_PCT"]
+           "OTHER_AXIS_VIEWS", "ALL_AXIS_VIEWS", "OUTLIER_PCT"]
 
 #: A view's lifted point this far (in % of the bounding-box diagonal) from the views' median is an outlier.
 OUTLIER_PCT = 2.0
 
-#: (view direction from the mesh's centre towards the camera, image up) tried for the front.
+#: (view direction from the mesh's centre towards the camera, image up) tried first for the front:
+#: the y-up and z-up conventions of most scanners and modelling tools.
 AXIS_VIEWS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
     "+z": ((0, 0, 1), (0, 1, 0)), "-z": ((0, 0, -1), (0, 1, 0)),
     "+x": ((1, 0, 0), (0, 1, 0)), "-x": ((-1, 0, 0), (0, 1, 0)),
     "+y": ((0, 1, 0), (0, 0, 1)), "-y": ((0, -1, 0), (0, 0, 1)),
 }
 
+
+def _other_views() -> dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]]:
+    axes = {f"{sign}{name}": tuple(float(sign + "1") if i == j else 0.0 for j in range(3))
+            for i, name in enumerate("xyz") for sign in "+-"}
+    return {f"{d}/up{u}": (axes[d], axes[u]) for d in axes for u in axes
+            if d[1] != u[1] and (axes[d], axes[u]) not in AXIS_VIEWS.values()}
+
+#: The other 18 (direction, up) pairs of the axes (key "+x/up+z": looking from +x, +z up), tried
+#: when no face is found in :data:`AXIS_VIEWS` (a mesh lying on its side, upside down, or y-down
+#: as in camera coordinates): dlib's detector finds upright faces only.
+OTHER_AXIS_VIEWS = _other_views()
+ALL_AXIS_VIEWS = {**AXIS_VIEWS, **OTHER_AXIS_VIEWS}
 
 @dataclass
 class MeshLandmarks:
@@ -83,7 +101,7 @@ class MeshLandmarks:
         The same points as (triangle corners, barycentric weights).
     confidence : (68,) array in [0, 1]
     front : str
-        The axis view (:data:`AXIS_VIEWS`) taken as the front, or "given".
+        The axis view (a key of :data:`ALL_AXIS_VIEWS`) taken as the front.
     views : int
         Views the face was found in.
     scores : list of float
@@ -223,15 +241,17 @@ def _find_front(mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, size: 
                 name: str) -> tuple[str, np.ndarray, np.ndarray, np.ndarray, float]:
     """The axis view with dlib's best face score: (key, direction, up, centre, radius) of it.
 
-    Each view is tried framing the whole mesh, then (when no face was found in any) framing the
-    top eighth of the mesh along the view's up: a head on a whole body is too small otherwise.
+    The six :data:`AXIS_VIEWS` are tried framing the whole mesh, then (when no face was found in
+    any) framing the top eighth of the mesh along the view's up: a head on a whole body is too
+    small otherwise (a whole body is stored upright); then the 18 :data:`OTHER_AXIS_VIEWS`
+    framing the whole mesh.
     """
     from stimulus_engine.morphpca.keypoints import detect_landmarks_scored
 
     v = np.asarray(mesh.vertices, dtype=np.float64)
-    for zoom in (False, True):
+    for views, zoom in ((AXIS_VIEWS, False), (AXIS_VIEWS, True), (OTHER_AXIS_VIEWS, False)):
         best: tuple[float, str, np.ndarray, float] | None = None
-        for key, (d, up) in AXIS_VIEWS.items():
+        for key, (d, up) in views.items():
             c, r = centre, radius
             if zoom:
                 height = v @ np.asarray(up, float)
@@ -246,9 +266,9 @@ def _find_front(mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, size: 
             if best is None or score > best[0]:
                 best = (score, key, c, r)
         if best is not None:
-            d, up = AXIS_VIEWS[best[1]]
+            d, up = views[best[1]]
             return best[1], np.asarray(d, float), np.asarray(up, float), best[2], best[3]
-    raise AppealInputError(f"{name}: landmarks: auto: no face found in renders from the six axis directions "
+    raise AppealInputError(f"{name}: landmarks: auto: no face found in renders from the 6 axis directions "
                            "(expected a face mesh; give the landmarks by hand instead)")
 
 
@@ -267,7 +287,7 @@ def detect_mesh_landmarks(mesh: trimesh.Trimesh, *, name: str = "mesh", size: in
     yaw_deg, pitch_deg : float
         The side views' angles around the front.
     front : str, optional
-        A key of :data:`AXIS_VIEWS` to use as the front instead of searching for it.
+        A key of :data:`ALL_AXIS_VIEWS` to use as the front instead of searching for it.
 
     Returns
     -------
@@ -287,9 +307,10 @@ def detect_mesh_landmarks(mesh: trimesh.Trimesh, *, name: str = "mesh", size: in
     if front is None:
         front, direction, up, centre, radius = _find_front(drawn, centre, radius, size // 2, name)
     else:
-        if front not in AXIS_VIEWS:
-            raise AppealInputError(f"{name}: landmarks: front: expected one of {', '.join(AXIS_VIEWS)} (got {front!r})")
-        direction, up = (np.asarray(x, float) for x in AXIS_VIEWS[front])
+        if front not in ALL_AXIS_VIEWS:
+            raise AppealInputError(f"{name}: landmarks: front: expected one of {', '.join(AXIS_VIEWS)} or "
+                                   f"'+x/up+z'-like (got {front!r})")
+        direction, up = (np.asarray(x, float) for x in ALL_AXIS_VIEWS[front])
     stack, scores = lift_views(drawn, centre, radius, direction, up, name=name, size=size, yaw_deg=yaw_deg,
                                pitch_deg=pitch_deg)
     if not len(stack):
