@@ -4,7 +4,8 @@ A level written in a protocol or a manifest may be ``0``, ``0.0``, ``"0"``, ``tr
 ``"angry"``. The runner (:mod:`experiments`) compares levels as strings
 (:func:`level_key`), the ERP analysis keeps numbers as numbers (:func:`level_value`); both
 derive from one rule, so ``str(level_value(v)) == level_key(v)`` for every ``v``, and both
-order levels with :func:`sort_levels`.
+order levels with :func:`order_levels`: the order a protocol declares (``stimuli.levels``), then
+:func:`sort_levels`.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import re
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["level_key", "level_value", "sort_levels"]
+__all__ = ["level_key", "level_value", "sort_levels", "order_levels"]
 
 
 def level_value(value: Any) -> int | float | str:
@@ -54,3 +55,27 @@ def sort_levels(levels: Iterable[Any]) -> list:
     """Levels in natural order: numeric ones by value, then ``name<number>`` by number
     (``c2`` before ``c10``), then the rest alphabetically. The values are returned as given."""
     return sorted(levels, key=_natural)
+
+
+def order_levels(levels: Iterable[Any], declared: Iterable[Any] = ()) -> list:
+    """Levels in a study's order: those ``declared`` first, in that order, then the rest by :func:`sort_levels`.
+
+    Parameters
+    ----------
+    levels : iterable
+        The levels present (repeats are dropped), as strings or typed values.
+    declared : iterable, optional
+        A declared order (a protocol's ``stimuli.levels`` entry); compared by :func:`level_key`, so
+        ``0.5`` declared orders ``"0.5"`` present. Declared levels not present are left out.
+
+    Returns
+    -------
+    list
+        The present levels, as given.
+    """
+    rank: dict[str, int] = {}
+    for i, value in enumerate(declared):
+        rank.setdefault(level_key(value), i)
+    present = list(dict.fromkeys(levels))
+    first = sorted((v for v in present if level_key(v) in rank), key=lambda v: rank[level_key(v)])
+    return first + sort_levels(v for v in present if level_key(v) not in rank)

@@ -11,7 +11,7 @@ from typing import Any
 import pandas as pd
 
 from appeal.errors import AppealInputError
-from appeal.levels import level_key, sort_levels
+from appeal.levels import level_key, order_levels
 from experiments.protocol_schema import Protocol, Selection, StimulusSource
 
 __all__ = ["protocol_input_problems", "StimulusSet", "load_stimuli", "select_stimuli", "IMAGE_SUFFIXES"]
@@ -44,9 +44,7 @@ class StimulusSet:
 
     def levels(self, factor: str) -> list[str]:
         """The levels of ``factor``: in the protocol's declared order, else natural order."""
-        present = set(self.table[factor].unique())
-        declared = [v for v in self.order.get(factor, []) if v in present]
-        return declared + sort_levels(present - set(declared))
+        return order_levels(self.table[factor], self.order.get(factor, ()))
 
 
 def _read_table(path: Path, what: str) -> pd.DataFrame:

@@ -6,10 +6,10 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from analysis.erp.config import read_protocol_codes
+from analysis.erp.config import event_map, load_erp_config, read_protocol_codes
 from appeal.assets import protocols_dir
 from appeal.errors import StudyFileError
-from appeal.levels import level_key, level_value, sort_levels
+from appeal.levels import level_key, level_value, order_levels, sort_levels
 from appeal.studyfile import load_study_file
 from appeal.triggers import trigger_table
 from experiments import build_trials, load_protocol, load_stimuli
@@ -24,9 +24,26 @@ def test_some_shipped_protocol_has_triggers():
     assert [p.name for p in SHIPPED_WITH_TRIGGERS] == ["erp_stylisation.yaml"]
 
 
-@pytest.mark.parametrize("path", SHIPPED_WITH_TRIGGERS, ids=lambda p: p.name)
-def test_runner_and_analysis_read_the_same_codes(path, tmp_path):
-    """Each trial's trigger, read back by the analysis, names that trial's condition."""
+def _written_variously(tmp_path):
+    """The shipped ERP protocol with levels the old analysis read otherwise than the runner:
+    booleans (``'True'`` there, ``'true'`` here), numeric text (``'2.0'`` there, ``'2'`` here),
+    and a declared level order that is not the natural one (the analysis ignored it)."""
+    doc = yaml.safe_load((protocols_dir() / "erp_stylisation.yaml").read_text(encoding="utf-8"))
+    for entry in doc["triggers"]["codes"]:
+        entry["character"] = entry["character"] == "ict000"
+        entry["stylisation"] = f"{entry['stylisation']}.0"
+    doc["stimuli"]["levels"] = {"stylisation": [5, 4, 3, 2, 1, 0], "emotion": ["neutral", "happy", "angry"]}
+    path = tmp_path / "written_variously.yaml"
+    path.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("make", [*(lambda _, p=p: p for p in SHIPPED_WITH_TRIGGERS), _written_variously],
+                         ids=[*(p.name for p in SHIPPED_WITH_TRIGGERS), "written_variously"])
+def test_runner_and_analysis_read_the_same_codes(make, tmp_path):
+    """Each trial's trigger, read back by the analysis, names that trial's condition, and both
+    sides order each factor's levels alike."""
+    path = make(tmp_path)
     analysis = read_protocol_codes(path)
     protocol = load_protocol(path)
     factors = protocol.stimuli.factors
@@ -37,6 +54,10 @@ def test_runner_and_analysis_read_the_same_codes(path, tmp_path):
     assert len({t.trigger for t in trials}) == len(analysis)  # every code is sent
     for t in trials:
         assert {f: str(v) for f, v in analysis[t.trigger].items()} == {f: t.factors[f] for f in factors}
+    config = tmp_path / "erp.yaml"
+    config.write_text(f"kind: erp\nrecordings: x.bdf\nevents: {{protocol: {path}}}\n", encoding="utf-8")
+    events = event_map(load_erp_config(config), config)
+    assert {f: [str(v) for v in events.levels[f]] for f in factors} == {f: stimuli.levels(f) for f in factors}
 
 
 @pytest.mark.parametrize(("codes", "message"), [
@@ -83,3 +104,16 @@ def test_typed_and_string_forms_agree(value):
 
 def test_levels_sort_naturally_the_same_way_everywhere():
     assert sort_levels(["c10", "c2", "b", 10, 2.5, "a"]) == [2.5, 10, "c2", "c10", "a", "b"]
+
+
+def test_declared_order_first_then_natural():
+    assert order_levels(["c10", "0.5", "c2", "a", "c2"], declared=[0.5, "a", "z"]) == ["0.5", "a", "c2", "c10"]
+
+
+def test_analysis_refuses_a_malformed_level_order(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text("stimuli: {levels: {emotion: angry}}\ntriggers: {codes: [{code: 1, emotion: angry}]}\n")
+    config = tmp_path / "erp.yaml"
+    config.write_text("kind: erp\nrecordings: x.bdf\nevents: {protocol: p.yaml}\n", encoding="utf-8")
+    with pytest.raises(StudyFileError, match=r"p.yaml: stimuli.levels: expected a mapping of factor to a list"):
+        event_map(load_erp_config(config), config)

@@ -8,14 +8,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from appeal.errors import AppealInputError, StudyFileError
-from appeal.levels import level_value, sort_levels
+from appeal.levels import level_value, order_levels
 from appeal.studyfile import load_study_file, load_yaml
 from appeal.triggers import trigger_table
 
 from analysis.erp_schema import ErpConfig, ProtocolEvents
 
-__all__ = ["EventMap", "load_erp_config", "read_protocol_codes", "event_map", "find_recordings",
-           "recording_problems", "subject_id"]
+__all__ = ["EventMap", "load_erp_config", "read_protocol_codes", "read_protocol_levels", "event_map",
+           "find_recordings", "recording_problems", "subject_id"]
 
 #: File types the pipeline reads (MNE readers).
 RECORDING_SUFFIXES = (".bdf", ".edf", ".fif", ".vhdr", ".set", ".fif.gz")
@@ -46,13 +46,45 @@ def read_protocol_codes(path: str | Path) -> dict[int, dict[str, object]]:
         When the section is missing or an entry is not valid (see ``trigger_table``).
     """
     path = Path(path)
-    doc = load_yaml(path)
-    codes = ((doc or {}).get("triggers") or {}).get("codes") if isinstance(doc, dict) else None
+    codes = _protocol_section(path, "triggers", "codes")
     try:
         table = trigger_table(codes if codes is not None else [])
     except ValueError as exc:
         raise StudyFileError(f"{path}: triggers.{exc}" if str(exc).startswith("codes[") else f"{path}: triggers.codes: {exc}") from None
     return {code: {f: level_value(v) for f, v in levels.items()} for code, levels in table.items()}
+
+
+def read_protocol_levels(path: str | Path) -> dict[str, list]:
+    """The ``stimuli.levels`` section of a runner protocol: factor -> its levels in the declared order.
+
+    The runner orders a factor's levels this way (:func:`appeal.levels.order_levels`); the
+    analysis orders contrasts and figures the same way unless the ERP config gives ``levels``.
+
+    Returns
+    -------
+    dict
+        factor -> declared levels (empty when the protocol declares none).
+
+    Raises
+    ------
+    StudyFileError
+        When the section is not a mapping of factor to a list of levels.
+    """
+    path = Path(path)
+    section = _protocol_section(path, "stimuli", "levels")
+    if section is None:
+        return {}
+    if not isinstance(section, dict) or not all(isinstance(v, list) for v in section.values()):
+        raise StudyFileError(f"{path}: stimuli.levels: expected a mapping of factor to a list of levels "
+                             f"(got {section!r})")
+    return {str(f): list(v) for f, v in section.items()}
+
+
+def _protocol_section(path: Path, part: str, key: str) -> object:
+    """``doc[part][key]`` of a protocol YAML file, or None where either is absent."""
+    doc = load_yaml(path)
+    section = doc.get(part) if isinstance(doc, dict) else None
+    return section.get(key) if isinstance(section, dict) else None
 
 
 @dataclass(frozen=True)
@@ -95,8 +127,10 @@ def event_map(cfg: ErpConfig, source: str | Path = "config") -> EventMap:
     StudyFileError
         When ``factors`` or ``levels`` name factors/levels the event map does not have.
     """
+    declared: dict[str, list] = {}
     if isinstance(cfg.events, ProtocolEvents):
         raw = read_protocol_codes(cfg.events.protocol)
+        declared = read_protocol_levels(cfg.events.protocol)
     else:
         raw = {int(k): {str(f): level_value(v) for f, v in d.items()} for k, d in cfg.events.items()}
     all_factors: list[str] = []
@@ -124,7 +158,7 @@ def event_map(cfg: ErpConfig, source: str | Path = "config") -> EventMap:
                 raise StudyFileError(f"{source}: levels.{f}: expected each of {seen} exactly once (got {given})")
             levels[f] = [v for v in given if v in seen]
         else:
-            levels[f] = sort_levels(seen)
+            levels[f] = order_levels(seen, declared.get(f, ()))
     for f in cfg.levels:
         if f not in factors:
             raise StudyFileError(f"{source}: levels.{f}: not a factor (expected one of: {', '.join(factors)})")
