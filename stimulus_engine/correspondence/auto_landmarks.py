@@ -268,8 +268,8 @@ def _find_front(mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, size: 
         if best is not None:
             d, up = views[best[1]]
             return best[1], np.asarray(d, float), np.asarray(up, float), best[2], best[3]
-    raise AppealInputError(f"{name}: landmarks: auto: no face found in renders from the 6 axis directions "
-                           "(expected a face mesh; give the landmarks by hand instead)")
+    raise AppealInputError(f"{name}: landmarks: auto: no face found in 24 renders along the mesh's axes "
+                           "(expected a face mesh upright along an axis; give the landmarks by hand instead)")
 
 
 def detect_mesh_landmarks(mesh: trimesh.Trimesh, *, name: str = "mesh", size: int = 640, yaw_deg: float = 15.0,
