@@ -35,7 +35,7 @@ def test_james_scan_within_measured_error(james):
     """benchmarks/auto_landmarks.py measured a mean inner error of 0.73 % of the diagonal."""
     mesh, truth, lm = james
     err = _error_pct(lm.points, truth, mesh)
-    assert lm.front == "+z" and lm.views >= 4
+    assert lm.front == "+z" and lm.views >= 4 and "front" in lm.scores and len(lm.scores) == lm.views
     assert err[INNER].mean() < 1.2 and np.median(err) < 2.0
     assert lm.confidence.shape == (68,) and ((0 <= lm.confidence) & (lm.confidence <= 1)).all()
     assert lm.confidence[INNER].mean() > lm.confidence[:17].mean()  # the jaw line is less certain

@@ -104,8 +104,9 @@ class MeshLandmarks:
         The axis view (a key of :data:`ALL_AXIS_VIEWS`) taken as the front.
     views : int
         Views the face was found in.
-    scores : list of float
-        dlib's face score per view.
+    scores : dict of str to float
+        dlib's face score per view it was found in, by view (``front``, ``yaw+15``, ``yaw-15``,
+        ``pitch+10``, ``pitch-10``): the views used.
     """
 
     points: np.ndarray
@@ -113,7 +114,7 @@ class MeshLandmarks:
     confidence: np.ndarray
     front: str
     views: int
-    scores: list[float]
+    scores: dict[str, float]
 
 
 def _rotate(v: np.ndarray, axis: np.ndarray, deg: float) -> np.ndarray:
@@ -172,29 +173,30 @@ class _View:
 
 def lift_views(drawn: trimesh.Trimesh, centre: np.ndarray, radius: float, direction: np.ndarray, up: np.ndarray, *,
                name: str = "mesh", size: int = 640, yaw_deg: float = 15.0,
-               pitch_deg: float = 10.0) -> tuple[np.ndarray, list[float]]:
+               pitch_deg: float = 10.0) -> tuple[np.ndarray, dict[str, float]]:
     """The 68 points detected in the front view and four around it, lifted to 3D.
 
     Returns
     -------
     stack : (views, 68, 3) array
         One row per view in which dlib found a face (NaN where a point's pixel shows no surface).
-    scores : list of float
-        dlib's face score per returned view.
+    scores : dict of str to float
+        dlib's face score per returned view, by view name (``front``, ``yaw+15``, ``pitch-10``...).
     """
     from stimulus_engine.morphpca.keypoints import detect_landmarks_scored
 
     right = np.cross(up, direction)
-    turns = [(up, 0.0), (up, yaw_deg), (up, -yaw_deg), (right, pitch_deg), (right, -pitch_deg)]
-    lifted, scores = [], []
-    for axis, deg in turns:
+    turns = {"front": (up, 0.0), f"yaw+{yaw_deg:g}": (up, yaw_deg), f"yaw-{yaw_deg:g}": (up, -yaw_deg),
+             f"pitch+{pitch_deg:g}": (right, pitch_deg), f"pitch-{pitch_deg:g}": (right, -pitch_deg)}
+    lifted, scores = [], {}
+    for view_name, (axis, deg) in turns.items():
         view = _View(drawn, centre, radius, _rotate(direction, axis, deg), _rotate(up, axis, deg), size)
         try:
             xy, score = detect_landmarks_scored(view.image, name, max_side=size)
         except AppealInputError:
             continue
         lifted.append(view.lift(xy))
-        scores.append(score)
+        scores[view_name] = score
     return (np.stack(lifted) if lifted else np.zeros((0, 68, 3))), scores
 
 
