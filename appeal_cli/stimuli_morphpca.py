@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import click
@@ -106,43 +105,17 @@ def project(images, source, target, out, force, resume, no_align, caricature, te
     Writes DIR/projected/NAME.png (and DIR/naive/NAME.png with --naive), DIR/loadings.csv
     (loadings in B) and DIR/metrics.json.
     """
-    import numpy as np
-    import pandas as pd
-
     from appeal.outputs import output_run
-    from stimulus_engine.morphpca import load_model, naive_transfer, project_expression, psnr, save_image, ssim
-    from stimulus_engine.morphpca.io import list_images, read_images
+    from stimulus_engine.morphpca.workflow import project_images, read_projection_inputs
 
-    t0 = time.perf_counter()
-    ma, mb = load_model(source), load_model(target)
-    files = list_images(images)
-    imgs = read_images(files, ma.size)
-    truth_imgs = None
-    if truth:
-        tfiles = list_images(truth)
-        if len(tfiles) != len(files):
-            raise AppealInputError(f"--truth: expected one true image per input image ({len(files)}), got {len(tfiles)}")
-        truth_imgs = read_images(tfiles, mb.size)
-    with output_run(out, force=force, resume=resume, inputs=[source, target, *files]) as run:
-        res = project_expression(imgs, ma, mb, align=not no_align, warp_factor=caricature, texture_weight=texture_weight)
-        for f, img in zip(files, res.images):
-            save_image(run.path("projected", f.stem + ".png"), img)
-        pd.DataFrame(res.loadings, columns=[f"pc{j + 1}" for j in range(res.loadings.shape[1])]).assign(
-            image=[f.name for f in files]).to_csv(run.path("loadings.csv"), index=False)
-        metrics: dict = {"n_images": len(files)}
-        base = naive_transfer(imgs, ma, mb) if naive or truth_imgs is not None else None
-        if base is not None and naive:
-            for f, img in zip(files, base.images):
-                save_image(run.path("naive", f.stem + ".png"), img)
-        if truth_imgs is not None:
-            metrics.update(ssim_projection=float(np.mean([ssim(a, b) for a, b in zip(res.images, truth_imgs)])),
-                           ssim_naive=float(np.mean([ssim(a, b) for a, b in zip(base.images, truth_imgs)])),
-                           psnr_projection_db=float(np.mean([psnr(a, b) for a, b in zip(res.images, truth_imgs)])),
-                           psnr_naive_db=float(np.mean([psnr(a, b) for a, b in zip(base.images, truth_imgs)])))
-        metrics["seconds"] = time.perf_counter() - t0
+    inputs = read_projection_inputs(images, source, target, truth)
+    with output_run(out, force=force, resume=resume, inputs=[source, target, *inputs.files]) as run:
+        metrics = project_images(inputs, run.out, align=not no_align, caricature=caricature,
+                                 texture_weight=texture_weight, naive=naive)
         _write_metrics(run, metrics, json_path)
-    click.echo(f"{run.out / 'projected'}: {len(files)} image(s)" +
-               (f"; SSIM to truth {metrics['ssim_projection']:.3f} (naive {metrics['ssim_naive']:.3f})" if truth_imgs is not None else ""))
+    click.echo(f"{run.out / 'projected'}: {len(inputs.files)} image(s)" +
+               (f"; SSIM to truth {metrics['ssim_projection']:.3f} (naive {metrics['ssim_naive']:.3f})"
+                if inputs.truth is not None else ""))
 
 
 @morphpca.command(context_settings=CONTEXT, epilog="""\b
@@ -165,13 +138,10 @@ def avatar(models, out, force, resume, reference, weights, components, texture_w
     reference faceframe and morph-averaged; PCA of the blends gives DIR/model.npz.
     DIR/blend.png shows the projections and blends side by side.
     """
-    import numpy as np
-
     from appeal.outputs import output_run
-    from stimulus_engine.morphpca import build_avatar, load_model, save_image, save_model
-    from stimulus_engine.morphpca.mimicry import save_contact_sheet
+    from stimulus_engine.morphpca.io import load_model
+    from stimulus_engine.morphpca.workflow import build_avatar_model
 
-    t0 = time.perf_counter()
     loaded = [load_model(m) for m in models]
     wts = None
     if weights:
@@ -180,18 +150,8 @@ def avatar(models, out, force, resume, reference, weights, components, texture_w
         except ValueError:
             raise AppealInputError(f"--weights: expected comma-separated numbers, e.g. 0.5,0.5 (got {weights!r})") from None
     with output_run(out, force=force, resume=resume, inputs=models) as run:
-        av = build_avatar(loaded, reference_model=reference, weights=wts, n_components=components,
-                          texture_weight=texture_weight)
-        save_model(av.model, run.path("model.npz"))
-        save_image(run.path("mean.png"), av.model.mean_image())
-        for j, fr in enumerate(av.frames):
-            save_image(run.path("frames", f"frame{j:03d}.png"), fr)
-        show = np.linspace(0, len(av.frames) - 1, min(8, len(av.frames))).round().astype(int)
-        save_contact_sheet(run.path("blend.png"), [list(av.projections[j]) + [av.frames[j]] for j in show],
-                           [f"expr {j}" for j in show], [f"id {i}" for i in range(len(loaded))] + ["blend"])
-        metrics = {"identities": len(loaded), "frames": len(av.frames), "n_components": av.model.n_components,
-                   "explained_variance": float(av.model.explained_variance_ratio.sum()),
-                   "weights": [float(v) for v in av.weights], "seconds": time.perf_counter() - t0}
+        av, metrics = build_avatar_model(loaded, run.out, reference=reference, weights=wts, components=components,
+                                         texture_weight=texture_weight)
         _write_metrics(run, metrics, json_path)
     click.echo(f"{run.out / 'model.npz'}: avatar of {len(loaded)} identities, {len(av.frames)} blended frames")
 
@@ -207,35 +167,13 @@ Examples:
 @click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
 def reconstruct(model_path, loadings, out, force, resume, json_path) -> None:
     """Render faces from LOADINGS of a model (DIR/NAME.png per row)."""
-    import numpy as np
-    import pandas as pd
-
     from appeal.outputs import output_run
-    from stimulus_engine.morphpca import Reconstructor, load_model, save_image
+    from stimulus_engine.morphpca.io import load_model
+    from stimulus_engine.morphpca.workflow import read_loadings, reconstruct_faces
 
     model = load_model(model_path)
-    if not loadings.is_file():
-        raise AppealInputError(f"{loadings}: loadings file not found")
-    df = pd.read_csv(loadings)
-    cols = [c for c in df.columns if c.lower().startswith("pc") and c[2:].isdigit()]
-    if not cols:
-        raise AppealInputError(f"{loadings}: no pc1..pcK columns (expected one column per component, e.g. pc1,pc2)")
-    cols.sort(key=lambda c: int(c[2:]))
-    if int(cols[-1][2:]) > model.n_components:
-        raise AppealInputError(f"{loadings}: {cols[-1]}: the model has only {model.n_components} components")
-    lo = np.zeros((len(df), model.n_components), np.float32)
-    vals = df[cols].apply(pd.to_numeric, errors="coerce").to_numpy(np.float32)
-    if not np.all(np.isfinite(vals)):
-        raise AppealInputError(f"{loadings}: non-numeric or missing loadings (expected numbers in every pc column)")
-    for c, v in zip(cols, vals.T):
-        lo[:, int(c[2:]) - 1] = v
-    names = [Path(str(n)).stem for n in df["image"]] if "image" in df.columns else [f"face{i:04d}" for i in range(len(df))]
+    lo, names = read_loadings(loadings, model.n_components)
     with output_run(out, force=force, resume=resume, inputs=[model_path, loadings]) as run:
-        t0 = time.perf_counter()
-        imgs = Reconstructor(model)(lo)
-        dt = time.perf_counter() - t0
-        for name, img in zip(names, imgs):
-            save_image(run.path(name + ".png"), img)
-        metrics = {"faces": len(df), "seconds_reconstruct": dt, "faces_per_second": len(df) / max(dt, 1e-9)}
+        metrics = reconstruct_faces(model, lo, names, run.out)
         _write_metrics(run, metrics, json_path)
-    click.echo(f"{run.out}: {len(df)} face(s) in {dt:.3f} s")
+    click.echo(f"{run.out}: {metrics['faces']} face(s) in {metrics['seconds_reconstruct']:.3f} s")

@@ -1,9 +1,19 @@
-"""The morph-model build as one workflow: validated inputs in, model files and metrics out.
+"""The morph-model workflows: checked inputs in, files and metrics out.
 
-``appeal stimuli morphpca build`` reads and checks its inputs with :func:`read_morph_inputs`
-(every problem is a one-line error before an output folder exists) and calls
-:func:`build_morph_model`, which writes ``model.npz``, ``mean.png`` and ``components.png`` and
-returns the fit metrics (training and hold-out reconstruction PSNR/SSIM).
+Each ``appeal stimuli morphpca`` command reads and checks its inputs first (every problem is a
+one-line error before an output folder exists) and calls one function here:
+
+=============  ===============================  =======================
+command        inputs                           workflow
+=============  ===============================  =======================
+build          :func:`read_morph_inputs`        :func:`build_morph_model`
+project        :func:`read_projection_inputs`   :func:`project_images`
+avatar         :func:`~.io.load_model` each     :func:`build_avatar_model`
+reconstruct    :func:`read_loadings`            :func:`reconstruct_faces`
+=============  ===============================  =======================
+
+:func:`build_morph_model` writes ``model.npz``, ``mean.png`` and ``components.png`` and returns
+the fit metrics (training and hold-out reconstruction PSNR/SSIM).
 """
 
 from __future__ import annotations
@@ -17,7 +27,8 @@ import numpy as np
 
 from appeal.errors import AppealInputError
 
-__all__ = ["MorphInputs", "read_morph_inputs", "build_morph_model"]
+__all__ = ["MorphInputs", "read_morph_inputs", "build_morph_model", "ProjectionInputs", "read_projection_inputs",
+           "project_images", "build_avatar_model", "read_loadings", "reconstruct_faces"]
 
 
 @dataclass
@@ -158,13 +169,211 @@ def build_morph_model(inputs: MorphInputs, out: Path, *, components: int | None 
     metrics = {"n_images": n, "n_components": model.n_components,
                "explained_variance": float(model.explained_variance_ratio.sum()),
                "explained_variance_ratio": [float(v) for v in model.explained_variance_ratio[:20]],
-               "train_psnr_db": float(np.mean([psnr(a, b) for a, b in zip(imgs[:n], train_rec)])),
-               "train_ssim": float(np.mean([ssim(a, b) for a, b in zip(imgs[:n], train_rec)])),
+               "train_psnr_db": _mean_scores(imgs[:n], train_rec, psnr),
+               "train_ssim": _mean_scores(imgs[:n], train_rec, ssim),
                "seconds_build": model.meta["seconds_total"]}
     if n < len(imgs):
         test = imgs[n:]
         rec = model.reconstruct(model.project(model.encode(test)))
-        metrics.update(holdout_psnr_db=float(np.mean([psnr(a, b) for a, b in zip(test, rec)])),
-                       holdout_ssim=float(np.mean([ssim(a, b) for a, b in zip(test, rec)])))
+        metrics.update(holdout_psnr_db=_mean_scores(test, rec, psnr), holdout_ssim=_mean_scores(test, rec, ssim))
     metrics["seconds"] = inputs.seconds + time.perf_counter() - t0
     return model, metrics
+
+
+def _mean_scores(images, truth, score) -> float:
+    return float(np.mean([score(a, b) for a, b in zip(images, truth)]))
+
+
+@dataclass
+class ProjectionInputs:
+    """Images of person A, the two models and, optionally, the true images in B.
+
+    Attributes
+    ----------
+    files : list of Path
+    images : (n, H, W, 3) array
+        At model A's size.
+    source, target : MorphModel
+        Models A and B.
+    truth : (n, H, W, 3) array or None
+        One true image per input image, at model B's size.
+    seconds : float
+        Time spent reading.
+    """
+
+    files: list[Path]
+    images: np.ndarray
+    source: object
+    target: object
+    truth: np.ndarray | None
+    seconds: float = 0.0
+
+
+def read_projection_inputs(images: Sequence[str | Path], source: str | Path, target: str | Path,
+                           truth: Sequence[str | Path] = ()) -> ProjectionInputs:
+    """Read and check the inputs of an expression projection (``--truth``: one image per input)."""
+    from stimulus_engine.morphpca.io import list_images, load_model, read_images
+
+    t0 = time.perf_counter()
+    ma, mb = load_model(source), load_model(target)
+    files = list_images(images)
+    imgs = read_images(files, ma.size)
+    truth_imgs = None
+    if truth:
+        tfiles = list_images(truth)
+        if len(tfiles) != len(files):
+            raise AppealInputError(f"--truth: expected one true image per input image ({len(files)}), got {len(tfiles)}")
+        truth_imgs = read_images(tfiles, mb.size)
+    return ProjectionInputs(files, imgs, ma, mb, truth_imgs, time.perf_counter() - t0)
+
+
+def project_images(inputs: ProjectionInputs, out: Path, *, align: bool = True, caricature: float = 1.0,
+                   texture_weight: float = 0.1, naive: bool = False) -> dict:
+    """Project the expressions of A's images onto B's face; write ``projected/NAME.png``,
+    ``loadings.csv`` (loadings in B) and, with ``naive``, ``naive/NAME.png``.
+
+    Parameters
+    ----------
+    inputs : ProjectionInputs
+        From :func:`read_projection_inputs`.
+    out : Path
+        An existing output folder.
+    align : bool
+        Faceframe affine transform between the models (False: models of equal size only).
+    caricature : float
+        Scale of the projected warp.
+    texture_weight : float
+        Weight of texture against shape in the projection.
+    naive : bool
+        Also write the naive loading-transfer baseline.
+
+    Returns
+    -------
+    dict
+        n_images, seconds and, with true images, SSIM and PSNR of projection and naive baseline.
+    """
+    import pandas as pd
+
+    from stimulus_engine.morphpca.io import save_image
+    from stimulus_engine.morphpca.metrics import psnr, ssim
+    from stimulus_engine.morphpca.project import naive_transfer, project_expression
+
+    t0 = time.perf_counter()
+    files, imgs, truth = inputs.files, inputs.images, inputs.truth
+    res = project_expression(imgs, inputs.source, inputs.target, align=align, warp_factor=caricature,
+                             texture_weight=texture_weight)
+    for name in ("projected", "naive") if naive else ("projected",):
+        (out / name).mkdir(parents=True, exist_ok=True)
+    for f, img in zip(files, res.images):
+        save_image(out / "projected" / (f.stem + ".png"), img)
+    pd.DataFrame(res.loadings, columns=[f"pc{j + 1}" for j in range(res.loadings.shape[1])]).assign(
+        image=[f.name for f in files]).to_csv(out / "loadings.csv", index=False)
+    metrics: dict = {"n_images": len(files)}
+    base = naive_transfer(imgs, inputs.source, inputs.target) if naive or truth is not None else None
+    if base is not None and naive:
+        for f, img in zip(files, base.images):
+            save_image(out / "naive" / (f.stem + ".png"), img)
+    if truth is not None:
+        metrics.update(ssim_projection=_mean_scores(res.images, truth, ssim),
+                       ssim_naive=_mean_scores(base.images, truth, ssim),
+                       psnr_projection_db=_mean_scores(res.images, truth, psnr),
+                       psnr_naive_db=_mean_scores(base.images, truth, psnr))
+    metrics["seconds"] = inputs.seconds + time.perf_counter() - t0
+    return metrics
+
+
+def build_avatar_model(models: Sequence, out: Path, *, reference: int = 0, weights: Sequence[float] | None = None,
+                       components: int | None = None, texture_weight: float = 0.1) -> tuple[object, dict]:
+    """Blend identity models into an avatar model; write ``model.npz``, ``mean.png``,
+    ``frames/frameNNN.png`` and ``blend.png`` (projections and blends side by side).
+
+    Parameters
+    ----------
+    models : sequence of MorphModel
+        The identities (:func:`stimulus_engine.morphpca.io.load_model`).
+    out : Path
+        An existing output folder.
+    reference : int
+        The model whose faceframe the avatar uses.
+    weights : sequence of float, optional
+        Identity weights (default equal).
+    components : int, optional
+        Components of the avatar model.
+    texture_weight : float
+        Weight of texture against shape in the projections.
+
+    Returns
+    -------
+    avatar : Avatar
+    metrics : dict
+        identities, frames, n_components, explained_variance, weights, seconds.
+    """
+    from stimulus_engine.morphpca.avatar import build_avatar
+    from stimulus_engine.morphpca.io import save_image, save_model
+    from stimulus_engine.morphpca.mimicry import save_contact_sheet
+
+    t0 = time.perf_counter()
+    av = build_avatar(list(models), reference_model=reference, weights=weights, n_components=components,
+                      texture_weight=texture_weight)
+    save_model(av.model, out / "model.npz")
+    save_image(out / "mean.png", av.model.mean_image())
+    (out / "frames").mkdir(exist_ok=True)
+    for j, fr in enumerate(av.frames):
+        save_image(out / "frames" / f"frame{j:03d}.png", fr)
+    show = np.linspace(0, len(av.frames) - 1, min(8, len(av.frames))).round().astype(int)
+    save_contact_sheet(out / "blend.png", [list(av.projections[j]) + [av.frames[j]] for j in show],
+                       [f"expr {j}" for j in show], [f"id {i}" for i in range(len(models))] + ["blend"])
+    metrics = {"identities": len(models), "frames": len(av.frames), "n_components": av.model.n_components,
+               "explained_variance": float(av.model.explained_variance_ratio.sum()),
+               "weights": [float(v) for v in av.weights], "seconds": time.perf_counter() - t0}
+    return av, metrics
+
+
+def read_loadings(path: Path, n_components: int) -> tuple[np.ndarray, list[str]]:
+    """Read a loadings CSV: one row per face, columns pc1..pcK (missing ones are zeros), an
+    optional ``image`` column naming the outputs.
+
+    Returns
+    -------
+    loadings : (n, n_components) float32 array
+    names : list of str
+        Output names (the ``image`` column's stems, else face0000, face0001, ...).
+    """
+    import pandas as pd
+
+    if not path.is_file():
+        raise AppealInputError(f"{path}: loadings file not found")
+    df = pd.read_csv(path)
+    cols = [c for c in df.columns if c.lower().startswith("pc") and c[2:].isdigit()]
+    if not cols:
+        raise AppealInputError(f"{path}: no pc1..pcK columns (expected one column per component, e.g. pc1,pc2)")
+    cols.sort(key=lambda c: int(c[2:]))
+    if int(cols[-1][2:]) > n_components:
+        raise AppealInputError(f"{path}: {cols[-1]}: the model has only {n_components} components")
+    lo = np.zeros((len(df), n_components), np.float32)
+    vals = df[cols].apply(pd.to_numeric, errors="coerce").to_numpy(np.float32)
+    if not np.all(np.isfinite(vals)):
+        raise AppealInputError(f"{path}: non-numeric or missing loadings (expected numbers in every pc column)")
+    for c, v in zip(cols, vals.T):
+        lo[:, int(c[2:]) - 1] = v
+    names = [Path(str(n)).stem for n in df["image"]] if "image" in df.columns else [f"face{i:04d}" for i in range(len(df))]
+    return lo, names
+
+
+def reconstruct_faces(model, loadings: np.ndarray, names: Sequence[str], out: Path) -> dict:
+    """Render one face per row of ``loadings`` into ``out/NAME.png``.
+
+    Returns
+    -------
+    dict
+        faces, seconds_reconstruct, faces_per_second.
+    """
+    from stimulus_engine.morphpca.io import save_image
+    from stimulus_engine.morphpca.reconstruct import Reconstructor
+
+    t0 = time.perf_counter()
+    imgs = Reconstructor(model)(loadings)
+    dt = time.perf_counter() - t0
+    for name, img in zip(names, imgs):
+        save_image(out / (name + ".png"), img)
+    return {"faces": len(names), "seconds_reconstruct": dt, "faces_per_second": len(names) / max(dt, 1e-9)}
