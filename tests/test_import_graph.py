@@ -89,8 +89,8 @@ def test_no_arrow_runs_back_up(graph):
     assert wrong == []
 
 
-def test_no_import_circle(graph):
-    """Tarjan's strongly connected components: every one is a single module."""
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Tarjan's strongly connected components of more than one module (each sorted)."""
     index, low, on_stack, stack, circles = {}, {}, set(), [], []
 
     def visit(v: str) -> None:  # recursive; the graph is shallow enough
@@ -117,4 +117,24 @@ def test_no_import_circle(graph):
     for v in sorted(graph):
         if v not in index:
             visit(v)
-    assert circles == []
+    return circles
+
+
+def test_no_import_circle(graph):
+    """Every strongly connected component of the import graph is a single module."""
+    assert _circles(graph) == []
+
+
+def test_the_checks_see_planted_faults(tmp_path):
+    """The reader counts lazy and relative imports but not TYPE_CHECKING ones; a planted circle is found."""
+    modules = {m: tmp_path for m in ("appeal", "appeal.errors", "analysis.erp", "analysis.erp.io", "analysis.erp.report",
+                                      "stimulus_engine.grid", "experiments.trials")}
+    src = tmp_path / "report.py"
+    src.write_text("from typing import TYPE_CHECKING\n"
+                   "from appeal.errors import AppealInputError\n"
+                   "from .io import read_recording\n"
+                   "if TYPE_CHECKING:\n    from experiments.trials import Trial\n"
+                   "def f():\n    import stimulus_engine.grid.plan\n")
+    assert _imports("analysis.erp.report", src, modules) == {"appeal.errors", "analysis.erp.io", "stimulus_engine.grid"}
+    assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _circles({"a": {"b"}, "b": set()}) == []
