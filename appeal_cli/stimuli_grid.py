@@ -94,3 +94,33 @@ def neoteny(manifest: Path, out: Path | None, force: bool, resume: bool) -> None
         atomic_write_text(run.out / "neoteny.csv", table.to_csv(index=False))
         figs = plot_neoteny(table, run.out / "neoteny.png")
         click.echo(f"{len(table)} rows -> {run.out / 'neoteny.csv'}; plot {figs[0]}")
+
+
+@stimuli.command("photo-sheet", context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli photo-sheet stimuli/exp2/manifest.csv --photo ../shared/data/faces2d/london-frl/neutral_front/001_03.jpg --out exp2_vs_photo.png
+  appeal stimuli photo-sheet stimuli/erp/manifest.csv --photo a.jpg --photo b.jpg --out erp_vs_photo.png""")
+@click.argument("manifest", metavar="MANIFEST", type=click.Path(path_type=Path))
+@click.option("--photo", "photos", multiple=True, required=True, type=click.Path(path_type=Path),
+              help="A frontal photograph of a real person (repeatable; used in turn for the characters).")
+@click.option("--out", "out", required=True, type=click.Path(path_type=Path), metavar="PNG", help="Sheet to write.")
+@click.option("--force", is_flag=True, help="Overwrite PNG if it exists.")
+def photo_sheet(manifest: Path, photos: tuple[Path, ...], out: Path, force: bool) -> None:
+    """Each character's most realistic rendered image beside a real photograph, framed alike.
+
+    \b
+    The photograph is moved, scaled and turned so that its eye centres land on those of the
+    rendering (dlib finds both), at the rendering's size, on its background: judge the
+    realistic level of a grid side by side with a photograph (the studies need it to read as
+    one). Reads MANIFEST (a rendered grid's manifest.csv) and its images.
+    """
+    from stimulus_engine.grid.photo_sheet import realism_sheet
+    from stimulus_engine.render import save_png
+
+    if out.exists() and not force:
+        raise AppealInputError(f"{out}: output file exists (use --force to overwrite)")
+    if not out.parent.is_dir():
+        raise AppealInputError(f"{out}: output folder {out.parent} does not exist")
+    sheet = realism_sheet(manifest, list(photos))
+    save_png(sheet, out)
+    click.echo(f"photo sheet: {out}")

@@ -1,0 +1,97 @@
+"""A rendered grid's realistic level beside real photographs, framed alike (issue 14).
+
+The studies measure how realism changes perception, so a grid's most realistic level has to read
+as a photograph. :func:`realism_sheet` puts, per character, that level's neutral image beside a
+photograph warped so that its eye centres and philtrum land on the rendered ones (both found by
+dlib: the same face size, the same eye row) on the grid's background, for a person to judge side by
+side (``appeal stimuli photo-sheet``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from PIL import Image
+
+from appeal.errors import AppealInputError
+
+__all__ = ["realistic_images", "photo_like_render", "realism_sheet"]
+
+
+def realistic_images(manifest: pd.DataFrame) -> pd.DataFrame:
+    """One row per character: its most realistic rendered image (neutral when there is one,
+    the original material, the first lighting and shading)."""
+    rendered = manifest[manifest["shape"].astype(str) != "photograph"].copy()
+    if rendered.empty:
+        raise AppealInputError("manifest: no rendered images (expected a grid's manifest.csv)")
+    rows = []
+    for _, sub in rendered.groupby("character", sort=False):
+        sub = sub[sub["stylisation"] == sub["stylisation"].max()]
+        for col, want in (("expression", "neutral"), ("material_style", "original")):
+            if (sub[col] == want).any():
+                sub = sub[sub[col] == want]
+        rows.append(sub.iloc[0])
+    return pd.DataFrame(rows)
+
+
+def _faceframe(image: np.ndarray, name: str) -> np.ndarray:
+    from stimulus_engine.morphpca.keypoints import detect_faceframe
+
+    return detect_faceframe(image, name)  # eye centres and philtrum
+
+
+def photo_like_render(photo: np.ndarray, render: np.ndarray, background: tuple[int, int, int],
+                      name: str = "photo") -> np.ndarray:
+    """``photo`` moved, scaled and turned so its eye centres and philtrum fall on ``render``'s
+    (least squares), at the render's size."""
+    import cv2
+
+    from stimulus_engine.correspondence.alignment import umeyama
+
+    src = _faceframe(photo, name)
+    dst = _faceframe(render, "rendered image")
+    pad = lambda p: np.c_[p, np.zeros(len(p))]  # noqa: E731 - 2D points as 3D for umeyama
+    sim = umeyama(pad(src), pad(dst))
+    m = (sim.scale * sim.rotation)[:2, :2]
+    affine = np.c_[m, sim.translation[:2]]
+    h, w = render.shape[:2]
+    return cv2.warpAffine(np.ascontiguousarray(photo[..., :3]), affine, (w, h), flags=cv2.INTER_AREA,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=tuple(int(b) for b in background))
+
+
+def realism_sheet(manifest_path: str | Path, photos: Sequence[str | Path], *, thumb_width: int = 400) -> np.ndarray:
+    """Per character (rows): the realistic level beside a photograph (photos cycle over characters).
+
+    Parameters
+    ----------
+    manifest_path : path-like
+        A rendered grid's ``manifest.csv`` (image paths are relative to its folder).
+    photos : sequence of path-like
+        Frontal photographs of real people (e.g. ``../shared/data/faces2d/london-frl/neutral_front/``).
+    thumb_width : int
+        Width of each cell.
+    """
+    from stimulus_engine.render.contact_sheet import contact_sheet
+
+    manifest_path = Path(manifest_path)
+    if not manifest_path.is_file():
+        raise AppealInputError(f"{manifest_path}: manifest not found (expected DIR/manifest.csv of a rendered grid)")
+    if not photos:
+        raise AppealInputError("--photo: expected at least one photograph")
+    best = realistic_images(pd.read_csv(manifest_path))
+    cells, rows = [], []
+    for k, (_, r) in enumerate(best.iterrows()):
+        render = np.asarray(Image.open(manifest_path.parent / r["file"]).convert("RGB"))
+        photo_path = Path(photos[k % len(photos)])
+        if not photo_path.is_file():
+            raise AppealInputError(f"{photo_path}: photograph not found")
+        photo = np.asarray(Image.open(photo_path).convert("RGB"))
+        background = tuple(int(v) for v in render[0, 0])
+        cells += [render, photo_like_render(photo, render, background, str(photo_path))]
+        rows.append(f"{r['character']} ({r['shape_label']}, {r['material']})")
+    return contact_sheet(cells, 2, thumb_width=thumb_width, row_labels=rows,
+                         col_labels=["rendered: most realistic level", "photograph, eyes aligned"],
+                         title=f"{manifest_path.parent.name}: realistic level beside a photograph")
