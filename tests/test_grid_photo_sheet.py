@@ -42,3 +42,18 @@ def test_photo_is_framed_like_the_rendering(shared_data):
 def test_bad_inputs_are_one_line(tmp_path):
     with pytest.raises(AppealInputError, match="manifest not found"):
         realism_sheet(tmp_path / "manifest.csv", ["x.jpg"])
+    junk = tmp_path / "junk.csv"
+    junk.write_bytes(b"\xff\xfe\x00 not a table")
+    with pytest.raises(AppealInputError, match="junk.csv: not a grid manifest"):
+        realism_sheet(junk, ["x.jpg"])
+    other = tmp_path / "other.csv"
+    other.write_text("a,b\n1,2\n")
+    with pytest.raises(AppealInputError, match="other.csv: file, character, .*column.s. missing"):
+        realism_sheet(other, ["x.jpg"])
+    grid = tmp_path / "manifest.csv"
+    pd.DataFrame({"file": ["img.png"], "character": ["c"], "shape": ["0.0"], "shape_label": ["realistic"],
+                  "stylisation": [0], "material": ["original"], "material_style": ["original"],
+                  "expression": ["neutral"]}).to_csv(grid, index=False)
+    (tmp_path / "img.png").write_bytes(b"not a png")
+    with pytest.raises(AppealInputError, match="manifest.csv: file: .*img.png: not an image"):
+        realism_sheet(grid, ["x.jpg"])

@@ -21,6 +21,22 @@ from appeal.errors import AppealInputError
 __all__ = ["realistic_images", "photo_like_render", "realism_sheet"]
 
 
+#: Manifest columns the sheet reads.
+MANIFEST_COLUMNS = ("file", "character", "shape", "shape_label", "stylisation", "material", "material_style", "expression")
+
+
+def _read_image(path: Path, where: str) -> np.ndarray:
+    from PIL import UnidentifiedImageError
+
+    if not path.is_file():
+        raise AppealInputError(f"{where}: {path}: image not found")
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"))
+    except (UnidentifiedImageError, OSError) as exc:
+        raise AppealInputError(f"{where}: {path}: not an image ({exc})") from None
+
+
 def realistic_images(manifest: pd.DataFrame) -> pd.DataFrame:
     """One row per character: its most realistic rendered image (neutral when there is one,
     the original material, the first lighting and shading)."""
@@ -81,14 +97,21 @@ def realism_sheet(manifest_path: str | Path, photos: Sequence[str | Path], *, th
         raise AppealInputError(f"{manifest_path}: manifest not found (expected DIR/manifest.csv of a rendered grid)")
     if not photos:
         raise AppealInputError("--photo: expected at least one photograph")
-    best = realistic_images(pd.read_csv(manifest_path))
+    try:
+        manifest = pd.read_csv(manifest_path)
+    except (UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
+        raise AppealInputError(f"{manifest_path}: not a grid manifest ({str(exc).splitlines()[0]}; expected the "
+                               "manifest.csv 'appeal stimuli grid' writes)") from None
+    missing = [c for c in MANIFEST_COLUMNS if c not in manifest.columns]
+    if missing:
+        raise AppealInputError(f"{manifest_path}: {', '.join(missing)}: column(s) missing (expected the manifest.csv "
+                               "'appeal stimuli grid' writes)")
+    best = realistic_images(manifest)
     cells, rows = [], []
     for k, (_, r) in enumerate(best.iterrows()):
-        render = np.asarray(Image.open(manifest_path.parent / r["file"]).convert("RGB"))
+        render = _read_image(manifest_path.parent / r["file"], f"{manifest_path}: file")
         photo_path = Path(photos[k % len(photos)])
-        if not photo_path.is_file():
-            raise AppealInputError(f"{photo_path}: photograph not found")
-        photo = np.asarray(Image.open(photo_path).convert("RGB"))
+        photo = _read_image(photo_path, "--photo")
         background = tuple(int(v) for v in render[0, 0])
         cells += [render, photo_like_render(photo, render, background, str(photo_path))]
         rows.append(f"{r['character']} ({r['shape_label']}, {r['material']})")
