@@ -57,3 +57,18 @@ def test_bad_inputs_are_one_line(tmp_path):
     (tmp_path / "img.png").write_bytes(b"not a png")
     with pytest.raises(AppealInputError, match="manifest.csv: file: .*img.png: not an image"):
         realism_sheet(grid, ["x.jpg"])
+
+
+def test_sheet_pairs_each_character_with_a_photo(shared_data, tmp_path):
+    """Two characters, one photo used for both: a 2 x 2 sheet (a real face stands in for a rendering)."""
+    frl = shared_data / "faces2d" / "london-frl" / "neutral_front"
+    face = Image.open(frl / "001_03.jpg").convert("RGB").resize((480, 480))
+    canvas = Image.new("RGB", (640, 480), (128, 128, 128))
+    canvas.paste(face, (80, 0))
+    canvas.save(tmp_path / "r.png")
+    pd.DataFrame({"file": ["r.png", "r.png"], "character": ["c1", "c2"], "shape": ["0.0", "0.0"],
+                  "shape_label": ["realistic"] * 2, "stylisation": [1, 1], "material": ["original"] * 2,
+                  "material_style": ["original"] * 2, "expression": ["neutral"] * 2}).to_csv(tmp_path / "manifest.csv",
+                                                                                          index=False)
+    sheet = realism_sheet(tmp_path / "manifest.csv", [frl / "002_03.jpg"], thumb_width=200)
+    assert sheet.ndim == 3 and sheet.shape[0] > 2 * 150 and sheet.shape[1] > 2 * 200
