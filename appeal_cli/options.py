@@ -8,6 +8,8 @@ from typing import Any
 
 import click
 
+from appeal.errors import AppealInputError
+
 F = Callable[..., Any]
 
 
@@ -38,3 +40,12 @@ def parallel_options(f: F) -> F:
     f = click.option("--n-jobs", "n_jobs", type=int, default=None, metavar="N",
                      help="Local worker processes (default: all cores; 1 = in this process).")(f)
     return f
+
+
+def refuse_existing_file(path: Path, force: bool) -> None:
+    """A single output file (not a folder): refuse to overwrite it without --force, or to write
+    it into a folder that does not exist (one-line errors)."""
+    if path.exists() and not force:
+        raise AppealInputError(f"{path}: output file exists (use --force to overwrite)")
+    if not path.parent.exists():
+        raise AppealInputError(f"{path}: output folder {path.parent} does not exist")

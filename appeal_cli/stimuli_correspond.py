@@ -8,15 +8,8 @@ from pathlib import Path
 import click
 
 from appeal_cli.groups import CONTEXT, stimuli
-from appeal_cli.options import out_options
+from appeal_cli.options import out_options, refuse_existing_file
 from appeal.errors import AppealInputError
-
-
-def _refuse_existing(path: Path, force: bool) -> None:
-    if path.exists() and not force:
-        raise AppealInputError(f"{path}: output file exists (use --force to overwrite)")
-    if not path.parent.exists():
-        raise AppealInputError(f"{path}: output folder {path.parent} does not exist")
 
 
 @stimuli.command(context_settings=CONTEXT, epilog="""\b
@@ -110,7 +103,7 @@ def transfer_texture(deformed: Path, target: Path, out: Path, map_path: Path | N
     from stimulus_engine.mesh_io import load_mesh
     from stimulus_engine.texture_transfer import transfer_texture as run
 
-    _refuse_existing(out, force)
+    refuse_existing_file(out, force)
     src = load_mesh(deformed)
     tgt = load_mesh(target)
     image = None
@@ -170,6 +163,6 @@ def morph(meshes: tuple, weights: str, out: Path, force: bool) -> None:
     from stimulus_engine.morph import blend_meshes
 
     paths, w = _split_weights(meshes, weights)
-    _refuse_existing(out, force)
+    refuse_existing_file(out, force)
     save_mesh(blend_meshes(paths, w, "--weights"), out)
     click.echo(f"{out}: blend of {len(paths)} meshes, weights {', '.join(f'{x:g}' for x in w)}")

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from appeal_cli.groups import CONTEXT, stimuli
-from appeal_cli.options import out_options, parallel_options
+from appeal_cli.options import out_options, parallel_options, refuse_existing_file
 from appeal.errors import AppealInputError
 
 
@@ -117,10 +117,7 @@ def photo_sheet(manifest: Path, photos: tuple[Path, ...], out: Path, force: bool
     from stimulus_engine.grid.photo_sheet import realism_sheet
     from stimulus_engine.render import save_png
 
-    if out.exists() and not force:
-        raise AppealInputError(f"{out}: output file exists (use --force to overwrite)")
-    if not out.parent.is_dir():
-        raise AppealInputError(f"{out}: output folder {out.parent} does not exist")
+    refuse_existing_file(out, force)
     sheet = realism_sheet(manifest, list(photos))
     save_png(sheet, out)
     click.echo(f"photo sheet: {out}")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import special
 
-__all__ = ["mauchly", "gg_epsilon", "hf_epsilon", "is_singular", "error_rank"]
+__all__ = ["mauchly", "gg_epsilon", "hf_epsilon", "is_singular", "error_rank", "sphericity"]
 
 #: Relative tolerance below which a quantity that is zero in exact arithmetic is taken as zero.
 RTOL = 1e-9
@@ -92,3 +92,39 @@ def mauchly(S: np.ndarray, error_df: float, n_cells: int) -> tuple[float, float]
     p1 = special.chdtrc(f, z)
     p2 = special.chdtrc(f + 4, z)
     return float(np.exp(logW)), float(p1 + w2 * (p2 - p1))
+
+
+def sphericity(S: np.ndarray, error_df: int, n_cells: int) -> tuple[float, float, float, float, str]:
+    """Mauchly's W and p, GG and HF ε of one within effect, and a note on what is undefined.
+
+    Parameters
+    ----------
+    S : ndarray (d, d), d >= 2
+        The effect's error SSP matrix in the orthonormal within basis.
+    error_df : int
+        Error df of the between-subject model (n − rank X).
+    n_cells : int
+        Within cells of the whole design (for Mauchly's second-order term).
+
+    Returns
+    -------
+    W, p_W, gg, hf : float
+        NaN where undefined (see :mod:`analysis.stats.sphericity`).
+    note : str
+        Empty when everything is defined; otherwise why not, in words.
+    """
+    d = S.shape[0]
+    gg = gg_epsilon(S)
+    W, pW = mauchly(S, error_df, n_cells)
+    hf = hf_epsilon(gg, error_df, d)
+    rank = min(error_rank(S), error_df)
+    notes = []
+    if rank == 0:
+        return W, pW, gg, hf, "Mauchly, GG and HF ε undefined"
+    if rank < d:
+        why = (f"{error_df} error df < {d} effect df" if error_df < d else f"error SSP matrix of rank {rank} < {d}")
+        notes.append(f"Mauchly undefined ({why}); ε from the trace formula (car: NA)")
+    if np.isnan(hf):
+        notes.append("HF ε undefined (0/0 with 1 error df)" if error_df == 1 else
+                     "HF ε undefined (error df = d·GG ε)")
+    return W, pW, gg, hf, "; ".join(notes)

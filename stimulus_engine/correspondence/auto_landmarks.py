@@ -60,7 +60,7 @@ import numpy as np
 import trimesh
 
 from appeal.errors import AppealInputError
-from stimulus_engine.correspondence.points import SurfacePoints
+from stimulus_engine.correspondence.points import SurfacePoints, closest_surface_points
 
 __all__ = ["MeshLandmarks", "detect_mesh_landmarks", "merge_landmarks", "lift_views", "combine_views", "AXIS_VIEWS",
            "OTHER_AXIS_VIEWS", "ALL_AXIS_VIEWS", "OUTLIER_PCT"]
@@ -118,9 +118,7 @@ class MeshLandmarks:
 
 
 def _rotate(v: np.ndarray, axis: np.ndarray, deg: float) -> np.ndarray:
-    a = axis / np.linalg.norm(axis)
-    t = math.radians(deg)
-    return v * math.cos(t) + np.cross(a, v) * math.sin(t) + a * np.dot(a, v) * (1 - math.cos(t))
+    return trimesh.transformations.rotation_matrix(math.radians(deg), axis)[:3, :3] @ v
 
 
 def _drawable(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
@@ -300,8 +298,6 @@ def detect_mesh_landmarks(mesh: trimesh.Trimesh, *, name: str = "mesh", size: in
     AppealInputError
         When no face is found (one line naming the mesh).
     """
-    from stimulus_engine.correspondence.closest import SurfaceIndex
-
     drawn = _drawable(mesh)
     v = np.asarray(mesh.vertices, dtype=np.float64)
     lo, hi = v.min(axis=0), v.max(axis=0)
@@ -323,9 +319,7 @@ def detect_mesh_landmarks(mesh: trimesh.Trimesh, *, name: str = "mesh", size: in
         raise AppealInputError(f"{name}: landmarks: auto: points {missing} not on the surface in any view "
                                "(give them by hand)")
     combined, confidence = combine_views(stack, diag)
-    index = SurfaceIndex(v, np.asarray(mesh.faces))
-    hit = index.query(combined)
-    surface = SurfacePoints.from_faces(np.asarray(mesh.faces), hit.face, hit.bary)
+    surface = closest_surface_points(mesh, combined)[0]
     return MeshLandmarks(surface.positions(v), surface, confidence, front, len(stack), scores)
 
 
@@ -334,8 +328,6 @@ def merge_landmarks(auto: MeshLandmarks, given: Mapping[int, np.ndarray], mesh: 
 
     Given points are snapped to the surface and get confidence 1.
     """
-    from stimulus_engine.correspondence.closest import SurfaceIndex
-
     if not given:
         return auto
     bad = [k for k in given if not (isinstance(k, (int, np.integer)) and 0 <= int(k) < 68)]
@@ -343,9 +335,8 @@ def merge_landmarks(auto: MeshLandmarks, given: Mapping[int, np.ndarray], mesh: 
         raise AppealInputError(f"landmarks: expected iBUG indices 0-67 (got {bad})")
     v = np.asarray(mesh.vertices, dtype=np.float64)
     idx = np.array(sorted(int(k) for k in given))
-    hit = SurfaceIndex(v, np.asarray(mesh.faces)).query(np.array([given[k] for k in idx], dtype=np.float64))
+    fresh = closest_surface_points(mesh, np.array([given[k] for k in idx], dtype=np.float64))[0]
     verts, weights = auto.surface.vertices.copy(), auto.surface.weights.copy()
-    fresh = SurfacePoints.from_faces(np.asarray(mesh.faces), hit.face, hit.bary)
     verts[idx], weights[idx] = fresh.vertices, fresh.weights
     surface = SurfacePoints(verts, weights)
     confidence = auto.confidence.copy()

@@ -171,9 +171,10 @@ def correspond(
     riders = rs.left_out
     # vertices of left-out pieces move with their nearest fitted vertex (in the aligned frame)
     aligned = res.alignment.apply(np.asarray(source.vertices, dtype=np.float64)[riders])
+    kept_aligned = res.alignment.apply(rs.vertices[vm[riders]])
     moved = {k: getattr(res, k)[vm] for k in ("vertices", "faired_source", "registered_base")}
     for k, out in moved.items():
-        out[riders] = aligned + (getattr(res, k) - res.alignment.apply(rs.vertices))[vm[riders]]
+        out[riders] = aligned + getattr(res, k)[vm[riders]] - kept_aligned
     valid = res.valid[vm]
     valid[riders] = False
     face, bary = rt.original_bary(res.target_face[vm], res.target_bary[vm])

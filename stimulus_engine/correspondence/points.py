@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from appeal.errors import AppealInputError
 from stimulus_engine.correspondence.closest import SurfaceIndex
 
-__all__ = ["SurfacePoints", "Correspondences", "parse_points", "parse_pairs", "load_pairs_file", "check_spread"]
+__all__ = ["SurfacePoints", "Correspondences", "parse_points", "parse_pairs", "load_pairs_file", "check_spread", "closest_surface_points"]
 
 
 @dataclass
@@ -96,18 +96,24 @@ class Correspondences:
         return Correspondences(self.source.concat(other.source), self.target.concat(other.target))
 
 
+def closest_surface_points(mesh, points: np.ndarray) -> tuple[SurfacePoints, np.ndarray]:
+    """The closest points of ``mesh``'s surface to ``points`` (M, 3), and their distances."""
+    cp = SurfaceIndex(mesh.vertices, mesh.faces).query(np.asarray(points, dtype=np.float64))
+    return SurfacePoints.from_faces(mesh.faces, cp.face, cp.bary), cp.distance
+
+
 def _snap(mesh, points: np.ndarray, where: str, tolerance: float) -> SurfacePoints:
-    cp = SurfaceIndex(mesh.vertices, mesh.faces).query(points)
+    snapped, distance = closest_surface_points(mesh, points)
     diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
-    far = cp.distance > tolerance * diag
+    far = distance > tolerance * diag
     if far.any():
         k = int(np.flatnonzero(far)[0])
         raise AppealInputError(
             f"{where}[{k}]: point {np.round(points[k], 4).tolist()} is off the surface "
-            f"({cp.distance[k]:.4g} away; expected within {tolerance:.1%} of the bounding-box "
+            f"({distance[k]:.4g} away; expected within {tolerance:.1%} of the bounding-box "
             f"diagonal {diag:.4g})"
         )
-    return SurfacePoints.from_faces(mesh.faces, cp.face, cp.bary)
+    return snapped
 
 
 def parse_points(entries, mesh, where: str = "landmarks", snap_tolerance: float = 0.02) -> SurfacePoints:

@@ -65,9 +65,8 @@ class RepairedMesh:
     @property
     def changed(self) -> bool:
         """False when the repair is the identity (nothing welded, flipped or dropped)."""
-        return not (len(self.vertices) == len(self.vertex_map) and len(self.face_ids) == self.n_faces
-                    and np.array_equal(self.vertex_map, np.arange(len(self.vertex_map)))
-                    and np.array_equal(self.face_ids, np.arange(len(self.face_ids))) and not self.flipped.any())
+        return not (np.array_equal(self.vertex_map, np.arange(len(self.vertex_map)))
+                    and np.array_equal(self.face_ids, np.arange(self.n_faces)) and not self.flipped.any())
 
     @property
     def left_out(self) -> np.ndarray:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
@@ -22,6 +23,7 @@ from stimulus_engine.correspondence.alignment import Similarity
 from stimulus_engine.grid.cache import GRID_VERSION, file_sha, npz_cached, save_npz, sha
 from stimulus_engine.grid.inputs import load_map, load_texture
 from stimulus_engine.grid_schema import CharacterSpec
+from stimulus_engine.mesh_io import load_mesh
 from stimulus_engine.rig import FaceRig
 from stimulus_engine.scan_surface import ScanSurface
 
@@ -100,6 +102,7 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
     h = sha(GRID_VERSION, "mesh", base_hash, *[file_sha(f) if f else None for f in files.values()],
             m.model_dump(mode="json", exclude=set(files)))
     p = cache / "mesh" / f"{h}.npz"
+    mesh = load_mesh(m.file) if m.topology == "scan" or not p.exists() else None
     if p.exists():
         d = np.load(p)
         masks = {k[5:]: d[k] for k in d.files if k.startswith("mask_")}
@@ -108,27 +111,38 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
                       texture=d["texture"] if "texture" in d.files else None, texture_masks=masks, texture_maps=maps)
         alignment = Similarity(float(d["align_scale"]), d["align_rotation"], d["align_translation"])
     else:
-        rig, alignment = _corresponded(c, base, source)
+        rig, alignment = _corresponded(c, base, mesh, source)
         extra = {} if rig.texture is None else {"texture": rig.texture}
         save_npz(p, {"vertices": rig.vertices, **extra, **{f"mask_{k}": v for k, v in rig.texture_masks.items()},
                      **{f"map_{k}": v for k, v in rig.texture_maps.items()}, "align_scale": np.array(alignment.scale),
                      "align_rotation": alignment.rotation, "align_translation": alignment.translation})
-    scan = _scan_surface(c, rig, alignment, source) if m.topology == "scan" else None
+    scan = _scan_surface(c, rig, mesh, alignment, source) if m.topology == "scan" else None
     return Character(c, rig, h, base, scan)
 
 
-def _scan_surface(c: CharacterSpec, rig: FaceRig, alignment: Similarity, source: str) -> ScanSurface:
-    """The character's mesh as drawn itself (``topology: scan``), in the rig's frame, bound to ``rig``."""
-    from stimulus_engine.mesh_io import load_mesh, mesh_uv_layout
+def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignment: Similarity,
+                  source: str) -> ScanSurface:
+    """The character's mesh as drawn itself (``topology: scan``), in the rig's frame, bound to
+    ``rig``, wearing its own albedo (``mesh.texture``, else the mesh file's texture)."""
+    from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
     from stimulus_engine.scan_surface import bind_scan
 
-    mesh = load_mesh(c.mesh.file)
+    where = f"{source}: characters.{c.name}.mesh"
     layout = mesh_uv_layout(mesh)
     if layout is None:
-        raise AppealInputError(f"{source}: characters.{c.name}.mesh.topology: scan needs a mesh with texture "
-                               "coordinates (expected UVs; or use topology: rig)")
+        raise AppealInputError(f"{where}.topology: scan needs a mesh with texture coordinates "
+                               "(expected UVs; or use topology: rig)")
+    if c.mesh.texture is not None:
+        albedo = load_texture(c.mesh.texture)
+    else:
+        own = texture_image(mesh)
+        if own is None:
+            raise AppealInputError(f"{where}: topology: scan needs the mesh's texture "
+                                   "(expected a map_Kd texture in its .mtl, or mesh.texture)")
+        albedo = np.asarray(own.convert("RGB"))
     v = alignment.inverse().apply(np.asarray(mesh.vertices, np.float64))
-    return bind_scan(rig, v, np.asarray(mesh.faces), *layout, name=f"{c.name}_scan")
+    scan = bind_scan(rig, v, np.asarray(mesh.faces), *layout, name=f"{c.name}_scan")
+    return replace(scan, topology=replace(scan.topology, texture=albedo))
 
 
 def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | None:
@@ -149,15 +163,13 @@ def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | No
     return regions[region]
 
 
-def _corresponded(c: CharacterSpec, base: FaceRig, source: str) -> tuple[FaceRig, Similarity]:
+def _corresponded(c: CharacterSpec, base: FaceRig, mesh: trimesh.Trimesh, source: str) -> tuple[FaceRig, Similarity]:
     """The character's mesh in the base rig's topology, with its texture and maps re-laid."""
     from stimulus_engine.mesh_character import correspond_rig
-    from stimulus_engine.mesh_io import load_mesh
 
     m = c.mesh
     where = f"{source}: characters.{c.name}.mesh"
     region = _mesh_region(c, base, where)
-    mesh = load_mesh(m.file)
     texture = load_texture(m.texture) if m.texture is not None else None
     maps = {kind: load_map(path, kind, None, f"{where}.{kind}_map")
             for kind, path in (("normal", m.normal_map), ("specular", m.specular_map)) if path is not None}
@@ -185,15 +197,7 @@ def character_albedo(ch: Character, source: str, cache: Path | None = None) -> t
 
     c, rig = ch.spec, ch.rig
     if ch.scan is not None:  # drawn as itself: the mesh's own albedo in its own layout
-        from stimulus_engine.mesh_io import load_mesh, texture_image
-
-        if c.mesh.texture is not None:
-            return load_texture(c.mesh.texture), {}
-        own = texture_image(load_mesh(c.mesh.file))
-        if own is None:
-            raise AppealInputError(f"{source}: characters.{c.name}.mesh: topology: scan needs the mesh's texture "
-                                   "(expected a map_Kd texture in its .mtl, or mesh.texture)")
-        return np.asarray(own.convert("RGB")), {}
+        return ch.scan.topology.texture, {}
     if c.texture is not None:
         if rig.uv is None:
             raise AppealInputError(f"{source}: characters.{c.name}.texture: the mesh has no UVs, "
