@@ -56,7 +56,11 @@ class MeshSpec(StudyModel):
     ``topology: scan`` draws the mesh itself — its own surface, texture and hair — moved by the
     rig's expressions and stylised shapes (:mod:`stimulus_engine.scan_surface`): a scan's
     realistic level is then the scan as photographed. Its albedo stays in its own UV layout,
-    so materials from other characters do not apply to it.
+    so materials from other characters do not apply to it. ``eyes`` (with ``topology: scan``):
+    ``eyeballs`` (the default) cuts the scan open along its detected lid contours and sets
+    photographic eyeballs, tinted to the scan's painted iris, behind them
+    (:mod:`stimulus_engine.scan_eyes`); ``scan`` keeps the eyes painted on the scan (needed for a
+    scan with closed eyes, which is refused with ``eyeballs``).
     """
 
     file: InputFile
@@ -69,6 +73,9 @@ class MeshSpec(StudyModel):
                            "('rig'), or the mesh itself with its own texture, posed through the rig ('scan')")
     region: str | None = None
     texture_size: int = Field(1024, ge=64, le=4096)
+    eyes: Literal["eyeballs", "scan"] = Field(
+        "eyeballs", description="with topology: scan, eyeballs behind openings cut along the lids ('eyeballs') "
+                                "or the eyes painted on the scan ('scan')")
 
     @field_validator("landmarks", mode="before")
     @classmethod

@@ -246,7 +246,8 @@ def _socket_similarity(v0: np.ndarray, new_v: np.ndarray, ball: np.ndarray, skin
 
 
 def auto_landmark_points(rig: FaceRig, mesh: trimesh.Trimesh, region: np.ndarray | None = None, *,
-                         name: str = "mesh", min_confidence: float = 0.4) -> dict[str, tuple[float, float, float]]:
+                         name: str = "mesh", min_confidence: float = 0.4,
+                         found: object | None = None) -> dict[str, tuple[float, float, float]]:
     """Rig landmarks found on ``mesh`` automatically (``landmarks: auto``).
 
     The mesh's 68 iBUG points come from
@@ -254,11 +255,12 @@ def auto_landmark_points(rig: FaceRig, mesh: trimesh.Trimesh, region: np.ndarray
     landmark inside ``region`` (default: all skin) with an iBUG counterpart
     (:data:`stimulus_engine.rig.IBUG_LANDMARKS`) gets the mean of its points, unless their mean
     confidence is below ``min_confidence`` (the jaw line, a silhouette for the detector, often is).
+    ``found``: a detection already made on ``mesh`` (a ``MeshLandmarks``) to use instead.
     """
     from stimulus_engine.correspondence.auto_landmarks import detect_mesh_landmarks
     from stimulus_engine.rig import IBUG_LANDMARKS
 
-    found = detect_mesh_landmarks(mesh, name=name)
+    found = detect_mesh_landmarks(mesh, name=name) if found is None else found
     usable = set(source_landmark_names(rig))
     region = np.asarray(rig.skin if region is None else region, np.int64)
     out = {}

@@ -42,7 +42,7 @@ def test_james_scan_drawn_as_itself_in_a_grid(shared_data, tmp_path):
         "kind": "grid", "name": "scan",
         "characters": [{"name": "james", "ict": str(d / "ict-facekit"),
                         "mesh": {"file": str(d / "menpo3d-james" / "james.obj"), "region": "narrow_face",
-                                 "topology": "scan"}}],
+                                 "topology": "scan", "eyes": "scan"}}],
         "shapes": [0.0], "materials": ["original"], "expressions": ["neutral", "happiness"],
         "lighting": ["gi_soft"], "shading": ["pbr"], "render": {"width": 320, "height": 240}}, GridFile, source="g.yaml")
     run_grid(spec, tmp_path, source="g.yaml")
@@ -58,3 +58,42 @@ def test_james_scan_drawn_as_itself_in_a_grid(shared_data, tmp_path):
         np.asarray(james.vertices)[e[:, 0]] - np.asarray(james.vertices)[e[:, 1]], axis=1) for v in drawn]
     assert min(np.ptp(r) for r in ratio) < 1e-4 * np.median(ratio[0])
     assert np.abs(drawn[0] - drawn[1]).max() > 1e-3 * np.ptp(drawn[0], axis=0).max()  # the smile moved it
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_james_gets_eyeballs_behind_cut_lids(shared_data, tmp_path):
+    """eyes: eyeballs (the default) on the real scan: openings cut only around the two eyes, two
+    eyeballs and sockets added, and the rendering differs from the painted-eye scan only there,
+    where it now shows bright sclera."""
+    from PIL import Image
+
+    from appeal.studyfile import validate_data
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid_schema import GridFile
+
+    d = shared_data / "meshes"
+    images = {}
+    for eyes in ("scan", "eyeballs"):
+        spec = validate_data({
+            "kind": "grid", "name": "eyes",
+            "characters": [{"name": "james", "ict": str(d / "ict-facekit"),
+                            "mesh": {"file": str(d / "menpo3d-james" / "james.obj"), "region": "front",
+                                     "topology": "scan", "eyes": eyes}}],
+            "shapes": [0.0], "materials": ["original"], "expressions": ["neutral"], "lighting": ["gi_soft"],
+            "render": {"width": 512, "height": 384}}, GridFile, source="g.yaml")
+        run_grid(spec, tmp_path / eyes, source="g.yaml")
+        rigs = list((tmp_path / eyes / ".cache" / "rigs").glob("*.npz"))
+        parts = tuple(str(x) for x in np.load(rigs[0])["part_names"])
+        assert parts == (("skin",) if eyes == "scan" else ("skin", "eye", "socket"))
+        images[eyes] = np.asarray(Image.open(tmp_path / eyes / "images" / "james_realistic_original_neutral_gi_soft_pbr.png"),
+                                  np.float64)[..., :3]
+    diff = np.abs(images["eyeballs"] - images["scan"]).sum(axis=-1) > 30
+    ys, xs = np.nonzero(diff)
+    assert diff.sum() > 100
+    # only a band across the eyes changed: two blobs left and right of the face's middle, one row
+    assert np.ptp(ys) < 0.12 * 384 and np.ptp(xs) < 0.45 * 512
+    left, right = xs < np.median(xs), xs >= np.median(xs)
+    assert abs(ys[left].mean() - ys[right].mean()) < 0.03 * 384
+    lum = images["eyeballs"] @ [0.2126, 0.7152, 0.0722]
+    assert np.percentile(lum[diff], 95) > np.percentile((images["scan"] @ [0.2126, 0.7152, 0.0722])[diff], 95) + 5

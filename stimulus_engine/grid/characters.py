@@ -103,28 +103,48 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
             m.model_dump(mode="json", exclude=set(files)))
     p = cache / "mesh" / f"{h}.npz"
     mesh = load_mesh(m.file) if m.topology == "scan" or not p.exists() else None
+    eye_points = None
     if p.exists():
         d = np.load(p)
+        eye_points = d["eye_points"] if "eye_points" in d.files else None
         masks = {k[5:]: d[k] for k in d.files if k.startswith("mask_")}
         maps = {k[4:]: d[k] for k in d.files if k.startswith("map_")}
         rig = replace(base.with_vertices(d["vertices"], name=c.name),
                       texture=d["texture"] if "texture" in d.files else None, texture_masks=masks, texture_maps=maps)
         alignment = Similarity(float(d["align_scale"]), d["align_rotation"], d["align_translation"])
     else:
-        rig, alignment = _corresponded(c, base, mesh, source)
+        found = _scan_landmarks(c, mesh, source)
+        rig, alignment = _corresponded(c, base, mesh, source, found)
         extra = {} if rig.texture is None else {"texture": rig.texture}
+        if found is not None:
+            eye_points = extra["eye_points"] = found.points[36:48]
         save_npz(p, {"vertices": rig.vertices, **extra, **{f"mask_{k}": v for k, v in rig.texture_masks.items()},
                      **{f"map_{k}": v for k, v in rig.texture_maps.items()}, "align_scale": np.array(alignment.scale),
                      "align_rotation": alignment.rotation, "align_translation": alignment.translation})
-    scan = _scan_surface(c, rig, mesh, alignment, source) if m.topology == "scan" else None
+    if m.topology == "scan" and m.eyes == "eyeballs" and eye_points is None:
+        eye_points = _scan_landmarks(c, mesh, source).points[36:48]
+    scan = _scan_surface(c, rig, mesh, alignment, source, eye_points) if m.topology == "scan" else None
     return Character(c, rig, h, base, scan)
 
 
+def _scan_landmarks(c: CharacterSpec, mesh: trimesh.Trimesh, source: str) -> object | None:
+    """The 68 points detected on the mesh when its drawing needs them (a scan with eyeballs) or
+    its landmarks are automatic; None otherwise."""
+    m = c.mesh
+    if not (m.auto_landmarks or (m.topology == "scan" and m.eyes == "eyeballs")):
+        return None
+    from stimulus_engine.correspondence.auto_landmarks import detect_mesh_landmarks
+
+    return detect_mesh_landmarks(mesh, name=f"{source}: characters.{c.name}.mesh.landmarks")
+
+
 def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignment: Similarity,
-                  source: str) -> ScanSurface:
+                  source: str, eye_points: np.ndarray | None) -> ScanSurface:
     """The character's mesh as drawn itself (``topology: scan``), in the rig's frame, bound to
-    ``rig``, wearing its own albedo (``mesh.texture``, else the mesh file's texture)."""
+    ``rig``, wearing its own albedo (``mesh.texture``, else the mesh file's texture), with
+    eyeballs behind its lids (``mesh.eyes: eyeballs``; ``eye_points``: iBUG 36–47 on the mesh)."""
     from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
+    from stimulus_engine.scan_eyes import eye_geometry
     from stimulus_engine.scan_surface import bind_scan
 
     where = f"{source}: characters.{c.name}.mesh"
@@ -141,7 +161,14 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
                                    "(expected a map_Kd texture in its .mtl, or mesh.texture)")
         albedo = np.asarray(own.convert("RGB"))
     v = alignment.inverse().apply(np.asarray(mesh.vertices, np.float64))
-    scan = bind_scan(rig, v, np.asarray(mesh.faces), *layout, name=f"{c.name}_scan")
+    eyes = None
+    if c.mesh.eyes == "eyeballs":
+        try:
+            eyes = eye_geometry(v, np.asarray(mesh.faces), alignment.inverse().apply(eye_points),
+                                (albedo, *layout))
+        except ValueError as exc:
+            raise AppealInputError(f"{where}.eyes: {exc}") from None
+    scan = bind_scan(rig, v, np.asarray(mesh.faces), *layout, name=f"{c.name}_scan", eyes=eyes)
     return replace(scan, topology=replace(scan.topology, texture=albedo))
 
 
@@ -163,7 +190,8 @@ def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | No
     return regions[region]
 
 
-def _corresponded(c: CharacterSpec, base: FaceRig, mesh: trimesh.Trimesh, source: str) -> tuple[FaceRig, Similarity]:
+def _corresponded(c: CharacterSpec, base: FaceRig, mesh: trimesh.Trimesh, source: str,
+                  found: object | None = None) -> tuple[FaceRig, Similarity]:
     """The character's mesh in the base rig's topology, with its texture and maps re-laid."""
     from stimulus_engine.mesh_character import correspond_rig
 
@@ -177,7 +205,8 @@ def _corresponded(c: CharacterSpec, base: FaceRig, mesh: trimesh.Trimesh, source
     if m.auto_landmarks:
         from stimulus_engine.mesh_character import auto_landmark_points
 
-        auto = {k: list(v) for k, v in auto_landmark_points(base, mesh, region, name=f"{where}.landmarks").items()}
+        auto = {k: list(v) for k, v in auto_landmark_points(base, mesh, region, name=f"{where}.landmarks",
+                                                             found=found).items()}
         landmarks = {**auto, **landmarks}
     logger.info("%s: corresponding %s onto %s", c.name, base.name, m.file)
     mc = correspond_rig(base, mesh, landmarks, region=region, texture=texture, texture_size=m.texture_size,

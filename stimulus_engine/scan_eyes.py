@@ -1,0 +1,369 @@
+"""Eyes for a scan: openings cut along the lids, photographic eyeballs and a wet socket behind.
+
+A photogrammetric scan paints the eyes onto one continuous surface (no eyeball, no highlight,
+no depth), and a stylised shape that enlarges the eyes only smears that paint. Here each eye of a
+scan becomes a real eye:
+
+1. the lid margin is the detected eye contour (iBUG points 36–41 and 42–47 on the surface),
+   drawn as two arcs through the upper and the lower points (:func:`lid_contour`);
+2. the scan's triangles inside it are cut out and the hole's rim moved onto the contour, so the
+   opening is the lid line, not the triangles' zig-zag (:func:`cut_openings`);
+3. an eyeball — MakeHuman's CC0 high-poly eye with its photographic iris texture
+   (``stimulus_engine/data/eyes``) — sits behind each opening, sized by anatomy (radius 12 mm for
+   an interpupillary distance of 63 mm: 0.19 × the distance between the two eye centres), its
+   front pole on the painted surface, looking ahead (:func:`place_eyeballs`);
+4. a socket (the conjunctiva: dark, wet pink) closes the opening behind the eyeball, so the
+   corners of the eye, where the ball curves away, show tissue and not the inside of the head.
+
+Everything is in the rig's frame (+y up, +z towards the viewer).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["EyeGeometry", "eye_geometry", "eyeball_asset", "lid_contour", "cut_openings", "place_eyeballs",
+           "openness"]
+
+_ASSET = Path(__file__).resolve().parent / "data" / "eyes"
+#: Eyeball radius over the distance between the eye centres (12 mm / 63 mm).
+EYEBALL_RATIO = 12.0 / 63.0
+#: Below this height/width ratio of its contour an eye counts as closed (open eyes: 0.25–0.4).
+CLOSED_RATIO = 0.12
+
+
+@dataclass(frozen=True)
+class EyeGeometry:
+    """The eyes added to a scan.
+
+    Attributes
+    ----------
+    keep : (F,) bool array
+        The scan's triangles that stay (False inside the openings).
+    vertices : (S, 3) array
+        The scan's vertices with the openings' rims on the lid contours.
+    balls : list of (V, 3) arrays
+        Each eyeball's vertices (right eye first: iBUG 36–41, the subject's right).
+    ball_faces, ball_uv : arrays
+        Faces and UVs shared by both balls' vertex lists (per eye, indices into its own list).
+    sockets : list of ((K + 1, 3) array, (K, 3) int array)
+        Each socket's vertices (the contour, then the centre pushed back) and fan faces.
+    texture : (H, W, 3) uint8 array
+        The eyeball texture.
+    """
+
+    keep: np.ndarray
+    vertices: np.ndarray
+    balls: list[np.ndarray]
+    ball_faces: list[np.ndarray]
+    ball_uv: list[np.ndarray]
+    sockets: list[tuple[np.ndarray, np.ndarray]]
+    texture: np.ndarray
+
+
+@functools.lru_cache(maxsize=1)
+def eyeball_asset() -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], np.ndarray]:
+    """The two template eyeballs (unit sphere about the origin, looking along +z) and their texture.
+
+    Returns
+    -------
+    balls : list of (vertices, faces, uv)
+        Right and left eye of the MakeHuman high-poly eyes, each normalised by its fitted sphere.
+    texture : (512, 512, 3) uint8 array
+    """
+    from PIL import Image
+
+    from stimulus_engine.eyes import fit_sphere
+
+    d = np.load(_ASSET / "eyeballs.npz")
+    v, f, uv, eye = (d[k] for k in ("vertices", "faces", "uv", "eye"))
+    balls = []
+    # the subject's right eye (-x in the rig's frame, iBUG 36-41) first
+    for e in sorted((0, 1), key=lambda e: float(v[eye == e, 0].mean())):
+        idx = np.flatnonzero(eye == e)
+        remap = np.full(len(v), -1)
+        remap[idx] = np.arange(len(idx))
+        faces = remap[f[(eye[f] == e).all(axis=1)]]
+        centre, radius = fit_sphere(v[idx].astype(np.float64))
+        unit = (v[idx] - centre) / radius
+        front = unit[unit[:, 2] > np.percentile(unit[:, 2], 95)].mean(axis=0)
+        balls.append((_rotate_onto(unit, front, np.array([0.0, 0.0, 1.0])), faces, uv[idx].astype(np.float64)))
+    with Image.open(_ASSET / "brown_eye.jpg") as im:
+        texture = np.asarray(im.convert("RGB"))
+    return balls, texture
+
+
+def _rotate_onto(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``points`` rotated by the smallest rotation taking direction ``a`` onto ``b``."""
+    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+    v, c = np.cross(a, b), float(a @ b)
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    r = np.eye(3) + k + k @ k / (1.0 + c)
+    return points @ r.T
+
+
+def _catmull_rom(p: np.ndarray, n: int) -> np.ndarray:
+    """An open Catmull-Rom curve through ``p`` (end tangents mirrored), ``n`` samples per span."""
+    q = np.vstack([2 * p[0] - p[1], p, 2 * p[-1] - p[-2]])
+    t = np.linspace(0, 1, n, endpoint=False)[:, None]
+    out = []
+    for i in range(1, len(q) - 2):
+        p0, p1, p2, p3 = q[i - 1], q[i], q[i + 1], q[i + 2]
+        out.append(0.5 * (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t**2
+                          + (3 * p1 - p0 - 3 * p2 + p3) * t**3))
+    return np.vstack(out)
+
+
+def lid_contour(points: np.ndarray, n: int = 8) -> np.ndarray:
+    """The lid margin through an eye's six iBUG points, as a closed polyline.
+
+    Parameters
+    ----------
+    points : (6, 3) array
+        iBUG order: a corner, two upper-lid points, the other corner, two lower-lid points.
+    n : int
+        Samples per span between points.
+
+    Returns
+    -------
+    (6 n, 3) array
+        The upper arc from the first corner to the second, then the lower arc back (the corners
+        stay sharp).
+    """
+    p = np.asarray(points, np.float64)
+    upper = _catmull_rom(p[[0, 1, 2, 3]], n)
+    lower = _catmull_rom(p[[3, 4, 5, 0]], n)
+    return np.vstack([upper, lower])
+
+
+def openness(points: np.ndarray) -> float:
+    """Height over width of an eye's six iBUG points (open eyes ≈ 0.25–0.4, closed < 0.12)."""
+    p = np.asarray(points, np.float64)
+    width = np.linalg.norm(p[3] - p[0])
+    height = 0.5 * (np.linalg.norm(p[1] - p[5]) + np.linalg.norm(p[2] - p[4]))
+    return float(height / max(width, 1e-12))
+
+
+def _inside(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Even-odd test of 2D ``points`` against a closed 2D ``polygon``."""
+    x, y = points[:, 0:1], points[:, 1:2]
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    crosses = ((a[:, 1] > y) != (b[:, 1] > y)) & (
+        x < (b[:, 0] - a[:, 0]) * (y - a[:, 1]) / np.where(b[:, 1] == a[:, 1], 1e-300, b[:, 1] - a[:, 1]) + a[:, 0])
+    return crosses.sum(axis=1) % 2 == 1
+
+
+def _closest_on_polyline(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """For 2D ``points``, the closest point on the closed 2D ``polygon`` and its segment."""
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    ab = b - a
+    t = np.clip(((points[:, None, :] - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0, 1)
+    q = a + t[..., None] * ab
+    k = np.argmin(((points[:, None, :] - q) ** 2).sum(-1), axis=1)
+    return k, t[np.arange(len(points)), k]
+
+
+def cut_openings(vertices: np.ndarray, faces: np.ndarray, contours: list[np.ndarray],
+                 reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cut the scan open inside each lid contour (seen along +z) and lay the rim on the contour.
+
+    Parameters
+    ----------
+    vertices : (S, 3) array
+    faces : (F, 3) int array
+    contours : list of (K, 3) arrays
+        Closed lid contours on the surface.
+    reach : float
+        Only vertices closer than this to a contour's centre are cut or moved (keeps the back
+        of the head, which also projects into the contour, intact).
+
+    Returns
+    -------
+    keep : (F,) bool array
+    vertices : (S, 3) array
+        A copy with the rim vertices moved onto the contours (x, y from the contour's closest
+        point, z interpolated along it).
+    """
+    v = np.asarray(vertices, np.float64).copy()
+    f = np.asarray(faces, np.int64)
+    keep = np.ones(len(f), bool)
+    for contour in contours:
+        near = np.linalg.norm(v - contour.mean(axis=0), axis=1) < reach
+        inside = np.zeros(len(v), bool)
+        inside[near] = _inside(v[near, :2], contour[:, :2])
+        cut = inside[f].any(axis=1)
+        snapped = np.zeros(len(v), bool)
+        for _ in range(4):  # a triangle whose rim corners land on either side of a corner spans the opening
+            keep &= ~cut
+            rim = np.zeros(len(v), bool)
+            rim[f[cut].ravel()] = True
+            kept = np.zeros(len(v), bool)
+            kept[f[keep].ravel()] = True
+            idx = np.flatnonzero(rim & kept & ~inside)
+            snapped[idx] = True
+            if len(idx):
+                k, t = _closest_on_polyline(v[idx, :2], contour[:, :2])
+                a, b = contour[k], np.roll(contour, -1, axis=0)[k]
+                v[idx] = a + t[:, None] * (b - a)
+            _relax_band(v, f[keep], contour, idx_fixed=np.flatnonzero(snapped), near=near)
+            mid = np.flatnonzero(keep & near[f].all(axis=1))
+            cut = np.zeros(len(f), bool)
+            cut[mid[_inside(v[f[mid]].mean(axis=1)[:, :2], contour[:, :2])]] = True
+            if not cut.any():
+                break
+    return keep, v
+
+
+def _relax_band(v: np.ndarray, faces: np.ndarray, contour: np.ndarray, idx_fixed: np.ndarray,
+                near: np.ndarray, steps: int = 30) -> None:
+    """Even out, in place, the triangles around an opening after its rim moved onto the contour.
+
+    The vertices of the ring around the contour (within a third of the eye's width, rim vertices
+    held) take a few uniform-Laplacian steps in x, y: a rim vertex pulled far would otherwise
+    fold its neighbours over (back-facing triangles show the eyeball through the lid).
+    """
+    width = float(np.ptp(contour[:, 0]))
+    from scipy import sparse
+
+    d = np.full(len(v), np.inf)
+    idx = np.flatnonzero(near)
+    k, t = _closest_on_polyline(v[idx, :2], contour[:, :2])
+    a, b = contour[k, :2], np.roll(contour, -1, axis=0)[k, :2]
+    d[idx] = np.linalg.norm(v[idx, :2] - (a + t[:, None] * (b - a)), axis=1)
+    free = d < width / 3
+    free[idx_fixed] = False
+    e = np.vstack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e = np.vstack([e, e[:, ::-1]])
+    adj = sparse.csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(v), len(v)))
+    adj.data[:] = 1.0
+    deg = np.asarray(adj.sum(axis=1)).ravel()
+    move = np.flatnonzero(free & (deg > 0))
+    for _ in range(steps):
+        avg = adj[move] @ v[:, :2] / deg[move, None]
+        v[move, :2] += 0.5 * (avg - v[move, :2])
+
+
+def place_eyeballs(contours: list[np.ndarray], centres: list[np.ndarray]) -> tuple[list[np.ndarray], float]:
+    """Each template eyeball moved behind its opening, looking along +z.
+
+    Parameters
+    ----------
+    contours : list of (K, 3) arrays
+        Right and left lid contours.
+    centres : list of (3,) arrays
+        Each eye's centre on the painted surface (the mean of its six iBUG points).
+
+    Returns
+    -------
+    balls : list of (V, 3) arrays
+    radius : float
+        The eyeballs' radius (0.19 × the distance between the eye centres).
+    """
+    radius = EYEBALL_RATIO * float(np.linalg.norm(centres[0] - centres[1]))
+    templates, _ = eyeball_asset()
+    out = []
+    for (unit, _, _), c in zip(templates, centres):
+        ball_centre = np.asarray(c, np.float64) - np.array([0.0, 0.0, radius])
+        out.append(ball_centre + radius * unit)
+    return out, radius
+
+
+def _behind_lids(ball: np.ndarray, vertices: np.ndarray, faces: np.ndarray, contour: np.ndarray,
+                 reach: float, gap: float = 0.02) -> np.ndarray:
+    """``ball`` moved back (-z) until no part of it outside the opening pokes through the lids.
+
+    A scan's lower lid often lies flatter than an eyeball of anatomical size; wherever the ball,
+    seen along z, is outside the contour it must be behind the skin there (by ``gap`` of the
+    eye's width).
+    """
+    from scipy.interpolate import LinearNDInterpolator
+
+    used = np.unique(faces)
+    near = used[np.linalg.norm(vertices[used] - contour.mean(axis=0), axis=1) < reach]
+    depth = LinearNDInterpolator(vertices[near, :2], vertices[near, 2])(ball[:, :2])
+    outside = ~_inside(ball[:, :2], contour[:, :2]) & np.isfinite(depth)
+    if not outside.any():
+        return ball
+    width = float(np.ptp(contour[:, 0]))
+    shift = max(0.0, float(np.max(ball[outside, 2] - depth[outside])) + gap * width)
+    return ball - np.array([0.0, 0.0, shift])
+
+
+def _socket(contour: np.ndarray, depth: float) -> tuple[np.ndarray, np.ndarray]:
+    """A fan from the contour to its centre pushed ``depth`` back (-z)."""
+    centre = contour.mean(axis=0) - np.array([0.0, 0.0, depth])
+    k = len(contour)
+    faces = np.column_stack([np.arange(k), np.full(k, k), (np.arange(k) + 1) % k])
+    return np.vstack([contour, centre]), faces
+
+
+def painted_iris_colour(texture: np.ndarray, uv: np.ndarray, face_uv: np.ndarray, faces_inside: np.ndarray) -> np.ndarray:
+    """The iris colour painted in a scan's texture: the median of the darkest third of the
+    texels under the cut-out triangles (the painted eye: sclera, iris, pupil), pupil-dark
+    texels (the darkest tenth) left out."""
+    h, w = texture.shape[:2]
+    # corners and centroids of the triangles inside the openings
+    tri = uv[face_uv[faces_inside]]
+    samples = np.vstack([tri.reshape(-1, 2), tri.mean(axis=1)])
+    px = texture[np.clip(np.rint((1 - samples[:, 1]) * (h - 1)).astype(int), 0, h - 1),
+                 np.clip(np.rint(samples[:, 0] * (w - 1)).astype(int), 0, w - 1)].astype(np.float64)
+    lum = px @ np.array([0.2126, 0.7152, 0.0722])
+    lo, hi = np.percentile(lum, [10, 35])
+    sel = (lum >= lo) & (lum <= hi)
+    return np.median(px[sel if sel.any() else slice(None)], axis=0)
+
+
+def tint_iris(texture: np.ndarray, colour: np.ndarray) -> np.ndarray:
+    """The eyeball texture with its iris (its saturated pixels) in ``colour`` (sRGB 0-255),
+    keeping the iris's own light and dark fibres (its luminance relative to its median)."""
+    from matplotlib.colors import rgb_to_hsv
+
+    t = texture.astype(np.float64)
+    iris = rgb_to_hsv(t / 255.0)[..., 1] > 0.3
+    lum = t @ np.array([0.2126, 0.7152, 0.0722])
+    rel = lum / max(float(np.median(lum[iris])), 1e-6)
+    # a painted iris is seen through the cornea and lashes: lift it slightly towards the texture's own level
+    out = t.copy()
+    out[iris] = np.clip(rel[iris, None] * np.asarray(colour, np.float64) * 1.15, 0, 255)
+    return np.rint(out).astype(np.uint8)
+
+
+def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray,
+                 texture: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> EyeGeometry:
+    """Openings, eyeballs and sockets for a scan (all in the rig's frame).
+
+    Parameters
+    ----------
+    vertices : (S, 3) array
+    faces : (F, 3) int array
+    eye_points : (12, 3) array
+        iBUG points 36–47 on the scan's surface.
+    texture : (albedo, uv, face_uv), optional
+        The scan's texture and UV layout: the eyeballs' iris takes the colour painted there
+        (:func:`painted_iris_colour`); without it the iris stays brown.
+
+    Raises
+    ------
+    ValueError
+        When an eye is closed (its contour's height/width ratio below :data:`CLOSED_RATIO`).
+    """
+    pts = np.asarray(eye_points, np.float64).reshape(2, 6, 3)
+    ratios = [openness(p) for p in pts]
+    if min(ratios) < CLOSED_RATIO:
+        raise ValueError(f"the scan's eyes look closed (eye opening height/width {min(ratios):.2f}, expected at "
+                         f"least {CLOSED_RATIO}): use eyes: scan to keep its own eyes, or use it as a material donor")
+    contours = [lid_contour(p) for p in pts]
+    centres = [p.mean(axis=0) for p in pts]
+    width = float(np.mean([np.linalg.norm(p[3] - p[0]) for p in pts]))
+    keep, v = cut_openings(vertices, faces, contours, reach=1.2 * width)
+    balls, radius = place_eyeballs(contours, centres)
+    balls = [_behind_lids(b, v, faces[keep], c, reach=1.2 * width) for b, c in zip(balls, contours)]
+    templates, eye_texture = eyeball_asset()
+    if texture is not None:
+        eye_texture = tint_iris(eye_texture, painted_iris_colour(*texture, ~keep))
+    sockets = [_socket(c, radius) for c in contours]
+    return EyeGeometry(keep, v, balls, [t[1] for t in templates], [t[2] for t in templates], sockets, eye_texture)

@@ -1,0 +1,107 @@
+"""Eyes for scans: lid contours, openings cut along them, eyeballs behind the lids."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from stimulus_engine.scan_eyes import (
+    CLOSED_RATIO, EYEBALL_RATIO, cut_openings, eye_geometry, eyeball_asset, lid_contour, openness, tint_iris,
+)
+
+
+def _eye_points(cx: float, half_width: float = 1.5, half_height: float = 0.5, z: float = 0.0) -> np.ndarray:
+    """Six iBUG-ordered points of an almond eye: corner, two upper, corner, two lower."""
+    w, h = half_width, half_height
+    return np.array([[cx - w, 0, z], [cx - w / 3, h, z], [cx + w / 3, h, z], [cx + w, 0, z],
+                     [cx + w / 3, -h, z], [cx - w / 3, -h, z]])
+
+
+def _sheet(n: int = 120, size: float = 12.0) -> trimesh.Trimesh:
+    """A finely tessellated, slightly domed sheet facing +z (a stand-in for a face's skin)."""
+    g = np.linspace(-size / 2, size / 2, n)
+    x, y = np.meshgrid(g, g)
+    v = np.column_stack([x.ravel(), y.ravel(), 0.02 * (size**2 / 4 - x.ravel() ** 2 - y.ravel() ** 2) / size])
+    i = np.arange(n * n).reshape(n, n)
+    a, b, c, d = i[:-1, :-1].ravel(), i[:-1, 1:].ravel(), i[1:, :-1].ravel(), i[1:, 1:].ravel()
+    return trimesh.Trimesh(v, np.vstack([np.column_stack([a, b, d]), np.column_stack([a, d, c])]), process=False)
+
+
+def test_lid_contour_passes_through_the_six_points_and_keeps_sharp_corners():
+    p = _eye_points(0.0)
+    c = lid_contour(p, n=8)
+    assert c.shape == (48, 3)
+    # the curve starts each span at its point: corner, upper points, corner, lower points
+    np.testing.assert_allclose(c[[0, 8, 16, 24, 32, 40]], p[[0, 1, 2, 3, 4, 5]], atol=1e-12)
+    assert c[1:24, 1].min() >= -1e-9 and c[25:48, 1].max() <= 1e-9  # upper arc above, lower below
+
+
+def test_openness_tells_open_from_closed_eyes():
+    assert openness(_eye_points(0.0, 1.5, 0.5)) == pytest.approx(1.0 / 3.0)
+    assert openness(_eye_points(0.0, 1.5, 0.05)) < CLOSED_RATIO
+
+
+def test_cut_openings_follow_the_contour_without_folds():
+    sheet = _sheet()
+    contour = lid_contour(_eye_points(-2.5) + [0, 0, 0.1])
+    keep, v = cut_openings(sheet.vertices, sheet.faces, [contour], reach=4.0)
+    assert 0 < (~keep).sum() < 0.05 * len(keep)
+    from stimulus_engine.scan_eyes import _inside
+
+    kept = sheet.faces[keep]
+    assert not _inside(v[kept].mean(axis=1)[:, :2], contour[:, :2]).any()  # nothing kept inside the lids
+    # the opening's rim lies on the contour: every hole-boundary vertex is within 1e-9 of it
+    m = trimesh.Trimesh(v, kept, process=False)
+    edges = m.edges_sorted
+    boundary = np.unique(edges[trimesh.grouping.group_rows(edges, require_count=1)])
+    rim = boundary[np.linalg.norm(v[boundary, :2] - contour[:, :2].mean(axis=0), axis=1) < 3.0]
+    seg = np.linspace(0, 1, 2001)[:, None, None]
+    dense = (contour[None] * (1 - seg) + np.roll(contour, -1, axis=0)[None] * seg).reshape(-1, 3)[:, :2]
+    d = np.min(np.linalg.norm(v[rim, None, :2] - dense[None], axis=2), axis=1)
+    assert len(rim) >= 20 and d.max() < 2e-3
+    assert (m.face_normals[:, 2] > 0).all()  # no triangle folded over by moving the rim
+    far = np.linalg.norm(sheet.vertices[:, :2] - [-2.5, 0], axis=1) > 3.0
+    np.testing.assert_array_equal(v[far], sheet.vertices[far])  # the rest of the sheet untouched
+
+
+def test_eye_geometry_puts_anatomical_balls_behind_the_lids():
+    sheet = _sheet()
+    pts = np.vstack([_eye_points(-3.15), _eye_points(3.15)])
+    lift = sheet.vertices[:, 2].max()
+    eyes = eye_geometry(sheet.vertices, sheet.faces, pts + [0, 0, lift])
+    assert len(eyes.balls) == 2 and len(eyes.sockets) == 2
+    centres = [b.mean(axis=0) for b in eyes.balls]
+    assert centres[0][0] < 0 < centres[1][0]  # the subject's right eye (-x) first
+    for ball, p in zip(eyes.balls, pts.reshape(2, 6, 3)):
+        from stimulus_engine.eyes import fit_sphere
+
+        c, r = fit_sphere(ball)
+        assert r == pytest.approx(EYEBALL_RATIO * 6.3, rel=0.05)
+        assert abs(c[0] - p[:, 0].mean()) < 0.05 and abs(c[1]) < 0.05  # centred behind the opening
+        assert c[2] < lift - 0.5 * r
+    # outside the openings no part of a ball comes through the skin
+    from scipy.interpolate import LinearNDInterpolator
+
+    from stimulus_engine.scan_eyes import _inside
+
+    skin = LinearNDInterpolator(eyes.vertices[:, :2], eyes.vertices[:, 2])
+    for ball, p in zip(eyes.balls, pts.reshape(2, 6, 3)):
+        out = ~_inside(ball[:, :2], lid_contour(p)[:, :2])
+        assert (ball[out, 2] < skin(ball[out, :2])).all()
+
+
+def test_closed_eyes_are_refused_with_what_to_do():
+    sheet = _sheet(40)
+    pts = np.vstack([_eye_points(-3.15, 1.5, 0.05), _eye_points(3.15, 1.5, 0.05)])
+    with pytest.raises(ValueError, match="closed.*eyes: scan"):
+        eye_geometry(sheet.vertices, sheet.faces, pts)
+
+
+def test_tint_iris_recolours_the_iris_only():
+    _, tex = eyeball_asset()
+    blue = tint_iris(tex, np.array([60.0, 90.0, 130.0]))
+    changed = np.any(blue != tex, axis=-1)
+    assert 0.02 < changed.mean() < 0.3  # the iris disks, not the sclera
+    assert blue[changed][:, 2].mean() > blue[changed][:, 0].mean()  # now bluish
+    assert tex[changed][:, 0].mean() > tex[changed][:, 2].mean()  # was brown
