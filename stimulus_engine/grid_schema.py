@@ -60,7 +60,10 @@ class MeshSpec(StudyModel):
     ``eyeballs`` (the default) cuts the scan open along its detected lid contours and sets
     photographic eyeballs, tinted to the scan's painted iris, behind them
     (:mod:`stimulus_engine.scan_eyes`); ``scan`` keeps the eyes painted on the scan (needed for a
-    scan with closed eyes, which is refused with ``eyeballs``).
+    scan with closed eyes, which is refused with ``eyeballs``). ``mouth`` (with ``topology:
+    scan``): ``inside`` (the default) cuts the lips apart along the detected lip line and draws
+    the rig's mouth socket behind them, so an opening jaw parts the lips
+    (:mod:`stimulus_engine.scan_mouth`); ``scan`` keeps the scan's lips one surface.
     """
 
     file: InputFile
@@ -76,6 +79,9 @@ class MeshSpec(StudyModel):
     eyes: Literal["eyeballs", "scan"] = Field(
         "eyeballs", description="with topology: scan, eyeballs behind openings cut along the lids ('eyeballs') "
                                 "or the eyes painted on the scan ('scan')")
+    mouth: Literal["inside", "scan"] = Field(
+        "inside", description="with topology: scan, lips cut apart along the lip line with the rig's mouth "
+                              "behind ('inside'), or the scan's lips as one surface ('scan')")
 
     @field_validator("landmarks", mode="before")
     @classmethod

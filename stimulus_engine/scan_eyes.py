@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from stimulus_engine.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, relax_around
+
 __all__ = ["EyeGeometry", "eye_geometry", "eyeball_asset", "lid_contour", "cut_openings", "place_eyeballs",
            "openness"]
 
@@ -106,18 +108,6 @@ def _rotate_onto(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray
     return points @ r.T
 
 
-def _catmull_rom(p: np.ndarray, n: int) -> np.ndarray:
-    """An open Catmull-Rom curve through ``p`` (end tangents mirrored), ``n`` samples per span."""
-    q = np.vstack([2 * p[0] - p[1], p, 2 * p[-1] - p[-2]])
-    t = np.linspace(0, 1, n, endpoint=False)[:, None]
-    out = []
-    for i in range(1, len(q) - 2):
-        p0, p1, p2, p3 = q[i - 1], q[i], q[i + 1], q[i + 2]
-        out.append(0.5 * (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t**2
-                          + (3 * p1 - p0 - 3 * p2 + p3) * t**3))
-    return np.vstack(out)
-
-
 def lid_contour(points: np.ndarray, n: int = 8) -> np.ndarray:
     """The lid margin through an eye's six iBUG points, as a closed polyline.
 
@@ -135,8 +125,8 @@ def lid_contour(points: np.ndarray, n: int = 8) -> np.ndarray:
         stay sharp).
     """
     p = np.asarray(points, np.float64)
-    upper = _catmull_rom(p[[0, 1, 2, 3]], n)
-    lower = _catmull_rom(p[[3, 4, 5, 0]], n)
+    upper = catmull_rom(p[[0, 1, 2, 3]], n)
+    lower = catmull_rom(p[[3, 4, 5, 0]], n)
     return np.vstack([upper, lower])
 
 
@@ -148,23 +138,36 @@ def openness(points: np.ndarray) -> float:
     return float(height / max(width, 1e-12))
 
 
-def _inside(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Even-odd test of 2D ``points`` against a closed 2D ``polygon``."""
-    x, y = points[:, 0:1], points[:, 1:2]
-    a, b = polygon, np.roll(polygon, -1, axis=0)
-    crosses = ((a[:, 1] > y) != (b[:, 1] > y)) & (
-        x < (b[:, 0] - a[:, 0]) * (y - a[:, 1]) / np.where(b[:, 1] == a[:, 1], 1e-300, b[:, 1] - a[:, 1]) + a[:, 0])
-    return crosses.sum(axis=1) % 2 == 1
+def _spanning(v: np.ndarray, f: np.ndarray, candidates: np.ndarray, contour: np.ndarray) -> np.ndarray:
+    """The ``candidates`` triangles whose centre lies inside ``contour`` (seen along +z)."""
+    idx = np.flatnonzero(candidates)
+    out = np.zeros(len(f), bool)
+    out[idx[inside_polygon(v[f[idx]].mean(axis=1)[:, :2], contour[:, :2])]] = True
+    return out
 
 
-def _closest_on_polyline(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """For 2D ``points``, the closest point on the closed 2D ``polygon`` and its segment."""
-    a, b = polygon, np.roll(polygon, -1, axis=0)
-    ab = b - a
-    t = np.clip(((points[:, None, :] - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0, 1)
-    q = a + t[..., None] * ab
-    k = np.argmin(((points[:, None, :] - q) ** 2).sum(-1), axis=1)
-    return k, t[np.arange(len(points)), k]
+def _cut_and_snap(v: np.ndarray, f: np.ndarray, keep: np.ndarray, cut: np.ndarray, inside: np.ndarray,
+                  snapped: np.ndarray, contour: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """Drop the ``cut`` triangles and lay the new rim on the contour until no kept triangle spans
+    the opening (a triangle whose rim corners land on either side of a corner does); ``v`` and
+    ``snapped`` are updated in place. Returns the new ``keep``."""
+    keep = keep.copy()
+    for _ in range(4):
+        if not cut.any():
+            break
+        keep &= ~cut
+        rim = np.zeros(len(v), bool)
+        rim[f[cut].ravel()] = True
+        kept = np.zeros(len(v), bool)
+        kept[f[keep].ravel()] = True
+        idx = np.flatnonzero(rim & kept & ~inside & ~snapped)
+        snapped[idx] = True
+        if len(idx):
+            k, t = closest_on_polygon(v[idx, :2], contour[:, :2])
+            a, b = contour[k], np.roll(contour, -1, axis=0)[k]
+            v[idx] = a + t[:, None] * (b - a)
+        cut = _spanning(v, f, keep & near[f].all(axis=1), contour)
+    return keep
 
 
 def cut_openings(vertices: np.ndarray, faces: np.ndarray, contours: list[np.ndarray],
@@ -194,57 +197,15 @@ def cut_openings(vertices: np.ndarray, faces: np.ndarray, contours: list[np.ndar
     for contour in contours:
         near = np.linalg.norm(v - contour.mean(axis=0), axis=1) < reach
         inside = np.zeros(len(v), bool)
-        inside[near] = _inside(v[near, :2], contour[:, :2])
+        inside[near] = inside_polygon(v[near, :2], contour[:, :2])
         cut = inside[f].any(axis=1)
         snapped = np.zeros(len(v), bool)
-        for _ in range(4):  # a triangle whose rim corners land on either side of a corner spans the opening
-            keep &= ~cut
-            rim = np.zeros(len(v), bool)
-            rim[f[cut].ravel()] = True
-            kept = np.zeros(len(v), bool)
-            kept[f[keep].ravel()] = True
-            idx = np.flatnonzero(rim & kept & ~inside)
-            snapped[idx] = True
-            if len(idx):
-                k, t = _closest_on_polyline(v[idx, :2], contour[:, :2])
-                a, b = contour[k], np.roll(contour, -1, axis=0)[k]
-                v[idx] = a + t[:, None] * (b - a)
-            _relax_band(v, f[keep], contour, idx_fixed=np.flatnonzero(snapped), near=near)
-            mid = np.flatnonzero(keep & near[f].all(axis=1))
-            cut = np.zeros(len(f), bool)
-            cut[mid[_inside(v[f[mid]].mean(axis=1)[:, :2], contour[:, :2])]] = True
-            if not cut.any():
-                break
+        keep = _cut_and_snap(v, f, keep, cut, inside, snapped, contour, near)
+        relax_around(v, f[keep], contour, fixed=np.flatnonzero(snapped), near=near)
+        # slivers the evening-out pushed into the opening go too, their rims onto the contour
+        keep = _cut_and_snap(v, f, keep, _spanning(v, f, keep & near[f].all(axis=1), contour), inside, snapped,
+                             contour, near)
     return keep, v
-
-
-def _relax_band(v: np.ndarray, faces: np.ndarray, contour: np.ndarray, idx_fixed: np.ndarray,
-                near: np.ndarray, steps: int = 30) -> None:
-    """Even out, in place, the triangles around an opening after its rim moved onto the contour.
-
-    The vertices of the ring around the contour (within a third of the eye's width, rim vertices
-    held) take a few uniform-Laplacian steps in x, y: a rim vertex pulled far would otherwise
-    fold its neighbours over (back-facing triangles show the eyeball through the lid).
-    """
-    width = float(np.ptp(contour[:, 0]))
-    from scipy import sparse
-
-    d = np.full(len(v), np.inf)
-    idx = np.flatnonzero(near)
-    k, t = _closest_on_polyline(v[idx, :2], contour[:, :2])
-    a, b = contour[k, :2], np.roll(contour, -1, axis=0)[k, :2]
-    d[idx] = np.linalg.norm(v[idx, :2] - (a + t[:, None] * (b - a)), axis=1)
-    free = d < width / 3
-    free[idx_fixed] = False
-    e = np.vstack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    e = np.vstack([e, e[:, ::-1]])
-    adj = sparse.csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(v), len(v)))
-    adj.data[:] = 1.0
-    deg = np.asarray(adj.sum(axis=1)).ravel()
-    move = np.flatnonzero(free & (deg > 0))
-    for _ in range(steps):
-        avg = adj[move] @ v[:, :2] / deg[move, None]
-        v[move, :2] += 0.5 * (avg - v[move, :2])
 
 
 def place_eyeballs(contours: list[np.ndarray], centres: list[np.ndarray]) -> tuple[list[np.ndarray], float]:
@@ -285,7 +246,7 @@ def _behind_lids(ball: np.ndarray, vertices: np.ndarray, faces: np.ndarray, cont
     used = np.unique(faces)
     near = used[np.linalg.norm(vertices[used] - contour.mean(axis=0), axis=1) < reach]
     depth = LinearNDInterpolator(vertices[near, :2], vertices[near, 2])(ball[:, :2])
-    outside = ~_inside(ball[:, :2], contour[:, :2]) & np.isfinite(depth)
+    outside = ~inside_polygon(ball[:, :2], contour[:, :2]) & np.isfinite(depth)
     if not outside.any():
         return ball
     width = float(np.ptp(contour[:, 0]))

@@ -45,6 +45,8 @@ class ScanSurface:
         Barycentric weights in that triangle.
     rigid : tuple of (drawn vertex indices, rig vertex indices)
         Drawn vertices (eyeballs) that move with a rig vertex set by its best similarity.
+    follow : tuple of (drawn vertex indices, rig vertex indices)
+        Drawn vertices that are rig vertices (the mouth's inside), posed as on the rig.
     """
 
     topology: FaceRig
@@ -53,6 +55,7 @@ class ScanSurface:
     corners: np.ndarray
     bary: np.ndarray
     rigid: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+    follow: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
 
     def pose(self, rig_vertices: np.ndarray) -> np.ndarray:
         """Scan vertices for a pose of the rig (same topology as :attr:`rig_neutral`)."""
@@ -62,28 +65,51 @@ class ScanSurface:
         out = self.neutral + np.einsum("sk,skd->sd", self.bary, (rv - self.rig_neutral)[self.corners])
         for drawn, rig_set in self.rigid:
             out[drawn] = umeyama(self.rig_neutral[rig_set], rv[rig_set]).apply(self.neutral[drawn])
+        for drawn, rig_vertices_of in self.follow:
+            out[drawn] = rv[rig_vertices_of]
         return out
 
 
-def _with_eyes(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, face_uv: np.ndarray,
-               eyes: EyeGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, list]:
-    """The scan with its openings cut, then the eyeballs and the sockets, as one indexed mesh:
-    vertices, faces, uv, face_uv, face part (0 skin, 1 eye, 2 socket) and each ball's vertices."""
-    v, f, t, ft, part = [eyes.vertices], [faces[eyes.keep]], [uv], [face_uv[eyes.keep]], [np.zeros(int(eyes.keep.sum()))]
-    n, nt, balls = len(vertices), len(uv), []
-    pieces = [(b, bf, buv, 1) for b, bf, buv in zip(eyes.balls, eyes.ball_faces, eyes.ball_uv)]
-    pieces += [(sv, sf, np.zeros((len(sv), 2)), 2) for sv, sf in eyes.sockets]
+def _eye_pieces(eyes: EyeGeometry) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
+    """The eyeballs (part 1) and sockets (part 2) as (vertices, faces, uv, part) pieces."""
+    return ([(b, bf, buv, 1) for b, bf, buv in zip(eyes.balls, eyes.ball_faces, eyes.ball_uv)]
+            + [(sv, sf, np.zeros((len(sv), 2)), 2) for sv, sf in eyes.sockets])
+
+
+def _rig_pieces(rig: FaceRig, parts: tuple[str, ...], first: int) -> tuple[list, list[np.ndarray]]:
+    """The rig's ``parts`` as pieces (part numbers from ``first``) and each piece's rig vertices."""
+    pieces, verts = [], []
+    for k, name in enumerate(parts):
+        sel = rig.face_part == rig.part_names.index(name)
+        used, inv = np.unique(rig.faces[sel], return_inverse=True)
+        pieces.append((rig.vertices[used], inv.reshape(-1, 3), np.zeros((len(used), 2)), first + k))
+        verts.append(used)
+    return pieces, verts
+
+
+def _with_pieces(v: np.ndarray, f: np.ndarray, t: np.ndarray, ft: np.ndarray, part: np.ndarray,
+                 pieces: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The mesh with ``pieces`` (vertices, faces, uv, part) appended, and each piece's new vertex indices."""
+    vs, fs, ts, fts, ps, where = [v], [f], [t], [ft], [part], []
+    n, nt = len(v), len(t)
     for pv, pf, puv, k in pieces:
-        if k == 1:
-            balls.append(np.arange(n, n + len(pv)))
-        v.append(pv), f.append(pf + n), t.append(puv), ft.append(pf + nt), part.append(np.full(len(pf), k))
+        where.append(np.arange(n, n + len(pv)))
+        vs.append(pv), fs.append(pf + n), ts.append(puv), fts.append(pf + nt), ps.append(np.full(len(pf), k))
         n, nt = n + len(pv), nt + len(puv)
-    return (np.vstack(v), np.vstack(f).astype(np.int64), np.vstack(t), np.vstack(ft).astype(np.int64),
-            np.concatenate(part).astype(np.int64), balls)
+    return (np.vstack(vs), np.vstack(fs).astype(np.int64), np.vstack(ts), np.vstack(fts).astype(np.int64),
+            np.concatenate(ps).astype(np.int64), where)
+
+
+def _jaw_faces(rig: FaceRig, skin_faces: np.ndarray) -> np.ndarray:
+    """The skin triangles the jaw carries: most of their vertices move at least half as far as
+    the farthest under the rig's ``jawOpen`` shape."""
+    jaw = np.linalg.norm(rig.blendshapes["jawOpen"], axis=1)
+    return (jaw[skin_faces] > 0.5 * jaw.max()).mean(axis=1) >= 0.5
 
 
 def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, face_uv: np.ndarray,
-              name: str = "scan", eyes: EyeGeometry | None = None) -> ScanSurface:
+              name: str = "scan", eyes: EyeGeometry | None = None, keep: np.ndarray | None = None,
+              lips: np.ndarray | None = None, inside_parts: tuple[str, ...] = ()) -> ScanSurface:
     """Bind a scan (already in the rig's frame) to the skin of a rig corresponded onto it.
 
     Parameters
@@ -100,23 +126,49 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
     eyes : EyeGeometry, optional
         Eye openings, eyeballs and sockets for the scan (:func:`stimulus_engine.scan_eyes.eye_geometry`);
         the eyeballs follow the rig's eyeballs (``rig.rigid_sets``, the nearest to each).
+    keep : (F,) bool array, optional
+        The scan triangles to draw (default: all; with ``eyes``, those outside its openings).
+    lips : (S,) int array, optional
+        +1 / -1 for scan vertices above / below a cut lip line
+        (:func:`stimulus_engine.scan_mouth.cut_lips`): bound only to the rig's skin the jaw does
+        not / does carry (its ``jawOpen`` shape), so the lips part along the cut.
+    inside_parts : tuple of str
+        Rig parts drawn with the scan, moving as on the rig (e.g. ``mouth``, ``teeth``, ``tongue``
+        behind cut lips).
     """
     from stimulus_engine.correspondence.closest import SurfaceIndex
 
     v, f = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
     t, ft = np.asarray(uv, np.float64), np.asarray(face_uv, np.int64)
-    part, names, textures, rigid = np.zeros(len(f), np.int64), ("skin",), {}, ()
+    keep = (np.ones(len(f), bool) if eyes is None else eyes.keep) if keep is None else keep
+    f, ft = f[keep], ft[keep]
+    part, names, textures, rigid, follow = np.zeros(len(f), np.int64), ["skin"], {}, (), ()
+    n_scan = len(v)
     if eyes is not None:
-        v, f, t, ft, part, balls = _with_eyes(v, f, t, ft, eyes)
-        names, textures = ("skin", "eye", "socket"), {"eye": eyes.texture}
+        v, f, t, ft, part, balls = _with_pieces(v, f, t, ft, part, _eye_pieces(eyes))
+        names, textures = ["skin", "eye", "socket"], {"eye": eyes.texture}
         centres = np.array([rig.vertices[s].mean(axis=0) for s in rig.rigid_sets])
         if len(centres):
             rigid = tuple((b, rig.rigid_sets[int(np.argmin(np.linalg.norm(centres - v[b].mean(axis=0), axis=1)))])
                           for b in balls)
+    if inside_parts:
+        pieces, follow = _rig_pieces(rig, inside_parts, len(names))
+        v, f, t, ft, part, drawn = _with_pieces(v, f, t, ft, part, pieces)
+        follow = tuple(zip(drawn, follow))
+        names += list(inside_parts)
     skin_faces = rig.faces[rig.face_part == rig.part_names.index("skin")]
-    hit = SurfaceIndex(rig.vertices, skin_faces).query(v)
-    topology = FaceRig(name=name, vertices=v, faces=f, uv=t, face_uv=ft, face_part=part, part_names=names,
+    corners, bary = np.zeros((len(v), 3), np.int64), np.zeros((len(v), 3))
+    groups = [(np.arange(len(v)), skin_faces)]
+    if lips is not None and "jawOpen" in rig.blendshapes:
+        jaw = _jaw_faces(rig, skin_faces)
+        side = np.concatenate([lips, np.zeros(len(v) - n_scan, np.int64)])
+        groups = [(np.flatnonzero(side == 0), skin_faces), (np.flatnonzero(side == 1), skin_faces[~jaw]),
+                  (np.flatnonzero(side == -1), skin_faces[jaw])]
+    for idx, sf in groups:
+        if len(idx):
+            hit = SurfaceIndex(rig.vertices, sf).query(v[idx])
+            corners[idx], bary[idx] = sf[hit.face], hit.bary
+    topology = FaceRig(name=name, vertices=v, faces=f, uv=t, face_uv=ft, face_part=part, part_names=tuple(names),
                        landmarks={}, skin=np.flatnonzero(np.isin(np.arange(len(v)), f[part == 0])),
                        part_textures=textures)
-    return ScanSurface(topology, v, np.asarray(rig.vertices, np.float64).copy(), skin_faces[hit.face], hit.bary,
-                       rigid)
+    return ScanSurface(topology, v, np.asarray(rig.vertices, np.float64).copy(), corners, bary, rigid, follow)

@@ -47,7 +47,7 @@ def test_cut_openings_follow_the_contour_without_folds():
     contour = lid_contour(_eye_points(-2.5) + [0, 0, 0.1])
     keep, v = cut_openings(sheet.vertices, sheet.faces, [contour], reach=4.0)
     assert 0 < (~keep).sum() < 0.05 * len(keep)
-    from stimulus_engine.scan_eyes import _inside
+    from stimulus_engine.polyline2d import inside_polygon as _inside
 
     kept = sheet.faces[keep]
     assert not _inside(v[kept].mean(axis=1)[:, :2], contour[:, :2]).any()  # nothing kept inside the lids
@@ -83,7 +83,7 @@ def test_eye_geometry_puts_anatomical_balls_behind_the_lids():
     # outside the openings no part of a ball comes through the skin
     from scipy.interpolate import LinearNDInterpolator
 
-    from stimulus_engine.scan_eyes import _inside
+    from stimulus_engine.polyline2d import inside_polygon as _inside
 
     skin = LinearNDInterpolator(eyes.vertices[:, :2], eyes.vertices[:, 2])
     for ball, p in zip(eyes.balls, pts.reshape(2, 6, 3)):
@@ -105,3 +105,41 @@ def test_tint_iris_recolours_the_iris_only():
     assert 0.02 < changed.mean() < 0.3  # the iris disks, not the sclera
     assert blue[changed][:, 2].mean() > blue[changed][:, 0].mean()  # now bluish
     assert tex[changed][:, 0].mean() > tex[changed][:, 2].mean()  # was brown
+
+
+def _lip_points(gap: float) -> np.ndarray:
+    """iBUG 60-67 of a mouth 5 wide at y = -3: corner, three upper, corner, three lower."""
+    x = np.array([-2.5, -1.0, 0.0, 1.0, 2.5, 1.0, 0.0, -1.0])
+    bulge = np.array([0, 1, 1, 1, 0, 1, 1, 1]) * gap / 2
+    y = -3 + np.where(np.arange(8) < 5, bulge, -bulge)
+    return np.column_stack([x, y, np.full(8, 0.5)])
+
+
+@pytest.mark.parametrize("gap", [0.0, 0.2, 1.2])
+def test_cut_lips_separates_upper_from_lower(gap):
+    from stimulus_engine.scan_mouth import CLOSED_GAP, cut_lips, lip_arcs
+
+    sheet = _sheet()
+    pts = _lip_points(gap)
+    keep, v, side = cut_lips(sheet.vertices, sheet.faces, pts)
+    kept = sheet.faces[keep]
+    s = side[kept]
+    assert not ((s == 1).any(axis=1) & (s == -1).any(axis=1)).any()  # no triangle spans the lip line
+    assert (side == 1).sum() > 50 and (side == -1).sum() > 50
+    assert (trimesh.Trimesh(v, kept, process=False).face_normals[:, 2] > 0).all()
+    rim_up = np.unique(kept[(s == 1).any(axis=1)])
+    rim_up = rim_up[(side[rim_up] == 1) & ~np.isin(rim_up, sheet.faces[keep & (side[sheet.faces] != 1).any(axis=1)].ravel())]
+    upper, lower = lip_arcs(pts)
+    if gap < CLOSED_GAP * 5:
+        # closed lips: both sides' rims on one line, so neutral shows no slit
+        moved = np.flatnonzero(np.any(v != sheet.vertices, axis=1) & (side != 0))
+        mid = 0.5 * (upper + lower)
+        yline = np.interp(v[moved, 0], mid[:, 0], mid[:, 1])
+        on_line = np.abs(v[moved, 1] - yline) < 1e-9
+        assert on_line.sum() >= 20
+        assert set(side[moved[on_line]]) == {1, -1}
+    else:
+        from stimulus_engine.polyline2d import inside_polygon
+
+        opening = np.vstack([upper, lower[::-1][1:-1]])
+        assert not inside_polygon(v[kept].mean(axis=1)[:, :2], opening[:, :2]).any()

@@ -42,7 +42,7 @@ def test_james_scan_drawn_as_itself_in_a_grid(shared_data, tmp_path):
         "kind": "grid", "name": "scan",
         "characters": [{"name": "james", "ict": str(d / "ict-facekit"),
                         "mesh": {"file": str(d / "menpo3d-james" / "james.obj"), "region": "narrow_face",
-                                 "topology": "scan", "eyes": "scan"}}],
+                                 "topology": "scan", "eyes": "scan", "mouth": "scan"}}],
         "shapes": [0.0], "materials": ["original"], "expressions": ["neutral", "happiness"],
         "lighting": ["gi_soft"], "shading": ["pbr"], "render": {"width": 320, "height": 240}}, GridFile, source="g.yaml")
     run_grid(spec, tmp_path, source="g.yaml")
@@ -62,10 +62,10 @@ def test_james_scan_drawn_as_itself_in_a_grid(shared_data, tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.render
-def test_james_gets_eyeballs_behind_cut_lids(shared_data, tmp_path):
-    """eyes: eyeballs (the default) on the real scan: openings cut only around the two eyes, two
-    eyeballs and sockets added, and the rendering differs from the painted-eye scan only there,
-    where it now shows bright sclera."""
+def test_james_gets_eyeballs_and_lips_that_part(shared_data, tmp_path):
+    """The defaults (eyes: eyeballs, mouth: inside) on the real scan against its painted eyes and
+    one-surface lips: neutral, only the eyes differ (the closed lips' cut does not show) and show
+    bright sclera; surprised, the parted lips show a dark mouth where the one-surface lips do not."""
     from PIL import Image
 
     from appeal.studyfile import validate_data
@@ -74,26 +74,37 @@ def test_james_gets_eyeballs_behind_cut_lids(shared_data, tmp_path):
 
     d = shared_data / "meshes"
     images = {}
-    for eyes in ("scan", "eyeballs"):
+    for look in ("scan", "default"):
+        mesh = {"file": str(d / "menpo3d-james" / "james.obj"), "region": "front", "topology": "scan"}
+        if look == "scan":
+            mesh.update(eyes="scan", mouth="scan")
         spec = validate_data({
-            "kind": "grid", "name": "eyes",
-            "characters": [{"name": "james", "ict": str(d / "ict-facekit"),
-                            "mesh": {"file": str(d / "menpo3d-james" / "james.obj"), "region": "front",
-                                     "topology": "scan", "eyes": eyes}}],
-            "shapes": [0.0], "materials": ["original"], "expressions": ["neutral"], "lighting": ["gi_soft"],
+            "kind": "grid", "name": "eyes", "characters": [{"name": "james", "ict": str(d / "ict-facekit"), "mesh": mesh}],
+            "shapes": [0.0], "materials": ["original"], "expressions": ["neutral", "surprise"], "lighting": ["gi_soft"],
             "render": {"width": 512, "height": 384}}, GridFile, source="g.yaml")
-        run_grid(spec, tmp_path / eyes, source="g.yaml")
-        rigs = list((tmp_path / eyes / ".cache" / "rigs").glob("*.npz"))
+        run_grid(spec, tmp_path / look, source="g.yaml")
+        rigs = list((tmp_path / look / ".cache" / "rigs").glob("*.npz"))
         parts = tuple(str(x) for x in np.load(rigs[0])["part_names"])
-        assert parts == (("skin",) if eyes == "scan" else ("skin", "eye", "socket"))
-        images[eyes] = np.asarray(Image.open(tmp_path / eyes / "images" / "james_realistic_original_neutral_gi_soft_pbr.png"),
-                                  np.float64)[..., :3]
-    diff = np.abs(images["eyeballs"] - images["scan"]).sum(axis=-1) > 30
+        assert parts == (("skin",) if look == "scan" else ("skin", "eye", "socket", "mouth"))
+        for e in ("neutral", "surprise"):
+            images[look, e] = np.asarray(Image.open(tmp_path / look / "images" / f"james_realistic_original_{e}_gi_soft_pbr.png"),
+                                         np.float64)[..., :3]
+    lum = {k: im @ [0.2126, 0.7152, 0.0722] for k, im in images.items()}
+    diff = np.abs(images["default", "neutral"] - images["scan", "neutral"]).sum(axis=-1) > 30
     ys, xs = np.nonzero(diff)
     assert diff.sum() > 100
-    # only a band across the eyes changed: two blobs left and right of the face's middle, one row
-    assert np.ptp(ys) < 0.12 * 384 and np.ptp(xs) < 0.45 * 512
+    # a band across the eyes changed (two blobs left and right of the face's middle, one row) and,
+    # of the rest, no more than the closed lips' line (a few pixels)
+    band = np.abs(ys - np.median(ys)) < 0.06 * 384
+    assert (~band).sum() < min(120, 0.1 * diff.sum())
+    ys, xs = ys[band], xs[band]
+    assert np.ptp(xs) < 0.45 * 512
     left, right = xs < np.median(xs), xs >= np.median(xs)
     assert abs(ys[left].mean() - ys[right].mean()) < 0.03 * 384
-    lum = images["eyeballs"] @ [0.2126, 0.7152, 0.0722]
-    assert np.percentile(lum[diff], 95) > np.percentile((images["scan"] @ [0.2126, 0.7152, 0.0722])[diff], 95) + 5
+    eyes = np.zeros_like(diff)
+    eyes[ys, xs] = True
+    assert np.percentile(lum["default", "neutral"][eyes], 95) > np.percentile(lum["scan", "neutral"][eyes], 95) + 5
+    # surprised: a dark open mouth below the eyes
+    dark = (lum["default", "surprise"] < 40) & (lum["scan", "surprise"] > 60)
+    dy, dx = np.nonzero(dark)
+    assert dark.sum() > 40 and dy.mean() > ys.mean() + 0.1 * 384 and abs(dx.mean() - xs.mean()) < 0.05 * 512

@@ -22,7 +22,7 @@ from appeal.logs import logger
 from stimulus_engine.correspondence.alignment import Similarity
 from stimulus_engine.grid.cache import GRID_VERSION, file_sha, npz_cached, save_npz, sha
 from stimulus_engine.grid.inputs import load_map, load_texture
-from stimulus_engine.grid_schema import CharacterSpec
+from stimulus_engine.grid_schema import CharacterSpec, MeshSpec
 from stimulus_engine.mesh_io import load_mesh
 from stimulus_engine.rig import FaceRig
 from stimulus_engine.scan_surface import ScanSurface
@@ -103,10 +103,10 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
             m.model_dump(mode="json", exclude=set(files)))
     p = cache / "mesh" / f"{h}.npz"
     mesh = load_mesh(m.file) if m.topology == "scan" or not p.exists() else None
-    eye_points = None
+    ibug = None
     if p.exists():
         d = np.load(p)
-        eye_points = d["eye_points"] if "eye_points" in d.files else None
+        ibug = d["ibug_points"] if "ibug_points" in d.files else None
         masks = {k[5:]: d[k] for k in d.files if k.startswith("mask_")}
         maps = {k[4:]: d[k] for k in d.files if k.startswith("map_")}
         rig = replace(base.with_vertices(d["vertices"], name=c.name),
@@ -117,21 +117,26 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
         rig, alignment = _corresponded(c, base, mesh, source, found)
         extra = {} if rig.texture is None else {"texture": rig.texture}
         if found is not None:
-            eye_points = extra["eye_points"] = found.points[36:48]
+            ibug = extra["ibug_points"] = found.points
         save_npz(p, {"vertices": rig.vertices, **extra, **{f"mask_{k}": v for k, v in rig.texture_masks.items()},
                      **{f"map_{k}": v for k, v in rig.texture_maps.items()}, "align_scale": np.array(alignment.scale),
                      "align_rotation": alignment.rotation, "align_translation": alignment.translation})
-    if m.topology == "scan" and m.eyes == "eyeballs" and eye_points is None:
-        eye_points = _scan_landmarks(c, mesh, source).points[36:48]
-    scan = _scan_surface(c, rig, mesh, alignment, source, eye_points) if m.topology == "scan" else None
+    if _needs_ibug(m) and ibug is None:
+        ibug = _scan_landmarks(c, mesh, source).points
+    scan = _scan_surface(c, rig, mesh, alignment, source, ibug) if m.topology == "scan" else None
     return Character(c, rig, h, base, scan)
 
 
+def _needs_ibug(m: MeshSpec) -> bool:
+    """Whether drawing the scan needs its 68 points (eyeballs behind cut lids, or cut lips)."""
+    return m.topology == "scan" and (m.eyes == "eyeballs" or m.mouth == "inside")
+
+
 def _scan_landmarks(c: CharacterSpec, mesh: trimesh.Trimesh, source: str) -> object | None:
-    """The 68 points detected on the mesh when its drawing needs them (a scan with eyeballs) or
-    its landmarks are automatic; None otherwise."""
+    """The 68 points detected on the mesh when its drawing needs them or its landmarks are
+    automatic; None otherwise."""
     m = c.mesh
-    if not (m.auto_landmarks or (m.topology == "scan" and m.eyes == "eyeballs")):
+    if not (m.auto_landmarks or _needs_ibug(m)):
         return None
     from stimulus_engine.correspondence.auto_landmarks import detect_mesh_landmarks
 
@@ -139,12 +144,14 @@ def _scan_landmarks(c: CharacterSpec, mesh: trimesh.Trimesh, source: str) -> obj
 
 
 def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignment: Similarity,
-                  source: str, eye_points: np.ndarray | None) -> ScanSurface:
+                  source: str, ibug: np.ndarray | None) -> ScanSurface:
     """The character's mesh as drawn itself (``topology: scan``), in the rig's frame, bound to
     ``rig``, wearing its own albedo (``mesh.texture``, else the mesh file's texture), with
-    eyeballs behind its lids (``mesh.eyes: eyeballs``; ``eye_points``: iBUG 36–47 on the mesh)."""
+    eyeballs behind its lids (``mesh.eyes: eyeballs``) and lips that part over the rig's mouth
+    (``mesh.mouth: inside``); ``ibug``: the 68 points on the mesh."""
     from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
     from stimulus_engine.scan_eyes import eye_geometry
+    from stimulus_engine.scan_mouth import cut_lips
     from stimulus_engine.scan_surface import bind_scan
 
     where = f"{source}: characters.{c.name}.mesh"
@@ -161,14 +168,20 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
                                    "(expected a map_Kd texture in its .mtl, or mesh.texture)")
         albedo = np.asarray(own.convert("RGB"))
     v = alignment.inverse().apply(np.asarray(mesh.vertices, np.float64))
-    eyes = None
+    f = np.asarray(mesh.faces)
+    pts = None if ibug is None else alignment.inverse().apply(ibug)
+    eyes, keep, lips = None, np.ones(len(f), bool), None
     if c.mesh.eyes == "eyeballs":
         try:
-            eyes = eye_geometry(v, np.asarray(mesh.faces), alignment.inverse().apply(eye_points),
-                                (albedo, *layout))
+            eyes = eye_geometry(v, f, pts[36:48], (albedo, *layout))
         except ValueError as exc:
             raise AppealInputError(f"{where}.eyes: {exc}") from None
-    scan = bind_scan(rig, v, np.asarray(mesh.faces), *layout, name=f"{c.name}_scan", eyes=eyes)
+        v, keep = eyes.vertices, eyes.keep
+    if c.mesh.mouth == "inside":
+        cut, v, lips = cut_lips(v, f, pts[60:68])
+        keep = keep & cut
+    scan = bind_scan(rig, v, f, *layout, name=f"{c.name}_scan", eyes=eyes, keep=keep, lips=lips,
+                     inside_parts=("mouth",) if lips is not None and "mouth" in rig.part_names else ())
     return replace(scan, topology=replace(scan.topology, texture=albedo))
 
 
