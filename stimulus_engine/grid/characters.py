@@ -152,6 +152,7 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
     from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
     from stimulus_engine.scan_eyes import eye_geometry
     from stimulus_engine.scan_mouth import cut_lips
+    from stimulus_engine.scan_regions import scan_masks
     from stimulus_engine.scan_surface import bind_scan
 
     where = f"{source}: characters.{c.name}.mesh"
@@ -182,7 +183,8 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
         keep = keep & cut
     scan = bind_scan(rig, v, f, *layout, name=f"{c.name}_scan", eyes=eyes, keep=keep, lips=lips,
                      inside_parts=("mouth",) if lips is not None and "mouth" in rig.part_names else ())
-    return replace(scan, topology=replace(scan.topology, texture=albedo))
+    masks = {} if pts is None else scan_masks(albedo, v, f, *layout, pts)
+    return replace(scan, topology=replace(scan.topology, texture=albedo, texture_masks=masks))
 
 
 def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | None:
@@ -238,8 +240,8 @@ def character_albedo(ch: Character, source: str, cache: Path | None = None) -> t
     from stimulus_engine.materials import rig_albedo
 
     c, rig = ch.spec, ch.rig
-    if ch.scan is not None:  # drawn as itself: the mesh's own albedo in its own layout
-        return ch.scan.topology.texture, {}
+    if ch.scan is not None:  # drawn as itself: the mesh's own albedo (and found regions) in its own layout
+        return ch.scan.topology.texture, ch.scan.topology.texture_masks
     if c.texture is not None:
         if rig.uv is None:
             raise AppealInputError(f"{source}: characters.{c.name}.texture: the mesh has no UVs, "
