@@ -198,3 +198,24 @@ def test_deformation_transfer_reuses_its_factorisation_bit_identically():
         fresh.append(ex.apply_expression(rig, "surprise", target=t))
     assert all(np.array_equal(a, b) for a, b in zip(cached, fresh))
     assert not np.allclose(cached[0], cached[2])
+
+
+@pytest.mark.parametrize("roll_deg", [0.0, 4.0, -9.0])
+def test_framing_levels_the_eyes_of_a_tilted_head(roll_deg):
+    """A scan sits as scanned, often rolled: the grid's camera turns with it so both eye centres
+    project to one image row, at the eye row asked for."""
+    from stimulus_engine.grid.prepare import level_up
+    from stimulus_engine.render import face_camera
+
+    a = np.radians(roll_deg)
+    rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    right, left = rot @ [-3.1, 2.0, 9.0], rot @ [3.1, 2.0, 9.0]
+    cam = face_camera((right + left) / 2, 20.0, eye_row=0.4, face_fraction=0.7, up=level_up(right, left))
+    world_to_cam = np.linalg.inv(cam.pose())
+    rows = []
+    for p in (right, left):
+        x, y, z = (world_to_cam @ np.append(p, 1.0))[:3]
+        rows.append(y / -z)
+    assert rows[0] == pytest.approx(rows[1], abs=1e-12)
+    tan_half = np.tan(np.radians(cam.yfov_deg) / 2)
+    assert 0.5 - rows[0] / (2 * tan_half) == pytest.approx(0.4)

@@ -275,7 +275,7 @@ def test_live_erp_session_file_triggers(tmp_path, display):
     """The ERP protocol live, full screen, with the file trigger backend: passive viewing, every
     onset has its trigger code in the trigger log."""
     protocol = protocols_dir() / "erp_stylisation.yaml"
-    stimuli = small_stimuli(tmp_path, {"character": ["ict000"], "stylisation": [0, 5], "emotion": ["neutral"]})
+    stimuli = small_stimuli(tmp_path, {"character": ["james"], "stylisation": [0, 5], "emotion": ["neutral"]})
     out = tmp_path / "sub-03"
     proc = start(display, protocol, "03", out, "--stimuli", str(stimuli), "--trigger-backend", "file",
                  "--seed", str(SEED))

@@ -59,7 +59,7 @@ def test_erp_protocol_trigger_list_is_readable_as_plain_yaml():
     data = yaml.safe_load((protocols_dir() / "erp_stylisation.yaml").read_text())
     codes = data["triggers"]["codes"]
     assert isinstance(codes, list) and len(codes) == 36
-    assert codes[0] == {"code": 11, "character": "ict000", "stylisation": 0, "emotion": "angry"}
+    assert codes[0] == {"code": 11, "character": "james", "stylisation": 0, "emotion": "angry"}
     assert len({c["code"] for c in codes}) == 36 and all(1 <= c["code"] <= 255 for c in codes)
     conds = {(c["character"], c["stylisation"], c["emotion"]) for c in codes}
     assert len(conds) == 36

@@ -17,7 +17,7 @@ from experiments import (build_trials, check_order, constrained_order, fixation_
 from experiments.drawn_faces import draw_face_grid
 from experiments.protocol_schema import Selection
 
-ERP_FACTORS = {"character": ["ict000", "ict001"], "stylisation": list(range(6)), "emotion": ["angry", "happy", "neutral"]}
+ERP_FACTORS = {"character": ["james", "lps"], "stylisation": list(range(6)), "emotion": ["angry", "happy", "neutral"]}
 GRID2 = {"character": ["c1", "c2"], "shape": [0, 1, 2], "material": [0, 1, 2],
          "expression": ["neutral", "anger", "happiness", "sadness", "surprise"]}
 
@@ -72,12 +72,12 @@ def test_erp_one_trigger_per_onset_and_codes_match_conditions(erp_manifest):
 def test_trigger_coverage_error(erp_manifest, tmp_path):
     proto = load_protocol(protocols_dir() / "erp_stylisation.yaml")
     proto = proto.model_copy(deep=True)
-    proto.triggers.codes = proto.triggers.codes[1:]  # drop ict000/0/angry
+    proto.triggers.codes = proto.triggers.codes[1:]  # drop james/0/angry
     stim = load_stimuli(proto.stimuli, override=erp_manifest)
     with pytest.raises(AppealInputError) as exc:
         build_trials(proto, stim, seed=0, refresh_hz=60, source="erp.yaml")
-    assert exc.value.lines == ["erp.yaml: triggers.codes: no code for condition character=ict000, stylisation=0, "
-                               "emotion=angry (stimulus character-ict000_stylisation-0_emotion-angry.png)"]
+    assert exc.value.lines == ["erp.yaml: triggers.codes: no code for condition character=james, stylisation=0, "
+                               "emotion=angry (stimulus character-james_stylisation-0_emotion-angry.png)"]
 
 
 def test_same_seed_same_order_other_seed_other_order(erp_manifest):

@@ -30,7 +30,7 @@ def _written_variously(tmp_path):
     and a declared level order that is not the natural one (the analysis ignored it)."""
     doc = yaml.safe_load((protocols_dir() / "erp_stylisation.yaml").read_text(encoding="utf-8"))
     for entry in doc["triggers"]["codes"]:
-        entry["character"] = entry["character"] == "ict000"
+        entry["character"] = entry["character"] == "james"
         entry["stylisation"] = f"{entry['stylisation']}.0"
     doc["stimuli"]["levels"] = {"stylisation": [5, 4, 3, 2, 1, 0], "emotion": ["neutral", "happy", "angry"]}
     path = tmp_path / "written_variously.yaml"

@@ -49,7 +49,7 @@ def _run(out: Path, seed: int) -> ReportSection:
     p2 = out / "exp2_demo.yaml"
     p2.write_text(yaml.safe_dump(exp2, allow_unicode=True))
     _session(p2, out / "exp2", out / "screens_exp2", stim2, seed, window)
-    erp_faces = draw_face_grid(out / "faces_erp", {"character": ["ict000", "ict001"], "stylisation": list(range(6)),
+    erp_faces = draw_face_grid(out / "faces_erp", {"character": ["james", "lps"], "stylisation": list(range(6)),
                                                    "emotion": ["angry", "happy", "neutral"]}, size=(400, 300))
     _session(protocols_dir() / "erp_stylisation.yaml", out / "erp", out / "screens_erp", erp_faces, seed, window)
     import pandas as pd

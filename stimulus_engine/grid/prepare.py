@@ -112,15 +112,36 @@ def _prepare_material(m: MaterialSpec, ch: Character, albedo: tuple[np.ndarray, 
                             paths.get("specular", ""), maps_hash(maps.get("normal"), maps.get("specular")))
 
 
+def level_up(eye_right: np.ndarray, eye_left: np.ndarray, view_dir: tuple[float, float, float] = (0.0, 0.0, 1.0)
+             ) -> tuple[float, float, float]:
+    """The camera's up vector that puts both eyes on one image row when looking along ``-view_dir``.
+
+    Examples
+    --------
+    >>> level_up(np.array([-3.0, 0.0, 0.0]), np.array([3.0, 0.0, 0.0]))
+    (0.0, 1.0, 0.0)
+    >>> [round(x, 6) for x in level_up(np.array([-1.0, -1.0, 0.0]), np.array([1.0, 1.0, 0.0]))]
+    [-0.707107, 0.707107, 0.0]
+    """
+    d = np.asarray(view_dir, np.float64) / np.linalg.norm(view_dir)
+    across = np.asarray(eye_left, np.float64) - np.asarray(eye_right, np.float64)  # towards the subject's left
+    across -= d * (across @ d)
+    up = np.cross(d, across)
+    return tuple(float(x) for x in up / np.linalg.norm(up))
+
+
 def _camera_for(ch: Character, shape_vertices: np.ndarray, grid: GridFile) -> tuple:
-    """Same face size and eye position for every shape: framed on the shape's neutral landmarks."""
+    """Same face size and eye position for every shape: framed on the shape's neutral landmarks,
+    the camera rolled so the two eye centres lie on one image row (a scan sits as it was
+    scanned, often with the head slightly tilted)."""
     from stimulus_engine.render import face_camera
 
     lm = ch.rig.landmark_points(shape_vertices)
     eye = (lm["eye_left"] + lm["eye_right"]) / 2
     length = float(np.linalg.norm(lm["forehead_top"] - lm["chin"]))
     r = grid.render
-    cam = face_camera(eye, length, yfov_deg=r.yfov_deg, eye_row=r.eye_row, face_fraction=r.face_fraction)
+    cam = face_camera(eye, length, yfov_deg=r.yfov_deg, eye_row=r.eye_row, face_fraction=r.face_fraction,
+                      up=level_up(lm["eye_right"], lm["eye_left"]))
     return (cam.position, cam.target, cam.yfov_deg, cam.up)
 
 
