@@ -60,7 +60,8 @@ class MeshSpec(StudyModel):
     ``eyeballs`` (the default) cuts the scan open along its detected lid contours and sets
     photographic eyeballs, tinted to the scan's painted iris, behind them
     (:mod:`stimulus_engine.scan_eyes`); ``scan`` keeps the eyes painted on the scan (needed for a
-    scan with closed eyes, which is refused with ``eyeballs``). ``mouth`` (with ``topology:
+    scan with closed eyes, which is refused with ``eyeballs``; or draw such a scan with
+    ``topology: rig``, whose eyes are the rig's, open). ``mouth`` (with ``topology:
     scan``): ``inside`` (the default) cuts the lips apart along the detected lip line and draws
     the rig's mouth socket behind them, so an opening jaw parts the lips
     (:mod:`stimulus_engine.scan_mouth`); ``scan`` keeps the scan's lips one surface.

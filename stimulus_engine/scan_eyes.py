@@ -316,7 +316,7 @@ def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray
     ratios = [openness(p) for p in pts]
     if min(ratios) < CLOSED_RATIO:
         raise ValueError(f"the scan's eyes look closed (eye opening height/width {min(ratios):.2f}, expected at "
-                         f"least {CLOSED_RATIO}): use eyes: scan to keep its own eyes, or use it as a material donor")
+                         f"least {CLOSED_RATIO}): use eyes: scan to keep them, or the scan's shape and photograph on the rig (topology: rig), whose eyes are open")
     contours = [lid_contour(p) for p in pts]
     centres = [p.mean(axis=0) for p in pts]
     width = float(np.mean([np.linalg.norm(p[3] - p[0]) for p in pts]))

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from stimulus_engine.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, relax_around
+from stimulus_engine.polyline2d import catmull_rom
+from stimulus_engine.scan_cut import cut_along
 
 __all__ = ["lip_arcs", "cut_lips", "CLOSED_GAP"]
 
@@ -42,20 +43,11 @@ def lip_arcs(points: np.ndarray, n: int = 8) -> tuple[np.ndarray, np.ndarray]:
     return upper, lower
 
 
-def _side(v: np.ndarray, upper: np.ndarray, lower: np.ndarray) -> np.ndarray:
-    """+1 above the lip line, -1 below, 0 beyond the corners (x outside the line's span)."""
-    mid = 0.5 * (upper + lower)
-    order = np.argsort(mid[:, 0])
-    x0, x1 = mid[order[0], 0], mid[order[-1], 0]
-    y = np.interp(v[:, 0], mid[order, 0], mid[order, 1])
-    side = np.where(v[:, 1] > y, 1, -1)
-    side[(v[:, 0] <= x0) | (v[:, 0] >= x1)] = 0
-    return side
-
-
 def cut_lips(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray,
              reach: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Cut a scan apart along its lip line (seen along +z).
+    """Cut a scan apart along its lip line (seen along +z): :func:`stimulus_engine.scan_cut.cut_along`
+    the inner-lip arcs of iBUG points 60–67 (lips closer than :data:`CLOSED_GAP` of the mouth's
+    width are closed: one line).
 
     Parameters
     ----------
@@ -68,40 +60,12 @@ def cut_lips(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray,
 
     Returns
     -------
-    keep : (F,) bool array
-        The triangles that stay (False across the lip line and between parted lips).
-    vertices : (S, 3) array
-        A copy with each side's rim on its lip arc.
-    side : (S,) int array
-        +1 for the vertices around the mouth above the lip line, -1 below, 0 elsewhere: bind
-        them to the rig's upper and lower lip (:func:`stimulus_engine.scan_surface.bind_scan`),
-        so the lips part where the scan was cut.
+    keep, vertices, side
+        As :func:`stimulus_engine.scan_cut.cut_along`: bind the sides to the rig's upper and
+        lower lip (:func:`stimulus_engine.scan_surface.bind_scan`), so the lips part where the
+        scan was cut.
     """
-    v = np.asarray(vertices, np.float64).copy()
-    f = np.asarray(faces, np.int64)
     upper, lower = lip_arcs(points)
     width = float(np.ptp(upper[:, 0]))
-    if np.max(np.linalg.norm(upper - lower, axis=1)) < CLOSED_GAP * width:  # closed lips: one line
-        upper = lower = 0.5 * (upper + lower)
-    reach = width if reach is None else reach
-    near = np.linalg.norm(v - upper.mean(axis=0), axis=1) < reach
-    side = np.where(near, _side(v, upper, lower), 0)
-    opening = np.vstack([upper, lower[::-1][1:-1]])
-    inside = np.zeros(len(v), bool)
-    inside[near] = inside_polygon(v[near, :2], opening[:, :2])
-    s = side[f]
-    cut = (((s == 1).any(axis=1) & (s == -1).any(axis=1)) | inside[f].any(axis=1)) & near[f].all(axis=1)
-    keep = ~cut
-    rim = np.zeros(len(v), bool)
-    rim[f[cut].ravel()] = True
-    kept = np.zeros(len(v), bool)
-    kept[f[keep].ravel()] = True
-    rim &= kept & ~inside
-    for sign, arc in ((1, upper), (-1, lower)):
-        idx = np.flatnonzero(rim & (side == sign))
-        if len(idx):
-            k, t = closest_on_polygon(v[idx, :2], arc[:, :2], closed=False)
-            v[idx] = arc[k] + t[:, None] * (arc[k + 1] - arc[k])
-        relax_around(v, f[keep & (s == sign).any(axis=1)], arc, fixed=np.flatnonzero(rim),
-                     near=near & (side == sign), closed=False, band=width / 10)
-    return keep, v, side
+    return cut_along(vertices, faces, upper, lower, reach=width if reach is None else reach,
+                     closed_gap=CLOSED_GAP)

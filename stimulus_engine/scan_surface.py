@@ -100,16 +100,27 @@ def _with_pieces(v: np.ndarray, f: np.ndarray, t: np.ndarray, ft: np.ndarray, pa
             np.concatenate(ps).astype(np.int64), where)
 
 
-def _jaw_faces(rig: FaceRig, skin_faces: np.ndarray) -> np.ndarray:
-    """The skin triangles the jaw carries: most of their vertices move at least half as far as
-    the farthest under the rig's ``jawOpen`` shape."""
-    jaw = np.linalg.norm(rig.blendshapes["jawOpen"], axis=1)
-    return (jaw[skin_faces] > 0.5 * jaw.max()).mean(axis=1) >= 0.5
+def _moving_faces(rig: FaceRig, skin_faces: np.ndarray, shapes: tuple[str, ...]) -> np.ndarray:
+    """The skin triangles the rig's ``shapes`` carry: most of their vertices move at least half as
+    far as the farthest under one of them."""
+    out = np.zeros(len(skin_faces), bool)
+    for name in shapes:
+        if name in rig.blendshapes:
+            d = np.linalg.norm(rig.blendshapes[name], axis=1)
+            out |= (d[skin_faces] > 0.5 * d.max()).mean(axis=1) >= 0.5
+    return out
+
+
+#: How each kind of cut splits a scan's binding: the rig shapes that move one side, and which
+#: side (+1 above the line, -1 below) they move.
+SPLITS: dict[str, tuple[tuple[str, ...], int]] = {
+    "lips": (("jawOpen",), -1),
+}
 
 
 def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, face_uv: np.ndarray,
               name: str = "scan", eyes: EyeGeometry | None = None, keep: np.ndarray | None = None,
-              lips: np.ndarray | None = None, inside_parts: tuple[str, ...] = ()) -> ScanSurface:
+              splits: dict[str, np.ndarray] | None = None, inside_parts: tuple[str, ...] = ()) -> ScanSurface:
     """Bind a scan (already in the rig's frame) to the skin of a rig corresponded onto it.
 
     Parameters
@@ -128,10 +139,11 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
         the eyeballs follow the rig's eyeballs (``rig.rigid_sets``, the nearest to each).
     keep : (F,) bool array, optional
         The scan triangles to draw (default: all; with ``eyes``, those outside its openings).
-    lips : (S,) int array, optional
-        +1 / -1 for scan vertices above / below a cut lip line
-        (:func:`stimulus_engine.scan_mouth.cut_lips`): bound only to the rig's skin the jaw does
-        not / does carry (its ``jawOpen`` shape), so the lips part along the cut.
+    splits : dict of str to (S,) int array, optional
+        Cut lines (a key of :data:`SPLITS`: ``lips``) and the side of each scan vertex (+1 above,
+        -1 below, 0 away from it; :func:`stimulus_engine.scan_cut.cut_along`): one side is bound
+        only to the rig's skin the line's shapes move (the jaw, below the lips), the other only
+        to the skin they do not, so the surface parts along the cut.
     inside_parts : tuple of str
         Rig parts drawn with the scan, moving as on the rig (e.g. ``mouth``, ``teeth``, ``tongue``
         behind cut lips).
@@ -158,12 +170,18 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
         names += list(inside_parts)
     skin_faces = rig.faces[rig.face_part == rig.part_names.index("skin")]
     corners, bary = np.zeros((len(v), 3), np.int64), np.zeros((len(v), 3))
-    groups = [(np.arange(len(v)), skin_faces)]
-    if lips is not None and "jawOpen" in rig.blendshapes:
-        jaw = _jaw_faces(rig, skin_faces)
-        side = np.concatenate([lips, np.zeros(len(v) - n_scan, np.int64)])
-        groups = [(np.flatnonzero(side == 0), skin_faces), (np.flatnonzero(side == 1), skin_faces[~jaw]),
-                  (np.flatnonzero(side == -1), skin_faces[jaw])]
+    free = np.ones(len(v), bool)
+    groups = []
+    for kind, side in (splits or {}).items():
+        shapes, moving_side = SPLITS[kind]
+        moving = _moving_faces(rig, skin_faces, shapes)
+        if not moving.any():
+            continue
+        side = np.concatenate([side, np.zeros(len(v) - n_scan, np.int64)])
+        groups += [(np.flatnonzero(free & (side == moving_side)), skin_faces[moving]),
+                   (np.flatnonzero(free & (side == -moving_side)), skin_faces[~moving])]
+        free &= side == 0
+    groups.append((np.flatnonzero(free), skin_faces))
     for idx, sf in groups:
         if len(idx):
             hit = SurfaceIndex(rig.vertices, sf).query(v[idx])

@@ -171,18 +171,19 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
     v = alignment.inverse().apply(np.asarray(mesh.vertices, np.float64))
     f = np.asarray(mesh.faces)
     pts = None if ibug is None else alignment.inverse().apply(ibug)
-    eyes, keep, lips = None, np.ones(len(f), bool), None
+    eyes, keep, splits = None, np.ones(len(f), bool), {}
     if c.mesh.eyes == "eyeballs":
         try:
             eyes = eye_geometry(v, f, pts[36:48], (albedo, *layout))
         except ValueError as exc:
             raise AppealInputError(f"{where}.eyes: {exc}") from None
+    if eyes is not None:
         v, keep = eyes.vertices, eyes.keep
     if c.mesh.mouth == "inside":
-        cut, v, lips = cut_lips(v, f, pts[60:68])
+        cut, v, splits["lips"] = cut_lips(v, f, pts[60:68])
         keep = keep & cut
-    scan = bind_scan(rig, v, f, *layout, name=f"{c.name}_scan", eyes=eyes, keep=keep, lips=lips,
-                     inside_parts=("mouth",) if lips is not None and "mouth" in rig.part_names else ())
+    scan = bind_scan(rig, v, f, *layout, name=f"{c.name}_scan", eyes=eyes, keep=keep,
+                     splits=splits, inside_parts=("mouth",) if "lips" in splits and "mouth" in rig.part_names else ())
     masks = {} if pts is None else scan_masks(albedo, v, f, *layout, pts)
     return replace(scan, topology=replace(scan.topology, texture=albedo, texture_masks=masks))
 
