@@ -273,6 +273,21 @@ def auto_landmark_points(rig: FaceRig, mesh: trimesh.Trimesh, region: np.ndarray
     return out
 
 
+def _teeth_behind_lips(rig: FaceRig, v: np.ndarray, lips: np.ndarray, gap: float) -> None:
+    """Move the teeth and tongue back (-z, in place) until no tooth comes through the skin around
+    the mouth: the rig's mouth inside, moved with the lips, fits the rig's lips, and a thinner or
+    flatter mouth would otherwise show teeth through closed lips."""
+    from stimulus_engine.polyline2d import push_behind
+
+    names = [p for p in ("teeth", "tongue") if p in rig.part_names]
+    if "teeth" not in names:
+        return
+    teeth = np.unique(rig.faces[rig.face_part == rig.part_names.index("teeth")])
+    moved = np.unique(rig.faces[np.isin(rig.face_part, [rig.part_names.index(p) for p in names])])
+    shift = push_behind(v[teeth], v[lips], gap)[0] - v[teeth[0]]
+    v[moved] += shift
+
+
 def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, object], *,
                    region: np.ndarray | None = None, texture: np.ndarray | None = None,
                    texture_size: int = 1024, params: object | None = None, name: str | None = None,
@@ -409,6 +424,7 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
         near = vid[np.linalg.norm(v0[vid] - mouth, axis=1) < 1.2 * half]
         if len(near) >= 4:
             new_v[inner_v] = umeyama(v0[near], new_v[near]).apply(v0[inner_v])
+            _teeth_behind_lips(rig, new_v, near, 0.02 * half)
     # eyeballs: rigid, moved and scaled uniformly with the skin of their socket
     skin = np.asarray(rig.skin, np.int64)
     for ball in rig.rigid_sets:

@@ -1,11 +1,12 @@
 """Small 2D curve helpers for cutting scans along facial contours (seen along +z): curves through
-landmarks, inside tests, closest points, and evening out the triangles around a cut."""
+landmarks, inside tests, closest points, evening out the triangles around a cut, and keeping
+a part (an eyeball, teeth) behind the skin in front of it."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["catmull_rom", "closest_on_polygon", "inside_polygon", "relax_around"]
+__all__ = ["catmull_rom", "closest_on_polygon", "inside_polygon", "push_behind", "relax_around"]
 
 
 def catmull_rom(p: np.ndarray, n: int) -> np.ndarray:
@@ -77,3 +78,38 @@ def relax_around(v: np.ndarray, faces: np.ndarray, contour: np.ndarray, fixed: n
     for _ in range(steps):
         avg = adj[move] @ v[:, :2] / deg[move, None]
         v[move, :2] += 0.5 * (avg - v[move, :2])
+
+
+def push_behind(points: np.ndarray, surface: np.ndarray, gap: float = 0.0,
+                opening: np.ndarray | None = None) -> np.ndarray:
+    """``points`` moved back (-z) until none lies in front of the surface sampled by ``surface``.
+
+    Parameters
+    ----------
+    points : (n, 3) array
+        A part that must stay behind the skin (an eyeball, teeth).
+    surface : (m, 3) array
+        Skin vertices around it; its depth at each point's (x, y) is interpolated linearly
+        (points outside their hull are not checked).
+    gap : float
+        How far behind the skin the frontmost point ends.
+    opening : (k, 3) array, optional
+        A closed contour (seen along z) inside which the part may show (an eye's opening).
+
+    Returns
+    -------
+    (n, 3) array
+        ``points`` shifted as one along -z (unchanged when already behind).
+    """
+    from scipy.interpolate import LinearNDInterpolator
+
+    p = np.asarray(points, np.float64)
+    depth = LinearNDInterpolator(surface[:, :2], surface[:, 2])(p[:, :2])
+    check = np.isfinite(depth)
+    if opening is not None:
+        check &= ~inside_polygon(p[:, :2], opening[:, :2])
+    if not check.any():
+        return p
+    shift = max(0.0, float(np.max(p[check, 2] - depth[check])) + gap)
+    return p - np.array([0.0, 0.0, shift])
+

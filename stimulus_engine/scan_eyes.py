@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stimulus_engine.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, relax_around
+from stimulus_engine.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, push_behind, relax_around
 
 __all__ = ["EyeGeometry", "eye_geometry", "eyeball_asset", "lid_contour", "cut_openings", "place_eyeballs",
            "openness"]
@@ -235,23 +235,12 @@ def place_eyeballs(contours: list[np.ndarray], centres: list[np.ndarray]) -> tup
 
 def _behind_lids(ball: np.ndarray, vertices: np.ndarray, faces: np.ndarray, contour: np.ndarray,
                  reach: float, gap: float = 0.02) -> np.ndarray:
-    """``ball`` moved back (-z) until no part of it outside the opening pokes through the lids.
-
-    A scan's lower lid often lies flatter than an eyeball of anatomical size; wherever the ball,
-    seen along z, is outside the contour it must be behind the skin there (by ``gap`` of the
-    eye's width).
-    """
-    from scipy.interpolate import LinearNDInterpolator
-
+    """``ball`` moved back (-z) until no part of it outside the opening pokes through the lids
+    (a scan's lower lid often lies flatter than an eyeball of anatomical size), by ``gap`` of
+    the eye's width."""
     used = np.unique(faces)
     near = used[np.linalg.norm(vertices[used] - contour.mean(axis=0), axis=1) < reach]
-    depth = LinearNDInterpolator(vertices[near, :2], vertices[near, 2])(ball[:, :2])
-    outside = ~inside_polygon(ball[:, :2], contour[:, :2]) & np.isfinite(depth)
-    if not outside.any():
-        return ball
-    width = float(np.ptp(contour[:, 0]))
-    shift = max(0.0, float(np.max(ball[outside, 2] - depth[outside])) + gap * width)
-    return ball - np.array([0.0, 0.0, shift])
+    return push_behind(ball, vertices[near], gap * float(np.ptp(contour[:, 0])), opening=contour)
 
 
 def _socket(contour: np.ndarray, depth: float) -> tuple[np.ndarray, np.ndarray]:

@@ -143,3 +143,17 @@ def test_cut_lips_separates_upper_from_lower(gap):
 
         opening = np.vstack([upper, lower[::-1][1:-1]])
         assert not inside_polygon(v[kept].mean(axis=1)[:, :2], opening[:, :2]).any()
+
+
+def test_push_behind_keeps_a_part_behind_the_skin_outside_an_opening():
+    from stimulus_engine.polyline2d import push_behind
+
+    g = np.linspace(-2, 2, 9)
+    x, y = np.meshgrid(g, g)
+    skin = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    part = np.array([[0.0, 0.0, 0.5], [1.0, 1.0, 0.2], [1.5, -1.0, -0.4]])
+    out = push_behind(part, skin, gap=0.1)
+    np.testing.assert_allclose(out - part, [[0, 0, -0.6]] * 3)  # the frontmost point ends 0.1 behind
+    np.testing.assert_allclose(push_behind(out, skin, gap=0.1), out, atol=1e-12)  # already behind: unchanged
+    square = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]])
+    np.testing.assert_allclose(push_behind(part, skin, opening=square) - part, [[0, 0, -0.2]] * 3)
