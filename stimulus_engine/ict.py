@@ -192,7 +192,7 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
     identity and expression linearly, so the deltas are ``shape − generic_neutral`` and are added
     to any identity unchanged.
     """
-    from stimulus_engine.eyes import eye_texture
+    from stimulus_engine.eyes import photographic_eye_texture
 
     d = _ict_dir(ict_dir)
     v, faces, layout = _ict_mesh(_ict_file(d, identity))
@@ -227,5 +227,5 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
         name=identity, vertices=v, faces=faces, uv=uv, face_uv=face_uv, face_part=face_part, part_names=_ICT_PARTS,
         landmarks=_ict_landmarks(v, regions["landmarks"], regions), blendshapes=blend,
         rigid_sets=[regions["eyeball_left"], regions["eyeball_right"]], skin=skin,
-        part_textures={} if uv is None else {"eye": eye_texture()},
+        part_textures={} if uv is None else {"eye": photographic_eye_texture()},
     )

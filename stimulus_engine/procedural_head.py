@@ -18,7 +18,7 @@ import functools
 import numpy as np
 
 from stimulus_engine.rig import FaceRig
-from stimulus_engine.eyes import eye_texture, eyeball_uv
+from stimulus_engine.eyes import eyeball_uv, photographic_eye_texture, tint_iris
 
 __all__ = ["paint_albedo_at", "paint_detail_maps_at", "procedural_head"]
 
@@ -359,7 +359,7 @@ def _cached(seed: int, texture_size: int, resolution: int) -> FaceRig:
     return FaceRig(
         name=f"procedural_{seed}", vertices=v, faces=f, uv=np.concatenate(uvs), face_uv=f.copy(), face_part=np.concatenate(parts),
         part_names=_PARTS, landmarks=lms, blendshapes=_blendshapes(v, skin, p), rigid_sets=eye_sets, skin=skin,
-        texture=tex, texture_masks=masks, part_textures={"eye": eye_texture(256, (0.25, 0.32, 0.42), seed=seed)},
+        texture=tex, texture_masks=masks, part_textures={"eye": tint_iris(photographic_eye_texture(256), np.array([64.0, 82.0, 107.0]))},
     )
 
 

@@ -20,18 +20,16 @@ Everything is in the rig's frame (+y up, +z towards the viewer).
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
+from stimulus_engine.eyes import eyeball_asset
 from stimulus_engine.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, push_behind, relax_around
 
-__all__ = ["EyeGeometry", "eye_geometry", "eyeball_asset", "lid_contour", "cut_openings", "place_eyeballs",
-           "openness"]
+__all__ = ["EyeGeometry", "eye_geometry", "lid_contour", "cut_openings", "place_eyeballs",
+           "openness", "painted_iris_colour"]
 
-_ASSET = Path(__file__).resolve().parent / "data" / "eyes"
 #: Eyeball radius over the distance between the eye centres (12 mm / 63 mm).
 EYEBALL_RATIO = 12.0 / 63.0
 #: Below this height/width ratio of its contour an eye counts as closed (open eyes: 0.25–0.4).
@@ -65,47 +63,6 @@ class EyeGeometry:
     ball_uv: list[np.ndarray]
     sockets: list[tuple[np.ndarray, np.ndarray]]
     texture: np.ndarray
-
-
-@functools.lru_cache(maxsize=1)
-def eyeball_asset() -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], np.ndarray]:
-    """The two template eyeballs (unit sphere about the origin, looking along +z) and their texture.
-
-    Returns
-    -------
-    balls : list of (vertices, faces, uv)
-        Right and left eye of the MakeHuman high-poly eyes, each normalised by its fitted sphere.
-    texture : (512, 512, 3) uint8 array
-    """
-    from PIL import Image
-
-    from stimulus_engine.eyes import fit_sphere
-
-    d = np.load(_ASSET / "eyeballs.npz")
-    v, f, uv, eye = (d[k] for k in ("vertices", "faces", "uv", "eye"))
-    balls = []
-    # the subject's right eye (-x in the rig's frame, iBUG 36-41) first
-    for e in sorted((0, 1), key=lambda e: float(v[eye == e, 0].mean())):
-        idx = np.flatnonzero(eye == e)
-        remap = np.full(len(v), -1)
-        remap[idx] = np.arange(len(idx))
-        faces = remap[f[(eye[f] == e).all(axis=1)]]
-        centre, radius = fit_sphere(v[idx].astype(np.float64))
-        unit = (v[idx] - centre) / radius
-        front = unit[unit[:, 2] > np.percentile(unit[:, 2], 95)].mean(axis=0)
-        balls.append((_rotate_onto(unit, front, np.array([0.0, 0.0, 1.0])), faces, uv[idx].astype(np.float64)))
-    with Image.open(_ASSET / "brown_eye.jpg") as im:
-        texture = np.asarray(im.convert("RGB"))
-    return balls, texture
-
-
-def _rotate_onto(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``points`` rotated by the smallest rotation taking direction ``a`` onto ``b``."""
-    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
-    v, c = np.cross(a, b), float(a @ b)
-    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    r = np.eye(3) + k + k @ k / (1.0 + c)
-    return points @ r.T
 
 
 def lid_contour(points: np.ndarray, n: int = 8) -> np.ndarray:
@@ -267,21 +224,6 @@ def painted_iris_colour(texture: np.ndarray, uv: np.ndarray, face_uv: np.ndarray
     return np.median(px[sel if sel.any() else slice(None)], axis=0)
 
 
-def tint_iris(texture: np.ndarray, colour: np.ndarray) -> np.ndarray:
-    """The eyeball texture with its iris (its saturated pixels) in ``colour`` (sRGB 0-255),
-    keeping the iris's own light and dark fibres (its luminance relative to its median)."""
-    from matplotlib.colors import rgb_to_hsv
-
-    t = texture.astype(np.float64)
-    iris = rgb_to_hsv(t / 255.0)[..., 1] > 0.3
-    lum = t @ np.array([0.2126, 0.7152, 0.0722])
-    rel = lum / max(float(np.median(lum[iris])), 1e-6)
-    # a painted iris is seen through the cornea and lashes: lift it slightly towards the texture's own level
-    out = t.copy()
-    out[iris] = np.clip(rel[iris, None] * np.asarray(colour, np.float64) * 1.15, 0, 255)
-    return np.rint(out).astype(np.uint8)
-
-
 def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray,
                  texture: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> EyeGeometry:
     """Openings, eyeballs and sockets for a scan (all in the rig's frame).
@@ -312,6 +254,8 @@ def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray
     keep, v = cut_openings(vertices, faces, contours, reach=1.2 * width)
     balls, radius = place_eyeballs(contours, centres)
     balls = [_behind_lids(b, v, faces[keep], c, reach=1.2 * width) for b, c in zip(balls, contours)]
+    from stimulus_engine.eyes import tint_iris
+
     templates, eye_texture = eyeball_asset()
     if texture is not None:
         eye_texture = tint_iris(eye_texture, painted_iris_colour(*texture, ~keep))

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import trimesh
 
+from stimulus_engine.eyes import eyeball_asset, tint_iris
 from stimulus_engine.scan_eyes import (
-    CLOSED_RATIO, EYEBALL_RATIO, cut_openings, eye_geometry, eyeball_asset, lid_contour, openness, tint_iris,
+    CLOSED_RATIO, EYEBALL_RATIO, cut_openings, eye_geometry, lid_contour, openness,
 )
 
 
@@ -157,3 +158,28 @@ def test_push_behind_keeps_a_part_behind_the_skin_outside_an_opening():
     np.testing.assert_allclose(push_behind(out, skin, gap=0.1), out, atol=1e-12)  # already behind: unchanged
     square = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]])
     np.testing.assert_allclose(push_behind(part, skin, opening=square) - part, [[0, 0, -0.2]] * 3)
+
+
+def test_photographic_eye_texture_puts_the_photographed_iris_at_the_rigs_angle():
+    """The MakeHuman photograph re-laid about the gaze axis: pupil dark at the centre, the iris
+    (saturated) ending at the requested angle, sclera beyond, the back of the ball dark."""
+    from matplotlib.colors import rgb_to_hsv
+
+    from stimulus_engine.eyes import IRIS_ANGLE, photographic_eye_texture
+
+    tex = photographic_eye_texture(256)
+    assert tex.shape == (256, 256, 3) and not tex.flags.writeable
+    y, x = (np.mgrid[0:256, 0:256] + 0.5) / 256
+    r = np.hypot(x - 0.5, y - 0.5) / 0.5
+    theta = np.degrees(2 * np.arcsin(np.minimum(r, 1.0)))
+    lum = tex @ [0.2126, 0.7152, 0.0722]
+    sat = rgb_to_hsv(tex / 255.0)[..., 1]
+    assert lum[theta < 4].mean() < 40  # pupil
+    assert sat[(theta > 12) & (theta < IRIS_ANGLE - 3)].mean() > 0.35  # iris
+    assert sat[(theta > IRIS_ANGLE + 6) & (theta < 60)].mean() < 0.2  # sclera
+    assert lum[(theta > IRIS_ANGLE + 6) & (theta < 60)].mean() > 120
+    assert lum[theta > 150].mean() < 20  # the back of the ball
+    # centred: the iris is round about the UV centre (left/right and up/down halves alike)
+    ring = (theta > 12) & (theta < IRIS_ANGLE - 3)
+    for a, b in (((x < 0.5) & ring, (x >= 0.5) & ring), ((y < 0.5) & ring, (y >= 0.5) & ring)):
+        assert abs(sat[a].mean() - sat[b].mean()) < 0.08
