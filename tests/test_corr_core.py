@@ -334,3 +334,27 @@ def test_untangle_membrane_where_the_target_lacks_the_geometry():
     # without the fallback the squeeze stays
     stuck = untangle(squeezed, f, v, project, max_rounds=0, membrane_rounds=0)
     assert bad(stuck.vertices).any() and len(stuck.off_surface) == 0
+
+
+@pytest.mark.parametrize("backend", available_backends())
+def test_bilaplacian_map_on_a_fixed_pattern(backend):
+    from stimulus_engine.correspondence.laplacian import bilaplacian, bilaplacian_map, fairing_operator, voronoi_areas
+    from stimulus_engine.correspondence.solve import factorize
+
+    v, f = grid(10, z=lambda x, y: 0.1 * np.sin(3 * x) * np.cos(2 * y))
+    op = fairing_operator(v, f)
+    extra = sp.coo_matrix(([0.5, 0.5, 1.0, 1.0], ([0, 99, 0, 99], [99, 0, 0, 99])), shape=(100, 100)).tocsr()
+    pattern, m = bilaplacian_map(op, extra)
+    areas = voronoi_areas(v, f)
+    pos, val = pattern.positions(extra)
+    values = m @ (1.0 / areas)
+    values[pos] += val
+    values[pattern.diagonal] += 1e-3
+    h = pattern.matrix(values)
+    expected = bilaplacian(op, areas) + extra + 1e-3 * sp.identity(100)
+    assert abs(h.full() - expected).max() < 1e-12 * abs(expected).max()
+    b = np.random.default_rng(3).normal(size=(100, 3))
+    fac = factorize(h, backend=backend)
+    np.testing.assert_allclose(expected @ fac.solve(b), b, atol=1e-8)
+    # new values on the same pattern: a numeric refactorisation
+    np.testing.assert_allclose(2 * (expected @ fac.refactor(pattern.matrix(2 * values)).solve(b)), b, atol=1e-8)

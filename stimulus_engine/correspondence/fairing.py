@@ -11,7 +11,9 @@ near the mid-point of its original positions (3.10)::
 With the cotangent weights fixed (from the input meshes) and the Voronoi areas updated every
 iteration (Kazhdan et al. 2012), each iteration is one sparse SPD solve of size N^s + N^t
 (three right-hand sides, x/y/z, one multi-RHS solve), refactorising numerically with the
-symbolic analysis kept (CHOLMOD); with SuperLU the first two iterations are factorised (the
+symbolic analysis kept (CHOLMOD): the matrix's pattern is fixed once, and each iteration only
+computes its values (a sparse map of the inverse areas plus the constant constraint part,
+:func:`~.laplacian.bilaplacian_map`); with SuperLU the first two iterations are factorised (the
 second reuses the first's fill-reducing ordering) and from the third on, when the areas change
 little, the solve is preconditioned conjugate gradients on the last factorisation.
 """
@@ -24,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from stimulus_engine.correspondence.points import Correspondences
-from stimulus_engine.correspondence.laplacian import bilaplacian, fairing_operator, voronoi_areas
+from stimulus_engine.correspondence.laplacian import bilaplacian_map, fairing_operator, voronoi_areas
 from stimulus_engine.correspondence.solve import ReusableSolver
 
 __all__ = ["FairingResult", "joint_fairing"]
@@ -96,9 +98,16 @@ def joint_fairing(
     mean = sp.hstack([cs, ct]).tocsr()
     c0 = 0.5 * (cs @ xs + ct @ xt)
     x_hat = np.vstack([xs, xt])
-    constraint = (lambda2 / m) * (diff.T @ diff) + (lambda3 / (4.0 * m)) * (mean.T @ mean)
+    constraint = ((lambda2 / m) * (diff.T @ diff) + (lambda3 / (4.0 * m)) * (mean.T @ mean)).tocsr()
     rhs_c = (lambda3 / (2.0 * m)) * (mean.T @ c0)
-    eye = sp.identity(ns + nt, format="csr")
+    # the matrix keeps one sparsity pattern: the bi-Laplacian's values are a linear map of the
+    # inverse areas, the constraint's are fixed (no sparse products per iteration)
+    lap = sp.block_diag([ls, lt], format="csr")
+    pattern, bilap = bilaplacian_map(lap, constraint)
+    c_pos, c_val = pattern.positions(constraint)
+    fixed = np.zeros(pattern.nnz)
+    fixed[c_pos] = c_val
+    diag = pattern.diagonal
     x = x_hat.copy()
     res = FairingResult(xs, xt)
     solver = ReusableSolver()
@@ -106,9 +115,11 @@ def joint_fairing(
         a_s = voronoi_areas(x[:ns], source_faces)
         a_t = voronoi_areas(x[ns:], target_faces)
         w1 = lambda1 / (a_s.sum() + a_t.sum())
-        q = sp.block_diag([bilaplacian(ls, a_s), bilaplacian(lt, a_t)], format="csr")
-        scale = w1 * float(np.median(abs(q.diagonal()))) + 1e-300
-        h = (w1 * q + constraint + (_TIKHONOV * scale) * eye).tocsr()
+        inv_a = 1.0 / np.concatenate([a_s, a_t])
+        q = bilap @ inv_a  # lower triangle of blockdiag(Lsᵀ As⁻¹ Ls, Ltᵀ At⁻¹ Lt)
+        scale = w1 * float(np.median(abs(q[diag]))) + 1e-300
+        h = w1 * q + fixed
+        h[diag] += _TIKHONOV * scale
         rhs = rhs_c + (_TIKHONOV * scale) * x_hat
         # the first update moves the areas most and gets its own factorisation; later ones
         # move them only a little: conjugate gradients preconditioned with the last
@@ -116,9 +127,12 @@ def joint_fairing(
         # iterates only feed the next areas, so they are solved less tightly than the last.
         last = it == max(1, iterations) - 1
         x_prev = x
-        x = solver.solve(solver.make_key(it), lambda h=h: h, rhs, near=it >= 2, x0=x, rtol=1e-10 if last else 1e-7)
+        x = solver.solve(solver.make_key(it), lambda h=h: pattern.matrix(h), rhs, near=it >= 2, x0=x,
+                         rtol=1e-10 if last else 1e-7)
+        lx = lap @ x
         res.energies.append(
-            float(w1 * np.einsum("ij,ij->", x, q @ x) + np.einsum("ij,ij->", x, constraint @ x) - 2 * np.einsum("ij,ij->", x, rhs_c))
+            float(w1 * np.einsum("i,ij,ij->", inv_a, lx, lx) + np.einsum("ij,ij->", x, constraint @ x)
+                  - 2 * np.einsum("ij,ij->", x, rhs_c))
         )
         if it >= 1 and np.sqrt(np.einsum("ij,ij->i", x - x_prev, x - x_prev).max()) < tolerance:
             break

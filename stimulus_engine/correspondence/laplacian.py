@@ -30,6 +30,7 @@ __all__ = [
     "cotangent_laplacian",
     "voronoi_areas",
     "bilaplacian",
+    "bilaplacian_map",
     "face_cotangents",
     "fairing_operator",
 ]
@@ -38,17 +39,26 @@ __all__ = [
 COT_CLAMP = 1e3
 
 
+def _triangle_terms(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per triangle: squared lengths of the edges opposite each corner (3, F), the corners'
+    cotangents (3, F, clamped) and twice the area (F,), from one cross product per triangle
+    (the cotangent at corner k is ``(a·b) / |a×b|`` for its two edges, and ``|a×b|`` is
+    twice the area at every corner), coordinate by coordinate (no (F, 3) temporaries)."""
+    p = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)[:, np.asarray(faces).T]  # (xyz, corner, F)
+    e = np.stack([p[:, 2] - p[:, 1], p[:, 0] - p[:, 2], p[:, 1] - p[:, 0]], axis=1)  # edge opposite corner k
+    l2 = np.einsum("ckf,ckf->kf", e, e)
+    a, b = e[:, 2], -e[:, 1]  # v1 - v0, v2 - v0
+    cross = np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    twice_area = np.sqrt(np.einsum("cf,cf->f", cross, cross))
+    # corner k's edges: v_{k+1} - v_k = e_{k+2} and v_{k+2} - v_k = -e_{k+1}
+    dot = -np.einsum("ckf,ckf->kf", e[:, [2, 0, 1]], e[:, [1, 2, 0]])
+    cot = np.clip(dot / np.maximum(twice_area, 1e-300), -COT_CLAMP, COT_CLAMP)
+    return l2, cot, twice_area
+
+
 def face_cotangents(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Cotangent of each triangle's three corner angles, shape (F, 3)."""
-    v = vertices[faces]  # F x 3 x 3
-    out = np.empty((len(faces), 3))
-    for k in range(3):
-        a = v[:, (k + 1) % 3] - v[:, k]
-        b = v[:, (k + 2) % 3] - v[:, k]
-        dot = np.einsum("ij,ij->i", a, b)
-        cross = np.linalg.norm(np.cross(a, b), axis=1)
-        out[:, k] = dot / np.maximum(cross, 1e-300)
-    return np.clip(out, -COT_CLAMP, COT_CLAMP)
+    return np.ascontiguousarray(_triangle_terms(vertices, faces)[1].T)
 
 
 def cotangent_laplacian(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
@@ -75,22 +85,14 @@ def voronoi_areas(vertices: np.ndarray, faces: np.ndarray, floor: float = 1e-3) 
     make the system numerically singular (CHOLMOD: "not positive definite").
     """
     n = len(vertices)
-    v = vertices[faces]
-    e = [v[:, (k + 2) % 3] - v[:, (k + 1) % 3] for k in range(3)]  # edge opposite corner k
-    l2 = np.stack([np.einsum("ij,ij->i", x, x) for x in e], axis=1)
-    _, area = face_normals(vertices, faces)
-    cot = face_cotangents(vertices, faces)
+    faces = np.asarray(faces)
+    l2, cot, twice_area = _triangle_terms(vertices, faces)
     # Voronoi part for corner k: 1/8 (|e_{k+1}|² cot_{k+1} + |e_{k+2}|² cot_{k+2})
-    vor = np.stack(
-        [
-            (l2[:, (k + 1) % 3] * cot[:, (k + 1) % 3] + l2[:, (k + 2) % 3] * cot[:, (k + 2) % 3]) / 8.0
-            for k in range(3)
-        ],
-        axis=1,
-    )
+    lc = l2 * cot
+    vor = (lc[[1, 2, 0]] + lc[[2, 0, 1]]) / 8.0
     obtuse_corner = cot < 0  # angle > 90 degrees
-    any_obtuse = obtuse_corner.any(axis=1)
-    corner_area = np.where(any_obtuse[:, None], np.where(obtuse_corner, 0.5, 0.25) * area[:, None], vor)
+    any_obtuse = obtuse_corner.any(axis=0)
+    corner_area = np.where(any_obtuse, np.where(obtuse_corner, 0.25, 0.125) * twice_area, vor).T
     out = np.bincount(faces.ravel(), weights=corner_area.ravel(), minlength=n)
     used = np.bincount(faces.ravel(), minlength=n) > 0
     if (~used).any():
@@ -101,6 +103,36 @@ def voronoi_areas(vertices: np.ndarray, faces: np.ndarray, floor: float = 1e-3) 
 def bilaplacian(L: sp.spmatrix, areas: np.ndarray) -> sp.csr_matrix:
     """``Lᵀ A⁻¹ L``: the matrix of ``Σ_i A_i ||Δ v_i||²`` (eq. 3.5, 3.8, 3.11)."""
     return (L.T @ sp.diags(1.0 / areas) @ L).tocsr()
+
+
+def bilaplacian_map(L: sp.spmatrix, *others: sp.spmatrix):
+    """The lower-triangle pattern of ``Lᵀ W L + others`` and the linear map from the diagonal
+    ``w`` (N,) of ``W`` to the values of ``Lᵀ diag(w) L`` on it.
+
+    Returns ``(pattern, M)``: a :class:`~stimulus_engine.correspondence.solve.LowerPattern`
+    (the structure of ``Lᵀ L``, of ``others`` and the diagonal) and a sparse ``M`` with
+    ``M @ (1 / areas)`` the lower triangle of :func:`bilaplacian` in the pattern's order: no
+    sparse matrix product per new ``areas`` (the joint fairing recomputes them every
+    iteration). Entry ``(i, j)`` of ``Lᵀ diag(w) L`` is ``Σ_k L_ki L_kj w_k``: ``M`` has one
+    row per pattern entry and one column per ``k``.
+    """
+    from stimulus_engine.correspondence.solve import LowerPattern
+
+    lc = sp.csr_matrix(L)
+    lc.sum_duplicates()
+    lc.sort_indices()
+    n = lc.shape[0]
+    r = np.diff(lc.indptr)
+    row_of = np.repeat(np.arange(n, dtype=np.int64), r)  # row k of each stored entry
+    # the entry at offset a of its row pairs with offsets 0..a (columns sorted: i >= j)
+    offset = np.arange(lc.nnz, dtype=np.int64) - lc.indptr[row_of]
+    cnt = offset + 1
+    first = np.repeat(np.arange(lc.nnz, dtype=np.int64), cnt)
+    second = np.arange(len(first), dtype=np.int64) - np.repeat(np.cumsum(cnt) - cnt - lc.indptr[row_of], cnt)
+    i, j = lc.indices[first], lc.indices[second]
+    pattern = LowerPattern(n, *others, entries=(i, j))
+    m = sp.csr_matrix((lc.data[first] * lc.data[second], (pattern.keys(i, j), row_of[first])), shape=(pattern.nnz, n))
+    return pattern, m
 
 
 def fairing_operator(vertices: np.ndarray, faces: np.ndarray, areas: np.ndarray | None = None) -> sp.csr_matrix:

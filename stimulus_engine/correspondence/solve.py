@@ -21,6 +21,11 @@ CHOLMOD when importable. Three ways of not paying for a factorisation twice:
 * with SuperLU, :func:`pcg` solves a matrix *close* to one already factorised (the fairing
   matrix after the Voronoi areas moved a little) with that factorisation as preconditioner: a
   few triangular solves instead of a new factorisation (with CHOLMOD refactorising is cheaper).
+
+Assembling the matrices costs about as much as refactorising them when it goes through SciPy's
+sparse products and sums each time: :class:`LowerPattern` fixes the (sorted, lower-triangular
+CSC) pattern of a sum of matrices once, and a new matrix of that pattern is then a vector of
+values (:class:`LowerMatrix`) that CHOLMOD takes as it is.
 """
 
 from __future__ import annotations
@@ -36,6 +41,8 @@ from appeal.errors import AppealInputError
 
 __all__ = [
     "Factor",
+    "LowerMatrix",
+    "LowerPattern",
     "SuperLUFactor",
     "CholmodFactor",
     "ReusableSolver",
@@ -87,6 +94,84 @@ def pattern_key(matrix: sp.spmatrix) -> bytes:
     return h.digest()
 
 
+class LowerPattern:
+    """The lower triangle (CSC, rows sorted in each column) of a sum of symmetric sparse
+    matrices, with every diagonal entry in it: the fixed sparsity pattern of a system whose
+    values change (weights, areas) while its structure does not.
+
+    ``matrices`` and ``entries`` (lower ``(rows, cols)``) give the structure. :meth:`positions`
+    maps a matrix's lower entries into it (distinct positions: ``values[pos] += data``); a
+    matrix of this pattern is a values vector (:meth:`matrix`).
+    """
+
+    def __init__(self, n: int, *matrices: sp.spmatrix, entries: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        self.n = int(n)
+        keys = [np.arange(self.n, dtype=np.int64) * (self.n + 1)]  # the diagonal
+        for m in matrices:
+            keys.append(self._keys(_lower_csc(m)))
+        if entries is not None:  # more lower entries (rows, cols)
+            keys.append(np.asarray(entries[1], dtype=np.int64) * self.n + np.asarray(entries[0], dtype=np.int64))
+        k = np.sort(np.concatenate(keys))  # column-major order = sorted CSC
+        self._key = k[np.concatenate([[True], k[1:] != k[:-1]])]  # (np.unique: a slower hash)
+        col = self._key // self.n
+        self.indices = (self._key - col * self.n).astype(np.int64)
+        self.indptr = np.searchsorted(col, np.arange(self.n + 1)).astype(np.int64)
+        self.diagonal = self.indptr[:-1]  # the diagonal is the first entry of each column
+        self.nnz = len(self._key)
+
+    def _keys(self, lower: sp.csc_matrix) -> np.ndarray:
+        col = np.repeat(np.arange(lower.shape[1], dtype=np.int64), np.diff(lower.indptr))
+        return col * self.n + lower.indices.astype(np.int64)
+
+    def keys(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Positions of lower entries ``(rows >= cols)`` in the pattern (they must be in it)."""
+        k = np.asarray(cols, dtype=np.int64) * self.n + np.asarray(rows, dtype=np.int64)
+        pos = np.searchsorted(self._key, k)
+        if len(k) and (pos.max(initial=0) >= self.nnz or not np.array_equal(self._key[pos], k)):
+            raise ValueError("entries outside the pattern")
+        return pos
+
+    def positions(self, matrix: sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
+        """``(positions, values)`` of ``matrix``'s lower entries in this pattern."""
+        lower = _lower_csc(matrix)
+        k = self._keys(lower)
+        pos = np.searchsorted(self._key, k)
+        if len(k) and (pos.max(initial=0) >= self.nnz or not np.array_equal(self._key[pos], k)):
+            raise ValueError("matrix has entries outside the pattern")
+        return pos, lower.data.copy()
+
+    def matrix(self, values: np.ndarray) -> "LowerMatrix":
+        return LowerMatrix(self, np.asarray(values, dtype=np.float64))
+
+
+class LowerMatrix:
+    """A symmetric matrix given by its lower triangle's ``values`` on a :class:`LowerPattern`."""
+
+    def __init__(self, pattern: LowerPattern, values: np.ndarray) -> None:
+        self.pattern = pattern
+        self.values = values
+        self.shape = (pattern.n, pattern.n)
+
+    def lower(self) -> sp.csc_matrix:
+        p = self.pattern
+        return sp.csc_matrix((self.values, p.indices, p.indptr), shape=self.shape)
+
+    def full(self) -> sp.csr_matrix:
+        """The whole symmetric matrix."""
+        low = self.lower()
+        strict = low.copy()
+        strict.data = strict.data.copy()
+        strict.data[self.pattern.diagonal] = 0.0
+        return (low + strict.T).tocsr()
+
+    def diagonal(self) -> np.ndarray:
+        return self.values[self.pattern.diagonal]
+
+
+def _as_scipy(matrix) -> sp.spmatrix:
+    return matrix.full() if isinstance(matrix, LowerMatrix) else matrix
+
+
 class SuperLUFactor:
     """A SuperLU factorisation of ``P A Pᵀ`` for a symmetric ordering ``P``.
 
@@ -122,6 +207,7 @@ class SuperLUFactor:
 
 
 def _superlu(matrix: sp.spmatrix, ordering: np.ndarray | None) -> SuperLUFactor:
+    matrix = _as_scipy(matrix)
     # symmetric mode with no pivoting (safe for SPD matrices) keeps the fill-reducing ordering
     # intact: about 10x faster and half the fill of the default partial pivoting
     opts = {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
@@ -148,6 +234,7 @@ class CholmodFactor:
         lower = _lower_csc(matrix)
         self._n = lower.shape[0]
         self._pattern = (lower.indptr.copy(), lower.indices.copy())
+        self._lower_pattern = matrix.pattern if isinstance(matrix, LowerMatrix) else None
         # cvxopt keeps the values in the same (column-major, sorted) order as a sorted CSC
         # matrix: a refactorisation only replaces them
         self._a = _to_cvxopt(lower)
@@ -172,13 +259,18 @@ class CholmodFactor:
 
     def refactor(self, matrix: sp.spmatrix) -> "CholmodFactor":
         """Numeric refactorisation when the pattern is unchanged, else a new factor."""
+        from cvxopt import matrix as cmatrix
+
+        if isinstance(matrix, LowerMatrix) and matrix.pattern is self._lower_pattern:
+            # the values of the very pattern this factor was made for: no conversion, no check
+            self._a.V = cmatrix(matrix.values)
+            self._numeric()
+            return self
         lower = _lower_csc(matrix)
         if lower.shape[0] != self._n or not (
             np.array_equal(lower.indptr, self._pattern[0]) and np.array_equal(lower.indices, self._pattern[1])
         ):
             return CholmodFactor(matrix, self.ordering)
-        from cvxopt import matrix as cmatrix
-
         self._a.V = cmatrix(lower.data)
         self._numeric()
         return self
@@ -205,6 +297,8 @@ def _cholmod_options() -> None:
 
 
 def _lower_csc(matrix: sp.spmatrix) -> sp.csc_matrix:
+    if isinstance(matrix, LowerMatrix):
+        return matrix.lower()
     lower = sp.tril(sp.csc_matrix(matrix), format="csc")
     lower.sum_duplicates()
     lower.sort_indices()
@@ -212,10 +306,13 @@ def _lower_csc(matrix: sp.spmatrix) -> sp.csc_matrix:
 
 
 def _to_cvxopt(lower: sp.csc_matrix):
-    from cvxopt import spmatrix
+    from cvxopt import matrix as cmatrix, spmatrix
 
-    coo = lower.tocoo()
-    return spmatrix(coo.data, coo.row.astype(np.int64), coo.col.astype(np.int64), size=lower.shape)
+    # cvxopt matrices from NumPy arrays are buffer copies; NumPy arrays passed to spmatrix
+    # directly are read element by element
+    col = np.repeat(np.arange(lower.shape[1], dtype=np.int64), np.diff(lower.indptr))
+    return spmatrix(cmatrix(np.ascontiguousarray(lower.data, dtype=np.float64)),
+                    cmatrix(lower.indices.astype(np.int64)), cmatrix(col), size=lower.shape)
 
 
 def factorize(matrix: sp.spmatrix, ordering: np.ndarray | None = None, backend: str | None = None) -> Factor:
@@ -274,7 +371,7 @@ def pcg(
     vec = b.ndim == 1
     b = b.reshape(len(b), -1)
     x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=np.float64).reshape(b.shape)
-    a = sp.csr_matrix(matrix)
+    a = sp.csr_matrix(_as_scipy(matrix))
     r = b - a @ x
     bn = np.linalg.norm(b, axis=0)
     bn[bn == 0] = 1.0
