@@ -160,10 +160,18 @@ def photographic_eye_texture(size: int = 512, iris_angle: float = IRIS_ANGLE) ->
     (the rig's iris geometry) and the template's edge at 120 degrees; from there to the back the
     texture darkens, as :func:`eye_texture`'s.
 
+    Computed at most 256 pixels wide (the photograph's eye disk is about that) and resized.
+
     Returns
     -------
     (size, size, 3) uint8 array (read-only; cached)
     """
+    if size > 256:
+        from PIL import Image
+
+        img = np.asarray(Image.fromarray(photographic_eye_texture(256, iris_angle)).resize((size, size), Image.BICUBIC))
+        img.setflags(write=False)
+        return img
     from matplotlib.colors import rgb_to_hsv
     from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
     from scipy.ndimage import map_coordinates

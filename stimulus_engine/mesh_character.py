@@ -291,7 +291,8 @@ def _teeth_behind_lips(rig: FaceRig, v: np.ndarray, lips: np.ndarray, gap: float
 def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, object], *,
                    region: np.ndarray | None = None, texture: np.ndarray | None = None,
                    texture_size: int = 1024, params: object | None = None, name: str | None = None,
-                   where: str = "mesh", maps: Mapping[str, np.ndarray] | None = None) -> MeshCharacter:
+                   where: str = "mesh", maps: Mapping[str, np.ndarray] | None = None,
+                   relay_texture: bool = True) -> MeshCharacter:
     """Correspond ``rig`` onto a user mesh and return the mesh as a character in the rig's topology.
 
     Parameters
@@ -325,6 +326,8 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
         normal and mid-grey specular where the mesh does not cover the rig). A tangent-space
         normal map stays right only where both layouts orient u and v alike on the surface
         (u to the subject's left, v up, not mirrored); see docs/stimuli.md.
+    relay_texture : bool
+        False: leave texture and maps out (the mesh is drawn as itself and keeps its own).
 
     Raises
     ------
@@ -432,7 +435,9 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
     out = rig.with_vertices(new_v, name=name or f"{rig.name}_on_mesh")
     transferred = None
     image = texture
-    if image is None:
+    if not relay_texture:  # the mesh is drawn as itself (a scan character): nothing to re-lay
+        image, maps = None, {}
+    elif image is None:
         own = texture_image(mesh)
         image = None if own is None else np.asarray(own.convert("RGB"))
     maps = {k: np.asarray(v, np.uint8) for k, v in (maps or {}).items()}

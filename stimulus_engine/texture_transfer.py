@@ -85,6 +85,33 @@ def dilate(image: np.ndarray, mask: np.ndarray, pixels: int = 1) -> tuple[np.nda
     return img, m
 
 
+_LOOKUP: list = []
+
+
+def _lookup(deformed_source: trimesh.Trimesh, target: trimesh.Trimesh, src_layout: tuple, tgt_layout: tuple,
+            w: int, h: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each texel of the source's layout (rows, cols), the target UV it shows.
+
+    The last lookup is kept (for the same two mesh objects, with the same vertices, and size):
+    re-laying an albedo and then its normal and specular maps rasterises and searches once.
+    """
+    import zlib
+
+    key = (deformed_source, target, w, h, zlib.crc32(np.ascontiguousarray(deformed_source.vertices).tobytes()),
+           zlib.crc32(np.ascontiguousarray(target.vertices).tobytes()))
+    if _LOOKUP and all(a is b for a, b in zip(_LOOKUP[0], key[:2])) and _LOOKUP[0][2:] == key[2:]:
+        return _LOOKUP[1]
+    uv_s, fuv_s = src_layout
+    rows, cols, fid, bary = rasterize_uv(uv_s, fuv_s, w, h)
+    pts = np.einsum("ij,ijk->ik", bary, np.asarray(deformed_source.vertices)[np.asarray(deformed_source.faces)[fid]])
+    # pixels lie on the deformed source, i.e. on (or very near) the target: fewer candidates
+    face, bary_t = SurfaceIndex(target.vertices, target.faces, k=3, k_vertices=1).closest(pts)
+    uv_t, fuv_t = tgt_layout
+    tuv = np.einsum("ij,ijk->ik", bary_t, uv_t[fuv_t[face]])
+    _LOOKUP[:] = [key, (rows, cols, tuv)]
+    return rows, cols, tuv
+
+
 def transfer_texture(
     deformed_source: trimesh.Trimesh,
     target: trimesh.Trimesh,
@@ -145,13 +172,7 @@ def transfer_texture(
     w, h = int(size[0]), int(size[1])
     if w < 1 or h < 1:
         raise AppealInputError(f"texture size: expected positive width and height (got {w} x {h})")
-    uv_s, fuv_s = src_layout
-    rows, cols, fid, bary = rasterize_uv(uv_s, fuv_s, w, h)
-    pts = np.einsum("ij,ijk->ik", bary, np.asarray(deformed_source.vertices)[np.asarray(deformed_source.faces)[fid]])
-    # pixels lie on the deformed source, i.e. on (or very near) the target: fewer candidates
-    face, bary_t = SurfaceIndex(target.vertices, target.faces, k=3, k_vertices=1).closest(pts)
-    uv_t, fuv_t = tgt_layout
-    tuv = np.einsum("ij,ijk->ik", bary_t, uv_t[fuv_t[face]])
+    rows, cols, tuv = _lookup(deformed_source, target, src_layout, tgt_layout, w, h)
     vals = sample_points(arr, uv_to_pixels(tuv, arr.shape[1], arr.shape[0]))
     out = np.zeros((h, w, arr.shape[2]))
     if background is not None:

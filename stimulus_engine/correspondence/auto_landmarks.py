@@ -237,11 +237,18 @@ def combine_views(stack: np.ndarray, diag: float, *, outlier_pct: float = OUTLIE
     return points, confidence
 
 
+#: dlib's face score above which an axis view is taken as the front without trying the others
+#: (frontal renders of the james, Lee Perry-Smith, ICT and MediaPipe meshes score 1.2–1.5;
+#: side views find no face or score about 0.1).
+CONFIDENT_FRONT = 0.8
+
+
 def _find_front(mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, size: int,
                 name: str) -> tuple[str, np.ndarray, np.ndarray, np.ndarray, float]:
     """The axis view with dlib's best face score: (key, direction, up, centre, radius) of it.
 
-    The six :data:`AXIS_VIEWS` are tried framing the whole mesh, then (when no face was found in
+    The six :data:`AXIS_VIEWS` are tried framing the whole mesh (stopping at the first with a
+    score of at least :data:`CONFIDENT_FRONT`), then (when no face was found in
     any) framing the top eighth of the mesh along the view's up: a head on a whole body is too
     small otherwise (a whole body is stored upright); then the 18 :data:`OTHER_AXIS_VIEWS`
     framing the whole mesh.
@@ -265,6 +272,8 @@ def _find_front(mesh: trimesh.Trimesh, centre: np.ndarray, radius: float, size: 
                 continue
             if best is None or score > best[0]:
                 best = (score, key, c, r)
+            if score >= CONFIDENT_FRONT:  # a frontal face: no other axis view shows one
+                break
         if best is not None:
             d, up = views[best[1]]
             return best[1], np.asarray(d, float), np.asarray(up, float), best[2], best[3]

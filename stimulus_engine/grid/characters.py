@@ -226,7 +226,7 @@ def _corresponded(c: CharacterSpec, base: FaceRig, mesh: trimesh.Trimesh, source
         landmarks = {**auto, **landmarks}
     logger.info("%s: corresponding %s onto %s", c.name, base.name, m.file)
     mc = correspond_rig(base, mesh, landmarks, region=region, texture=texture, texture_size=m.texture_size,
-                        name=c.name, where=where, maps=maps)
+                        name=c.name, where=where, maps=maps, relay_texture=m.topology != "scan")
     logger.info("%s: correspondence metrics %s", c.name,
                 {k: round(v, 5) for k, v in mc.metrics.items() if isinstance(v, float)})
     return mc.rig, mc.alignment
