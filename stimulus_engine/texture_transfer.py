@@ -29,12 +29,31 @@ def _name(mesh: trimesh.Trimesh, role: str) -> str:
     return str(mesh.metadata.get("source_path", role))
 
 
+_RASTER: list = []
+
+
 def rasterize_uv(uv: np.ndarray, face_uv: np.ndarray, width: int, height: int):
     """Pixels covered by UV triangles: ``(rows, cols, face, bary)`` for each covered pixel centre.
 
     UV (0, 0) is the image's bottom-left corner (OBJ convention); a pixel is covered when its
     centre lies inside (or on) a triangle; the last triangle wins where UV islands overlap.
+    The last result is kept for the same layout (by content) and size: a character's texture
+    transfer rasterises its rig's layout once for the coverage mask and the re-laid maps.
     """
+    import zlib
+
+    key = (zlib.crc32(np.ascontiguousarray(uv, np.float64).tobytes()),
+           zlib.crc32(np.ascontiguousarray(face_uv, np.int64).tobytes()), np.shape(uv), np.shape(face_uv), width, height)
+    if _RASTER and _RASTER[0] == key:
+        return _RASTER[1]
+    out = _rasterize_uv(uv, face_uv, width, height)
+    for a in out:
+        a.setflags(write=False)  # shared by later calls
+    _RASTER[:] = [key, out]
+    return out
+
+
+def _rasterize_uv(uv: np.ndarray, face_uv: np.ndarray, width: int, height: int):
     tri = uv[face_uv] * [width, height]  # F x 3 x 2 in pixel units, y up
     lo = np.floor(tri.min(axis=1) - 0.5).astype(np.int64)
     hi = np.ceil(tri.max(axis=1) - 0.5).astype(np.int64)
