@@ -131,7 +131,8 @@ def bilaplacian_map(L: sp.spmatrix, *others: sp.spmatrix):
     second = np.arange(len(first), dtype=np.int64) - np.repeat(np.cumsum(cnt) - cnt - lc.indptr[row_of], cnt)
     i, j = lc.indices[first], lc.indices[second]
     pattern = LowerPattern(n, *others, entries=(i, j))
-    m = sp.csr_matrix((lc.data[first] * lc.data[second], (pattern.keys(i, j), row_of[first])), shape=(pattern.nnz, n))
+    m = sp.csr_matrix((lc.data[first] * lc.data[second], (pattern.entry_positions, row_of[first])),
+                      shape=(pattern.nnz, n))
     return pattern, m
 
 

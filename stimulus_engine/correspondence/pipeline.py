@@ -271,7 +271,7 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
         vs, fs, ls, voronoi_areas(vs, fs), t_index, corr.source, corr.target.positions(vt),
         ((w, max(1, params.final_iterations)),), params.final_fit_weight, w,
         Pruning(params.prune_distance_final * NORMALISED_DIAGONAL, params.prune_angle, True),
-        fixed_targets=(c_orig, base.valid), ordering=base.ordering,
+        fixed_targets=(c_orig, base.valid), ordering=base.ordering, solver=base.solver,
     )
     seconds["register_original"] = time.perf_counter() - t
 

@@ -15,6 +15,7 @@ unchanged.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,10 +25,12 @@ from stimulus_engine.correspondence.closest import ClosestPoints, SurfaceIndex
 from stimulus_engine.correspondence.points import SurfacePoints
 from stimulus_engine.correspondence.laplacian import bilaplacian
 from stimulus_engine.correspondence.ordering import nested_dissection
-from stimulus_engine.correspondence.solve import ReusableSolver
+from stimulus_engine.correspondence.solve import LowerPattern, ReusableSolver
 from stimulus_engine.mesh_ops import vertex_normals
 
 __all__ = ["Pruning", "RegistrationResult", "prune_mask", "nonrigid_register"]
+
+_CALLS = itertools.count()
 
 
 @dataclass(frozen=True)
@@ -52,6 +55,7 @@ class RegistrationResult:
     reuses: int = 0
     history: list[dict] = field(default_factory=list)
     ordering: np.ndarray | None = None
+    solver: ReusableSolver | None = None
 
 
 def prune_mask(points: np.ndarray, normals: np.ndarray, cp: ClosestPoints, pruning: Pruning) -> np.ndarray:
@@ -82,6 +86,7 @@ def nonrigid_register(
     reuse_mask: bool = True,
     ordering: np.ndarray | None = None,
     tolerance: float = 0.0,
+    solver: ReusableSolver | None = None,
 ) -> RegistrationResult:
     """Deform ``start`` onto ``target`` (eq. 3.11-3.13).
 
@@ -117,6 +122,11 @@ def nonrigid_register(
         bi-Laplacian, whatever the weights); by default a nested dissection of ``start`` with
         SuperLU and CHOLMOD's own (AMD) otherwise, returned in ``RegistrationResult.ordering``
         for reuse.
+    tolerance : float
+        A stiffness stage ends (after at least two iterations) once no vertex moved more.
+    solver : ReusableSolver, optional
+        ``RegistrationResult.solver`` of an earlier registration of the same mesh (same faces
+        and reference points): its symbolic factorisation and matrix pattern are reused.
     """
     v_hat = np.asarray(start, dtype=np.float64)
     n = len(v_hat)
@@ -126,16 +136,30 @@ def nonrigid_register(
     m = max(len(ref_source), 1)
     ref_h = (mu3 / m) * (cs.T @ cs)
     ref_rhs = (mu3 / m) * (cs.T @ ref_target)
-    solver = ReusableSolver(ordering)
+    if solver is None:
+        solver = ReusableSolver(ordering)
     if solver.ordering is None and solver.backend == "superlu":
         solver.ordering = nested_dissection(q, v_hat)
+    # one sparsity pattern for every matrix of the schedule (and of a later registration of the
+    # same mesh): each factorisation only sets values, no sparse sums or conversions
+    pattern = solver.pattern
+    try:
+        if pattern is None or pattern.n != n:
+            raise ValueError
+        q_pos, q_val = pattern.positions(q)
+        r_pos, r_val = pattern.positions(ref_h)
+    except ValueError:
+        pattern = solver.pattern = LowerPattern(n, q, ref_h)
+        q_pos, q_val = pattern.positions(q)
+        r_pos, r_val = pattern.positions(ref_h)
+    call = next(_CALLS)  # a solver handed on must not take this call's matrices for its last
     v = v_hat.copy()
     res = RegistrationResult(v, None, np.zeros(n, dtype=bool))
     it = 0
     c = v_hat.copy()
+    q_vhat = q @ v_hat
     for mu1, n_iter in schedule:
-        q_w = (mu1 * w_area) * q
-        q_rhs = q_w @ v_hat
+        q_rhs = (mu1 * w_area) * q_vhat
         for k in range(n_iter):
             if fixed_targets is not None and it == 0:
                 c, valid = fixed_targets
@@ -153,10 +177,14 @@ def nonrigid_register(
                     c = np.where(ok[:, None], cp.points, c)
             n_valid = max(int(valid.sum()), 1)
             wfit = np.where(valid, mu2 / n_valid, 0.0)
-            key = solver.make_key(mu1, mu2, n_valid, valid)
+            key = solver.make_key(call, mu1, mu2, n_valid, valid)
 
-            def build(q_w=q_w, wfit=wfit):
-                return q_w + sp.diags(wfit) + ref_h
+            def build(mu1=mu1, wfit=wfit):
+                values = np.zeros(pattern.nnz)
+                values[q_pos] = (mu1 * w_area) * q_val
+                values[r_pos] += r_val
+                values[pattern.diagonal] += wfit
+                return pattern.matrix(values)
 
             v_new = solver.solve(key, build, q_rhs + wfit[:, None] * c + ref_rhs)
             move = float(np.sqrt(np.einsum("ij,ij->i", v_new - v, v_new - v).max())) if n else 0.0
@@ -173,4 +201,5 @@ def nonrigid_register(
     res.factorizations = solver.factorizations
     res.reuses = solver.reuses
     res.ordering = solver.ordering
+    res.solver = solver
     return res

@@ -106,13 +106,25 @@ class LowerPattern:
 
     def __init__(self, n: int, *matrices: sp.spmatrix, entries: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         self.n = int(n)
-        keys = [np.arange(self.n, dtype=np.int64) * (self.n + 1)]  # the diagonal
+        rows = [np.arange(self.n, dtype=np.int64)]  # the diagonal
+        cols = [rows[0]]
         for m in matrices:
-            keys.append(self._keys(_lower_csc(m)))
+            lower = _lower_csc(m)
+            rows.append(lower.indices.astype(np.int64))
+            cols.append(np.repeat(np.arange(self.n, dtype=np.int64), np.diff(lower.indptr)))
+        n_given = sum(len(r) for r in rows)
         if entries is not None:  # more lower entries (rows, cols)
-            keys.append(np.asarray(entries[1], dtype=np.int64) * self.n + np.asarray(entries[0], dtype=np.int64))
-        k = np.sort(np.concatenate(keys))  # column-major order = sorted CSC
-        self._key = k[np.concatenate([[True], k[1:] != k[:-1]])]  # (np.unique: a slower hash)
+            rows.append(np.asarray(entries[0], dtype=np.int64))
+            cols.append(np.asarray(entries[1], dtype=np.int64))
+        r, c = np.concatenate(rows), np.concatenate(cols)
+        order = _column_major_order(r, c, self.n)
+        k = (c * self.n + r)[order]
+        first = np.concatenate([[True], k[1:] != k[:-1]])
+        self._key = k[first]
+        inverse = np.empty(len(k), dtype=np.int64)
+        inverse[order] = np.cumsum(first) - 1
+        #: positions of ``entries`` in the pattern
+        self.entry_positions = inverse[n_given:]
         col = self._key // self.n
         self.indices = (self._key - col * self.n).astype(np.int64)
         self.indptr = np.searchsorted(col, np.arange(self.n + 1)).astype(np.int64)
@@ -122,14 +134,6 @@ class LowerPattern:
     def _keys(self, lower: sp.csc_matrix) -> np.ndarray:
         col = np.repeat(np.arange(lower.shape[1], dtype=np.int64), np.diff(lower.indptr))
         return col * self.n + lower.indices.astype(np.int64)
-
-    def keys(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Positions of lower entries ``(rows >= cols)`` in the pattern (they must be in it)."""
-        k = np.asarray(cols, dtype=np.int64) * self.n + np.asarray(rows, dtype=np.int64)
-        pos = np.searchsorted(self._key, k)
-        if len(k) and (pos.max(initial=0) >= self.nnz or not np.array_equal(self._key[pos], k)):
-            raise ValueError("entries outside the pattern")
-        return pos
 
     def positions(self, matrix: sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
         """``(positions, values)`` of ``matrix``'s lower entries in this pattern."""
@@ -166,6 +170,15 @@ class LowerMatrix:
 
     def diagonal(self) -> np.ndarray:
         return self.values[self.pattern.diagonal]
+
+
+def _column_major_order(rows: np.ndarray, cols: np.ndarray, n: int) -> np.ndarray:
+    """Permutation sorting entries by column, then row: two stable 16-bit radix sorts when the
+    indices fit (a third of a comparison sort's time on a bi-Laplacian's ~10⁶ pairs)."""
+    if n <= np.iinfo(np.uint16).max + 1:
+        order = np.argsort(rows.astype(np.uint16), kind="stable")
+        return order[np.argsort(cols.astype(np.uint16)[order], kind="stable")]
+    return np.argsort(cols * n + rows, kind="stable")
 
 
 def _as_scipy(matrix) -> sp.spmatrix:
@@ -421,6 +434,9 @@ class ReusableSolver:
         self._key: bytes | None = None
         self._lu: Factor | None = None
         self.ordering = ordering
+        #: a caller's fixed matrix pattern (:class:`LowerPattern`), kept with the factorisation
+        #: that was analysed for it
+        self.pattern: LowerPattern | None = None
         self.factorizations = 0
         self.reuses = 0
         self.pcg_solves = 0
