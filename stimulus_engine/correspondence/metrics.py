@@ -19,10 +19,20 @@ def surface_distances(
 
 
 def _local_folds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Triangles facing against the mean of their three (area-weighted) vertex normals."""
-    n, _ = face_normals(vertices, faces)
-    vn = vertex_normals(vertices, faces)
-    return np.einsum("ij,ij->i", n, vn[faces].sum(axis=1)) < 0
+    """Triangles facing against the mean of their three (area-weighted) vertex normals.
+
+    :func:`~stimulus_engine.mesh_ops.vertex_normals` with the triangles' cross products
+    computed once (for the sign, a triangle's unnormalised cross product does as well as its
+    unit normal), coordinate by coordinate."""
+    faces = np.asarray(faces)
+    nv = len(vertices)
+    p = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)[:, faces.T]  # (xyz, corner, F)
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    cross = np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    vn = np.stack([np.bincount(faces.ravel(), weights=np.repeat(c, 3), minlength=nv) for c in cross])
+    vn /= np.maximum(np.sqrt(np.einsum("cv,cv->v", vn, vn)), 1e-300)
+    corner_sum = vn[:, faces[:, 0]] + vn[:, faces[:, 1]] + vn[:, faces[:, 2]]
+    return np.einsum("cf,cf->f", cross, corner_sum) < 0
 
 
 def flipped_triangles(vertices: np.ndarray, faces: np.ndarray, reference_vertices: np.ndarray) -> np.ndarray:

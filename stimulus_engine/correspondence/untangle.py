@@ -114,6 +114,9 @@ def untangle(
     v = np.array(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     n = len(v)
+    if not _bad_triangles(v, faces, reference).any():
+        # nothing folded or collapsed: nothing to repair (and no operators to build)
+        return UntangleResult(v, np.zeros(n, dtype=bool), 0, 0, 0)
     adjacency = vertex_adjacency(faces, n)
     b, prv, nxt = boundary_neighbours(faces, n)
     # rows of the harmonic operator: interior vertices average their neighbours, hole-rim
