@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from stimulus_engine.mesh_ops import boundary_edge_mask, boundary_vertex_mask, face_normals, vertex_faces
+from stimulus_engine.mesh_ops import boundary_edge_mask, face_normals, vertex_faces
 
 __all__ = [
     "SurfaceIndex",
@@ -42,9 +42,13 @@ def project_to_triangles(
         Squared distance (for choosing among candidates; cancellation limits it to about
         1e-8 of the triangle size — recompute from the point where it matters).
     """
-    d1 = np.einsum("ij,ij->i", ab, ap)
-    d2 = np.einsum("ij,ij->i", ac, ap)
-    pp = np.einsum("ij,ij->i", ap, ap)
+    return _project(np.einsum("ij,ij->i", ab, ap), np.einsum("ij,ij->i", ac, ap), np.einsum("ij,ij->i", ap, ap),
+                    aa, bb, cc)
+
+
+def _project(d1, d2, pp, aa, bb, cc):
+    """:func:`project_to_triangles` from the dot products ``d1 = ab·ap``, ``d2 = ac·ap`` and
+    ``pp = ap·ap``."""
     d3, d4 = d1 - aa, d2 - bb  # ab·bp, ac·bp
     d5, d6 = d1 - bb, d2 - cc  # ab·cp, ac·cp
     va = d3 * d6 - d5 * d4
@@ -56,18 +60,21 @@ def project_to_triangles(
         v, w = vb / denom, vc / denom  # inside the face
         # regions in reverse order of Ericson's tests, so the first matching one wins
         m = (va <= 0) & (e43 >= 0) & (e56 >= 0)  # edge BC
-        t = e43 / (e43 + e56)
-        v, w = np.where(m, 1.0 - t, v), np.where(m, t, w)
+        if m.any():
+            t = e43[m] / (e43[m] + e56[m])
+            v[m], w[m] = 1.0 - t, t
         m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)  # edge AC
-        v, w = np.where(m, 0.0, v), np.where(m, d2 / (d2 - d6), w)
+        if m.any():
+            v[m], w[m] = 0.0, d2[m] / (d2[m] - d6[m])
         m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)  # edge AB
-        v, w = np.where(m, d1 / (d1 - d3), v), np.where(m, 0.0, w)
+        if m.any():
+            v[m], w[m] = d1[m] / (d1[m] - d3[m]), 0.0
     for m, (vv, ww) in (
         ((d6 >= 0) & (d5 <= d6), (0.0, 1.0)),  # vertex C
         ((d3 >= 0) & (d4 <= d3), (1.0, 0.0)),  # vertex B
         ((d1 <= 0) & (d2 <= 0), (0.0, 0.0)),  # vertex A
     ):
-        v, w = np.where(m, vv, v), np.where(m, ww, w)
+        v[m], w[m] = vv, ww
     bad = ~(np.isfinite(v) & np.isfinite(w))
     v[bad], w[bad] = 0.0, 0.0  # degenerate triangle: its first corner
     dist2 = v * v * aa + w * w * cc + 2.0 * v * w * bb - 2.0 * v * d1 - 2.0 * w * d2 + pp
@@ -119,21 +126,24 @@ class SurfaceIndex:
         # vertices and the k nearest centroids)
         self._vf = vertex_faces(self.faces, len(self.vertices))
         self.boundary = boundary_edge_mask(self.faces)
-        self.boundary_vertices = boundary_vertex_mask(self.faces, len(self.vertices))
+        # the ends of the boundary edges (mesh_ops.boundary_vertex_mask, without counting the
+        # edges again)
+        self.boundary_vertices = np.zeros(len(self.vertices), dtype=bool)
+        for k in range(3):
+            self.boundary_vertices[self.faces[self.boundary[:, k]][:, [(k + 1) % 3, (k + 2) % 3]]] = True
         self._n_faces = len(self.faces)
         self._build()
 
     def _build(self) -> None:
         tri = self.vertices[self.faces]
-        self._tri = tri
         self._vtree = cKDTree(self.vertices)
         self._ctree = cKDTree(tri.mean(axis=1))
-        # per-triangle data of the projection kernel
-        self._a = tri[:, 0]
-        self._ab, self._ac = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-        self._dots = np.stack(
-            [np.einsum("ij,ij->i", self._ab, self._ab), np.einsum("ij,ij->i", self._ab, self._ac),
-             np.einsum("ij,ij->i", self._ac, self._ac)], axis=1)
+        # per-triangle data of the projection kernel, one row per triangle (one gather per
+        # query): corner a, ab, ac, ab·ab, ab·ac, ac·ac
+        ab, ac = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        self._fdata = np.concatenate(
+            [tri[:, 0], ab, ac, np.einsum("ij,ij->i", ab, ab)[:, None], np.einsum("ij,ij->i", ab, ac)[:, None],
+             np.einsum("ij,ij->i", ac, ac)[:, None]], axis=1)
         self.face_normals = face_normals(self.vertices, self.faces)[0]
 
     def update(self, vertices: np.ndarray) -> None:
@@ -143,33 +153,42 @@ class SurfaceIndex:
 
     def closest(self, points: np.ndarray, chunk: int = 65536) -> tuple[np.ndarray, np.ndarray]:
         """Closest triangle and barycentric weights for each of ``points`` (Q, 3), in chunks."""
+        face, v, w = self._closest(points, chunk)
+        return face, np.stack([1.0 - v - w, v, w], axis=1)
+
+    def _closest(self, points: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        face = np.empty(len(p), dtype=np.int64)
-        bary = np.empty((len(p), 3))
-        for a in range(0, len(p), chunk):
-            face[a : a + chunk], bary[a : a + chunk] = self._query(p[a : a + chunk])
-        return face, bary
+        if len(p) <= chunk:
+            return self._query(p)
+        parts = [self._query(p[a : a + chunk]) for a in range(0, len(p), chunk)]
+        return tuple(np.concatenate(x) for x in zip(*parts))
 
     def query(self, points: np.ndarray, chunk: int = 65536) -> ClosestPoints:
         """Closest surface point for each of ``points`` (Q, 3), with distances, boundary flags
         and normals."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        face, bary = self.closest(p, chunk)
-        pts = np.einsum("ij,ijk->ik", bary, self._tri[face])
+        face, v, w = self._closest(p, chunk)
+        fd = self._fdata[face]
+        pts = fd[:, 0:3] + v[:, None] * fd[:, 3:6] + w[:, None] * fd[:, 6:9]
+        bary = np.stack([1.0 - v - w, v, w], axis=1)
         eps = 1e-9
-        on_edge = (bary < eps) & self.boundary[face]
+        on_boundary = ((bary < eps) & self.boundary[face]).any(axis=1)
         # a closest point at a vertex (two zero weights) is on the boundary if the vertex is
-        at_vertex = (bary > 1 - eps) & self.boundary_vertices[self.faces[face]]
+        at_vertex = bary > 1 - eps
+        hit = at_vertex.any(axis=1)
+        if hit.any():
+            on_boundary[hit] |= (at_vertex[hit] & self.boundary_vertices[self.faces[face[hit]]]).any(axis=1)
+        d = pts - p
         return ClosestPoints(
             face=face,
             bary=bary,
             points=pts,
-            distance=np.linalg.norm(pts - p, axis=1),
-            on_boundary=on_edge.any(axis=1) | at_vertex.any(axis=1),
+            distance=np.sqrt(np.einsum("ij,ij->i", d, d)),
+            on_boundary=on_boundary,
             normals=self.face_normals[face],
         )
 
-    def _query(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _query(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         parts = []
         kv = min(self.k_vertices, len(self.vertices))
         if kv > 0:
@@ -183,20 +202,20 @@ class SurfaceIndex:
         # duplicates in a row are dropped before the (costly) exact projections
         cand = np.sort(np.concatenate(parts, axis=1), axis=1)
         cand[:, 1:][cand[:, 1:] == cand[:, :-1]] = -1
-        q_idx = np.repeat(np.arange(len(p)), cand.shape[1])
-        f_idx = cand.ravel()
-        keep = f_idx >= 0
-        q_idx, f_idx = q_idx[keep], f_idx[keep]  # still grouped by query, in order
-        dots = self._dots[f_idx]
-        v, w, d2 = project_to_triangles(
-            p[q_idx] - self._a[f_idx], self._ab[f_idx], self._ac[f_idx], dots[:, 0], dots[:, 1], dots[:, 2]
+        keep = cand >= 0
+        q_idx = np.nonzero(keep)[0]  # still grouped by query, in order
+        f_idx = cand[keep]
+        fd = self._fdata[f_idx]
+        ap = p[q_idx] - fd[:, 0:3]
+        v, w, d2 = _project(
+            np.einsum("ij,ij->i", fd[:, 3:6], ap), np.einsum("ij,ij->i", fd[:, 6:9], ap), np.einsum("ij,ij->i", ap, ap),
+            fd[:, 9], fd[:, 10], fd[:, 11],
         )
-        counts = np.bincount(q_idx, minlength=len(p))
+        counts = keep.sum(axis=1)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
         mins = np.minimum.reduceat(d2, starts)
         # first candidate of each query reaching its minimum (candidates are grouped by query)
         is_min = np.flatnonzero(d2 == np.repeat(mins, counts))
         qm = q_idx[is_min]
         sel = is_min[np.concatenate([[True], qm[1:] != qm[:-1]])]
-        v, w = v[sel], w[sel]
-        return f_idx[sel], np.stack([1.0 - v - w, v, w], axis=1)
+        return f_idx[sel], v[sel], w[sel]
