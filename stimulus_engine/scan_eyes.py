@@ -224,6 +224,30 @@ def painted_iris_colour(texture: np.ndarray, uv: np.ndarray, face_uv: np.ndarray
     return np.median(px[sel if sel.any() else slice(None)], axis=0)
 
 
+def lid_shadow(texture: np.ndarray, templates: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+               depth: float = 0.4) -> np.ndarray:
+    """The eyeball texture darkened where the lids shade a real eye: towards the top of the ball
+    (the upper lid's shadow falls over the upper iris and sclera) and, less, towards the corners.
+
+    A rasteriser casts no such soft shadow from a lid a millimetre in front of the ball, and
+    without it the sclera reads as a bright sticker. The factor ``1 − depth · s(y) − depth/3 ·
+    s(|x|)`` (``s`` a smoothstep over the ball's unit directions, y up, x across) is painted
+    into each template's UV island.
+    """
+    from stimulus_engine.texture_transfer import rasterize_uv
+
+    h, w = texture.shape[:2]
+    out = texture.astype(np.float64)
+    for unit, faces, uv in templates:
+        d = unit / np.linalg.norm(unit, axis=1, keepdims=True)
+        t_up = np.clip((d[:, 1] - 0.05) / 0.5, 0, 1)
+        t_side = np.clip((np.abs(d[:, 0]) - 0.3) / 0.5, 0, 1)
+        factor = 1 - depth * t_up**2 * (3 - 2 * t_up) - depth / 3 * t_side**2 * (3 - 2 * t_side)
+        rows, cols, fid, bary = rasterize_uv(uv, faces, w, h)
+        out[rows, cols] *= np.einsum("nk,nk->n", bary, factor[faces[fid]])[:, None]
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
 def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray,
                  texture: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> EyeGeometry:
     """Openings, eyeballs and sockets for a scan (all in the rig's frame).
@@ -259,5 +283,6 @@ def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray
     templates, eye_texture = eyeball_asset()
     if texture is not None:
         eye_texture = tint_iris(eye_texture, painted_iris_colour(*texture, ~keep))
+    eye_texture = lid_shadow(eye_texture, templates)
     sockets = [_socket(c, radius) for c in contours]
     return EyeGeometry(keep, v, balls, [t[1] for t in templates], [t[2] for t in templates], sockets, eye_texture)

@@ -183,3 +183,18 @@ def test_photographic_eye_texture_puts_the_photographed_iris_at_the_rigs_angle()
     ring = (theta > 12) & (theta < IRIS_ANGLE - 3)
     for a, b in (((x < 0.5) & ring, (x >= 0.5) & ring), ((y < 0.5) & ring, (y >= 0.5) & ring)):
         assert abs(sat[a].mean() - sat[b].mean()) < 0.08
+
+
+def test_lid_shadow_darkens_the_top_of_the_ball_not_its_middle():
+    from stimulus_engine.scan_eyes import lid_shadow
+
+    templates, _ = eyeball_asset()
+    grey = np.full((256, 256, 3), 200, np.uint8)
+    shaded = lid_shadow(grey, templates, depth=0.4)
+    for unit, _, uv in templates:
+        d = unit / np.linalg.norm(unit, axis=1, keepdims=True)
+        px = shaded[np.clip(np.rint((1 - uv[:, 1]) * 255).astype(int), 0, 255),
+                    np.clip(np.rint(uv[:, 0] * 255).astype(int), 0, 255), 0].astype(float)
+        top, middle = px[d[:, 1] > 0.6], px[(np.abs(d[:, 1]) < 0.05) & (np.abs(d[:, 0]) < 0.2)]
+        assert np.median(middle) == pytest.approx(200, abs=3)
+        assert np.median(top) < 0.7 * 200

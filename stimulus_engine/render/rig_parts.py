@@ -28,14 +28,14 @@ __all__ = ["rig_render_parts"]
 #: is mostly in shadow inside a real mouth), ``tongue`` gums and tongue.
 _PART_COLOURS = {
     "sclera": (0.85, 0.83, 0.80, 1.0), "iris": (0.18, 0.22, 0.30, 1.0), "teeth": (0.82, 0.79, 0.70, 1.0),
-    "mouth": (0.05, 0.012, 0.015, 1.0), "socket": (0.16, 0.06, 0.05, 1.0), "tongue": (0.30, 0.08, 0.09, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0),
+    "mouth": (0.05, 0.012, 0.015, 1.0), "socket": (0.09, 0.045, 0.04, 1.0), "tongue": (0.30, 0.08, 0.09, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0),
     "skin": (0.8, 0.62, 0.52, 1.0), "eye": (0.9, 0.88, 0.85, 1.0),
 }
 #: Specular level of the ``phong`` shader (Blinn-Phong without Fresnel: a skin-like sheen; the
 #: 0.22 first chosen here made ICT faces look like wet plastic).
 _PHONG_SPECULAR = 0.08
 #: PBR roughness per part (wet eyes and teeth are glossy; the default is the skin's).
-_PART_ROUGHNESS = {"eye": 0.18, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
+_PART_ROUGHNESS = {"eye": 0.32, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
 
 
 _MATERIALS: dict[tuple, tuple[tuple, object]] = {}
