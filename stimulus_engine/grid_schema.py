@@ -107,7 +107,14 @@ class MeshSpec(StudyModel):
 class CharacterSpec(StudyModel):
     """One character: the ICT face model (an identity) or a procedural head, optionally
     corresponded onto a user ``mesh`` (then the ICT/procedural head is the rig that supplies
-    topology and expressions, and the mesh supplies the shape and texture)."""
+    topology and expressions, and the mesh supplies the shape and texture).
+
+    ``hair``: ``short`` (MakeHuman's CC0 short haircut, carried onto the character's head and
+    moving with it: :mod:`stimulus_engine.hair`), ``none``, or ``auto`` (the default: ``short``
+    for an ICT identity drawn as itself, which is bald; none for a procedural head, whose hair
+    is painted, and for a mesh, which brings its own). ``hair_colour``: sRGB hex, e.g.
+    ``"#3a2a1f"`` (default dark brown).
+    """
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
     ict: InputDir | None = None
@@ -116,6 +123,15 @@ class CharacterSpec(StudyModel):
     mesh: MeshSpec | None = None
     texture: InputFile | None = None
     texture_seed: int = 0
+    hair: Literal["auto", "short", "none"] = "auto"
+    hair_colour: str | None = Field(None, pattern=r"^#[0-9A-Fa-f]{6}$")
+
+    @property
+    def hair_style(self) -> str | None:
+        """The hair drawn on this character (a key of :data:`stimulus_engine.hair.HAIR_STYLES`), or None."""
+        if self.hair == "auto":
+            return "short" if self.ict is not None and self.mesh is None else None
+        return None if self.hair == "none" else self.hair
 
     @model_validator(mode="after")
     def _one_source(self) -> CharacterSpec:
@@ -128,6 +144,9 @@ class CharacterSpec(StudyModel):
         if self.mesh is not None and self.mesh.region not in (None, "front") and self.ict is None:
             raise ValueError(f"mesh.region '{self.mesh.region}': the procedural head has only the region 'front' "
                              "(ICT regions such as narrow_face need an ICT rig)")
+        if self.hair not in ("auto", "none") and self.mesh is not None and self.mesh.topology == "scan":
+            raise ValueError(f"hair: {self.hair}: a mesh drawn with topology: scan shows its own hair "
+                             "(use hair: none, or mesh.topology: rig)")
         return self
 
 

@@ -12,8 +12,12 @@ corresponded onto (:func:`stimulus_engine.mesh_character.correspond_rig`); expre
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from stimulus_engine.hair import Hair
 
 __all__ = ["LANDMARK_NAMES", "IBUG_LANDMARKS", "FaceRig"]
 
@@ -77,6 +81,9 @@ class FaceRig:
         Optional skin maps in the texture's layout: ``normal`` (H, W, 3) tangent-space and
         ``specular`` (H, W) (see :mod:`stimulus_engine.materials`); e.g. a mesh character's own
         maps re-laid by :func:`stimulus_engine.mesh_character.correspond_rig`.
+    hair : Hair or None
+        Hair bound to the skin (:func:`stimulus_engine.hair.fit_hair`); drawn posed with the
+        skin, whatever the vertices (an expression, a stylised shape).
     """
 
     name: str
@@ -94,6 +101,7 @@ class FaceRig:
     texture_masks: dict[str, np.ndarray] = field(default_factory=dict)
     part_textures: dict[str, np.ndarray] = field(default_factory=dict)
     texture_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    hair: Hair | None = None
 
     def landmark_points(self, vertices: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Landmark positions (mean of each vertex set) on ``vertices`` (default: the neutral)."""

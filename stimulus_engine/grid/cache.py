@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from appeal.atomic import atomic_write_bytes
+from stimulus_engine.hair import hair_arrays, hair_from_arrays
 from stimulus_engine.rig import FaceRig
 
 __all__ = ["GRID_VERSION", "file_sha", "load_rig", "npz_cached", "save_npy", "save_npz", "save_png_once", "save_rig", "sha"]
@@ -86,7 +87,7 @@ def save_rig(path: Path, rig: FaceRig) -> None:
         buf, faces=rig.faces, face_part=rig.face_part, part_names=np.array(rig.part_names),
         uv=rig.uv if rig.uv is not None else np.zeros((0, 2)),
         face_uv=rig.face_uv if rig.face_uv is not None else np.zeros((0, 3), np.int64),
-        **{f"part_texture_{k}": t for k, t in rig.part_textures.items()}))
+        **{f"part_texture_{k}": t for k, t in rig.part_textures.items()}, **hair_arrays(rig.hair)))
 
 
 @functools.lru_cache(maxsize=8)
@@ -98,4 +99,4 @@ def load_rig(path: str) -> FaceRig:
     textures = {k[len("part_texture_"):]: d[k] for k in d.files if k.startswith("part_texture_")}
     return FaceRig(name=Path(path).stem, vertices=np.zeros((0, 3)), faces=d["faces"], uv=uv, face_uv=fuv,
                    face_part=d["face_part"], part_names=tuple(str(x) for x in d["part_names"]), landmarks={},
-                   part_textures=textures)
+                   part_textures=textures, hair=hair_from_arrays(d))

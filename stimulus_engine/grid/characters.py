@@ -92,11 +92,22 @@ class Character:
     scan: ScanSurface | None = None
 
 
+def _with_hair(c: CharacterSpec, rig: FaceRig, rig_hash: str) -> tuple[FaceRig, str]:
+    """``rig`` wearing the character's hair (if any) and the hash of both."""
+    from stimulus_engine.hair import fit_hair, linear_rgb
+
+    style = c.hair_style
+    if style is None:
+        return rig, rig_hash
+    colour = None if c.hair_colour is None else linear_rgb(c.hair_colour)
+    return replace(rig, hair=fit_hair(rig, style, colour)), sha(rig_hash, "hair", style, c.hair_colour)
+
+
 def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
     """The character of ``c``; a ``mesh`` is corresponded once and kept in ``cache/mesh``."""
     base, base_hash = base_rig(c)
     if c.mesh is None:
-        return Character(c, base, base_hash, base)
+        return Character(c, *_with_hair(c, base, base_hash), base)
     m = c.mesh
     files = {"file": m.file, "texture": m.texture, "normal_map": m.normal_map, "specular_map": m.specular_map}
     h = sha(GRID_VERSION, "mesh", base_hash, *[file_sha(f) if f else None for f in files.values()],
@@ -124,7 +135,7 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
     if _needs_ibug(m) and ibug is None:
         ibug = _scan_landmarks(c, mesh, source).points
     scan = _scan_surface(c, rig, mesh, alignment, source, ibug) if m.topology == "scan" else None
-    return Character(c, rig, h, base, scan)
+    return Character(c, *_with_hair(c, rig, h), base, scan)
 
 
 def _needs_ibug(m: MeshSpec) -> bool:

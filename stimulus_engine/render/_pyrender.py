@@ -28,7 +28,7 @@ import OpenGL.contextdata  # noqa: E402
 import pyrender  # noqa: E402
 import pyrender.shader_program as _sp  # noqa: E402
 
-__all__ = ["pyrender", "phong_fragment_shader", "shadow_fragment_shader", "platform"]
+__all__ = ["pyrender", "alpha_test_fragment_shader", "phong_fragment_shader", "shadow_fragment_shader", "platform"]
 
 
 def _context_key() -> object:
@@ -69,6 +69,7 @@ _GLOSSY_SETUP = """#ifdef USE_GLOSSY_MATERIAL
 #ifdef HAS_DIFFUSE_TEX
     base_color = base_color * srgb_to_linear(texture(material.diffuse_texture, uv_0));
 #endif
+    if (base_color.a < ALPHA_CUTOFF) discard;
     vec3 f0 = material.specular_factor;
     float glossiness = material.glossiness_factor;
 #ifdef HAS_SPECULAR_GLOSSINESS_TEX
@@ -102,6 +103,21 @@ def _once(text: str, anchor: str) -> int:
         raise RuntimeError(f"pyrender's mesh.frag changed (anchor {anchor!r} found {text.count(anchor)} times); "
                            "the Phong shader patch was written for pyrender 0.1.45")
     return text.index(anchor)
+
+
+#: Alpha below which a fragment is not drawn (alpha-tested cards: hair; opaque parts have alpha 1).
+ALPHA_CUTOFF = 0.5
+
+
+def alpha_test_fragment_shader(text: str) -> str:
+    """pyrender 0.1.45's ``mesh.frag`` with an alpha test: fragments whose base colour's alpha
+    is below :data:`ALPHA_CUTOFF` are discarded (pyrender only blends, unsorted, so hair cards
+    drawn with blending show the cards behind them in the wrong order)."""
+    anchor = "    base_color = base_color * srgb_to_linear(texture(material.base_color_texture, uv_0));\n#endif\n"
+    i = _once(text, anchor) + len(anchor)
+    text = text[:i] + "    if (base_color.a < ALPHA_CUTOFF) discard;\n" + text[i:]
+    i = _once(text, "float texture2DCompare(")
+    return text[:i] + f"const float ALPHA_CUTOFF = {ALPHA_CUTOFF};\n\n" + text[i:]
 
 
 def phong_fragment_shader(text: str) -> str:
@@ -252,7 +268,7 @@ def _mesh_shader_path(shader_dir: str, glossy: bool) -> str:
     import tempfile
 
     with open(os.path.join(shader_dir, "mesh.frag")) as f:
-        text = shadow_fragment_shader(f.read())
+        text = alpha_test_fragment_shader(shadow_fragment_shader(f.read()))
     if glossy:
         text = phong_fragment_shader(text)
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]

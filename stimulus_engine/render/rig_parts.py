@@ -20,9 +20,10 @@ import numpy as np
 import trimesh
 
 from stimulus_engine.materials import SHADINGS
+from stimulus_engine.hair import Hair
 from stimulus_engine.rig import FaceRig
 
-__all__ = ["rig_render_parts"]
+__all__ = ["hair_render_part", "rig_render_parts"]
 
 #: Colours of the untextured parts (linear RGB, alpha). ``mouth`` is the mouth socket (dark, it
 #: is mostly in shadow inside a real mouth), ``tongue`` gums and tongue.
@@ -157,4 +158,41 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex,
                         _PART_ROUGHNESS.get(name, 0.62), normal_map if skin else None, specular_map if skin else None)
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name))
+    if rig.hair is not None:
+        parts.append(hair_render_part(rig.hair, v, shading))
     return parts
+
+
+#: Roughness of hair (a soft sheen: the cards have no strand-level normals, and a sharper highlight
+#: showed the mesh's facets as grey patches).
+HAIR_ROUGHNESS = 0.8
+
+
+def hair_render_part(hair: Hair, vertices: np.ndarray, shading: str = "pbr") -> object:
+    """The rig's hair (:mod:`stimulus_engine.hair`), posed on ``vertices``, as an alpha-tested
+    double-sided part; its grey strand texture is multiplied by the hair colour."""
+    from stimulus_engine.render.renderer import RenderPart
+
+    mesh = trimesh.Trimesh(hair.pose(vertices), hair.faces, process=False)
+    mesh.visual = trimesh.visual.TextureVisuals(uv=hair.uv)
+    return RenderPart(mesh, material=_hair_material(shading, hair.colour, hair.texture), smooth=True, name="hair")
+
+
+def _hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray) -> object:
+    """A cached material per (shading, colour, texture) for the hair (see :func:`_material`)."""
+    key = ("hair", shading, tuple(colour), id(texture))
+    hit = _MATERIALS.get(key)
+    if hit is not None and hit[0][0] is texture:
+        return hit[1]
+    from stimulus_engine.render._pyrender import pyrender
+
+    tex = pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGBA")
+    if shading == "phong":
+        mat = pyrender.material.SpecularGlossinessMaterial(
+            diffuseFactor=(*colour, 1.0), diffuseTexture=tex, specularFactor=(_PHONG_SPECULAR,) * 3,
+            glossinessFactor=1.17 - HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
+    else:
+        mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0,
+                                                 roughnessFactor=HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
+    _MATERIALS[key] = ((texture,), mat)
+    return mat

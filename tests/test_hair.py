@@ -1,0 +1,192 @@
+"""Hair for bald rigs: the shipped asset, its fit onto a rig, posing, rendering and the grid field."""
+
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from stimulus_engine.hair import (
+    MIN_LIFT_IOD, Hair, fit_hair, hair_arrays, hair_asset, hair_from_arrays, head_points, linear_rgb,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def ict(shared_data):
+    from stimulus_engine.ict import load_ict_rig
+
+    return load_ict_rig(shared_data / "meshes" / "ict-facekit", "identity000")
+
+
+def _skin(rig) -> trimesh.Trimesh:
+    return trimesh.Trimesh(rig.vertices, rig.faces[rig.face_part == rig.part_names.index("skin")], process=False)
+
+
+def test_the_shipped_asset_is_consistent():
+    a = hair_asset("short")
+    assert a.anchors.shape == (len(a.uv), 3) and a.lift.shape == (len(a.uv),) and a.head.shape == (7, 3)
+    assert a.faces.max() == len(a.uv) - 1 and a.texture.shape == (512, 512, 4)
+    alpha = a.texture[..., 3]
+    assert set(np.unique(alpha)) == {0, 255}  # alpha-tested: hair or nothing
+    assert 0.3 < (alpha == 255).mean() < 0.95
+    with pytest.raises(ValueError, match="unknown hair style 'long'"):
+        hair_asset("long")
+
+
+def test_the_asset_script_rebuilds_the_shipped_files(shared_data, tmp_path):
+    spec = importlib.util.spec_from_file_location("make_hair_asset", ROOT / "scripts" / "make_hair_asset.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    mod.main(shared_data / "meshes" / "makehuman-cc0", tmp_path)
+    new, old = np.load(tmp_path / "short02.npz"), np.load(ROOT / "stimulus_engine" / "data" / "hair" / "short02.npz")
+    for k in old.files:
+        np.testing.assert_allclose(new[k], old[k], atol=1e-6, err_msg=k)
+    from PIL import Image
+
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "short02.png")), hair_asset("short").texture)
+
+
+def test_head_points_find_top_back_front_and_sides_of_a_sphere():
+    s = trimesh.creation.icosphere(subdivisions=4, radius=10.0)
+    eyes = np.array([[-3.0, 0.0, 9.0], [3.0, 0.0, 9.0]])
+    p = head_points(s.vertices, *eyes)
+    np.testing.assert_allclose(p[:2], eyes)
+    assert p[2, 1] == pytest.approx(10.0, abs=0.2)  # top
+    assert p[3, 2] < -9 and p[4, 2] > 9  # back, front
+    assert p[5, 0] < -9 and p[6, 0] > 9  # right, left sides
+    with pytest.raises(ValueError, match="no head surface above the eyes"):
+        head_points(s.vertices[s.vertices[:, 1] < 0], *eyes)
+
+
+def test_hair_sits_on_the_scalp_outside_the_skin(ict):
+    hair = fit_hair(ict)
+    v = hair.pose(ict.vertices)
+    skin = _skin(ict)
+    lm = ict.landmark_points()
+    iod = float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
+    # every hair vertex is lifted along the skin's normal by at least the minimum lift
+    _, dist, _ = trimesh.proximity.closest_point(skin, v)
+    assert dist.min() > 0.5 * MIN_LIFT_IOD * iod and np.median(dist) < 0.5 * iod
+    # it covers the crown and the back of the head, not the face
+    top = ict.vertices[ict.skin][np.argmax(ict.vertices[ict.skin, 1])]
+    assert np.linalg.norm(v - top, axis=1).min() < 0.3 * iod
+    front = (v[:, 2] > lm["eye_right"][2] - 0.3 * iod) & (np.abs(v[:, 0]) < 0.75 * iod)  # over the forehead
+    assert front.any() and v[front, 1].min() > lm["eye_right"][1] + 0.2 * iod  # the fringe stays above the eyes
+    assert v[:, 1].max() > top[1]
+
+
+def test_hair_follows_the_skin_through_stylisation_and_identities(shared_data, ict):
+    from stimulus_engine.ict import load_ict_rig
+    from stimulus_engine.stylise import stylise
+
+    hair = fit_hair(ict)
+    cartoon = stylise(ict, 1.0)
+    rise = cartoon[ict.skin, 1].max() - ict.vertices[ict.skin, 1].max()
+    assert rise > 0.5  # the cranium grows ...
+    hv0, hv1 = hair.pose(ict.vertices), hair.pose(cartoon)
+    assert hv1[:, 1].max() - hv0[:, 1].max() == pytest.approx(rise, rel=0.25)  # ... and the hair with it
+    # posing is exact for the binding: the offset from the bound skin point is kept
+    np.testing.assert_allclose(hv1 - np.einsum("mk,mkd->md", hair.bary, cartoon[hair.corners]), hair.offset)
+    other = load_ict_rig(shared_data / "meshes" / "ict-facekit", "identity001")
+    _, dist, _ = trimesh.proximity.closest_point(_skin(other), hair.pose(other.vertices))
+    assert dist.min() > 0  # fitted on one identity, still outside another's skin
+
+
+def test_hair_arrays_round_trip(ict):
+    hair = fit_hair(ict, colour=linear_rgb("#6b4a2f"))
+    back = hair_from_arrays(hair_arrays(hair))
+    assert isinstance(back, Hair) and back.colour == hair.colour
+    for k in ("corners", "bary", "offset", "faces", "uv", "texture"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(hair, k))
+    assert hair_from_arrays({}) is None and hair_arrays(None) == {}
+
+
+def test_linear_rgb_is_the_srgb_curve():
+    assert linear_rgb("#000000") == (0.0, 0.0, 0.0) and linear_rgb("#ffffff") == (1.0, 1.0, 1.0)
+    assert linear_rgb("#808080")[0] == pytest.approx(0.21586, abs=1e-5)  # sRGB 128 -> 0.2159 linear
+
+
+@pytest.mark.render
+def test_alpha_tested_texels_are_not_drawn():
+    """A quad whose texture is opaque red on the left half and alpha 0 on the right: the right
+    half shows the background (pyrender alone would blend it, unsorted)."""
+    from stimulus_engine.hair import Hair
+    from stimulus_engine.render import CameraSpec, render_mesh
+    from stimulus_engine.render.rig_parts import hair_render_part
+
+    tex = np.zeros((64, 64, 4), np.uint8)
+    tex[:, :32] = (255, 255, 255, 255)
+    tex[:, 32:] = (255, 255, 255, 0)
+    v = np.array([[-1.0, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
+    hair = Hair(np.zeros((4, 3), np.int64), np.tile([1.0, 0, 0], (4, 1)), v, np.array([[0, 1, 2], [0, 2, 3]]),
+                np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]]), tex, (0.8, 0.1, 0.1))
+    part = hair_render_part(hair, np.zeros((1, 3)))
+    cam = CameraSpec((0.0, 0.0, 4.0), (0.0, 0.0, 0.0), 40.0, (0.0, 1.0, 0.0))
+    img = render_mesh([part], width=200, height=200, camera=cam, lighting="flat", background=(0.0, 0.0, 1.0))
+    left, right = img[100, 70].astype(int), img[100, 130].astype(int)
+    assert left[0] > 200 and left[0] - left[2] > 100  # the hair colour
+    assert tuple(right) == (0, 0, 255)  # the background, untouched
+
+
+@pytest.mark.render
+def test_a_grid_ict_character_has_hair_by_default(shared_data, tmp_path):
+    """Rendered: dark hair above the forehead with the default, skin there with hair: none."""
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid_schema import GridFile
+
+    ict = shared_data / "meshes" / "ict-facekit"
+    p = tmp_path / "hair.yaml"
+    p.write_text(f"""kind: grid
+name: hair
+characters:
+  - {{name: with, ict: {ict}}}
+  - {{name: without, ict: {ict}, hair: none}}
+shapes: [0.0]
+materials: [original]
+expressions: [neutral]
+lighting: [gi_soft]
+shading: [pbr]
+render: {{width: 256, height: 192}}
+""")
+    run_grid(load_study_file(p, GridFile), tmp_path, n_jobs=1)
+    from PIL import Image
+
+    imgs = {n: np.asarray(Image.open(next((tmp_path / "images").glob(f"{n}_*.png"))), float) for n in ("with", "without")}
+    # the top of the head: the column through the face's middle, above the first face pixel rows
+    col = imgs["without"][:, 118:138].mean(axis=1)
+    head_top = int(np.argmax(np.abs(col - col[0]).sum(axis=1) > 30))
+    band = slice(head_top + 3, head_top + 12)
+    with_hair, bald = imgs["with"][band, 118:138].mean(), imgs["without"][band, 118:138].mean()
+    assert with_hair < 0.6 * bald
+
+
+def test_the_hair_field_of_a_character():
+    from stimulus_engine.grid_schema import CharacterSpec
+
+    ict = {"name": "a", "ict": str(ROOT)}
+    assert CharacterSpec.model_validate(ict).hair_style == "short"
+    assert CharacterSpec.model_validate({**ict, "hair": "none"}).hair_style is None
+    assert CharacterSpec.model_validate({"name": "p", "procedural": {}}).hair_style is None
+    assert CharacterSpec.model_validate({"name": "p", "procedural": {}, "hair": "short"}).hair_style == "short"
+    mesh = {**ict, "mesh": {"file": str(ROOT / "README.md")}}
+    assert CharacterSpec.model_validate(mesh).hair_style is None
+    with pytest.raises(ValueError, match="shows its own hair"):
+        CharacterSpec.model_validate({**mesh, "mesh": {**mesh["mesh"], "topology": "scan"}, "hair": "short"})
+    with pytest.raises(ValueError, match="hair_colour"):
+        CharacterSpec.model_validate({**ict, "hair_colour": "brown"})
+
+
+def test_a_rig_with_hair_survives_the_render_cache(ict, tmp_path):
+    from stimulus_engine.grid.cache import load_rig, save_rig
+
+    rig = replace(ict, hair=fit_hair(ict))
+    save_rig(tmp_path / "r.npz", rig)
+    back = load_rig(str(tmp_path / "r.npz"))
+    np.testing.assert_array_equal(back.hair.pose(ict.vertices), rig.hair.pose(ict.vertices))
