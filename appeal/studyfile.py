@@ -17,7 +17,7 @@ from typing import Annotated, Any, TypeVar, Union
 import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, ValidationInfo
 
-from appeal.errors import StudyFileError
+from appeal.errors import AppealInputError, StudyFileError
 
 __all__ = [
     "StudyModel",
@@ -47,6 +47,14 @@ def _base_dir(info: ValidationInfo) -> Path:
 
 
 def _resolve(value: Path, info: ValidationInfo) -> Path:
+    text = str(value)
+    if text.startswith("data:"):  # a registered dataset (appeal data), not a path
+        from appeal.datasets import resolve_reference
+
+        try:
+            return resolve_reference(text, missing_ok=not (info.context or {}).get("check_paths", True))
+        except AppealInputError as exc:
+            raise ValueError(str(exc)) from None
     value = Path(value).expanduser()
     if not value.is_absolute():
         value = _base_dir(info) / value

@@ -14,6 +14,7 @@ CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 @click.group(context_settings=CONTEXT, epilog="""\b
 Examples:
   appeal demo --out demo_out                      # the whole pipeline on built-in assets
+  appeal data fetch --for protocols/grids/exp1a_shape_material.yaml   # the third-party data it names
   appeal validate protocols/*.yaml protocols/grids/*.yaml
   appeal stimuli grid protocols/grids/exp2_stylisation.yaml --out stimuli/exp2
   appeal run protocols/exp2_stylisation.yaml --participant 01 --out data
@@ -32,6 +33,7 @@ def cli(verbose: bool, quiet: bool) -> None:
       stimuli   build face stimuli (3D correspondence, grids, morph-space PCA models)
       run       present a protocol to a participant (PsychoPy) and record the data
       analyze   statistics on ratings and EEG (rm-ANOVA, post-hocs, ERP windows)
+      data      fetch and check the third-party datasets the study files name (data:NAME)
     """
     set_log_level(True if verbose else (False if quiet else None))
     set_quiet(quiet)

@@ -98,7 +98,7 @@ def neoteny(manifest: Path, out: Path | None, force: bool, resume: bool) -> None
 
 @stimuli.command("photo-sheet", context_settings=CONTEXT, epilog="""\b
 Examples:
-  appeal stimuli photo-sheet stimuli/exp2/manifest.csv --photo ../shared/data/faces2d/london-frl/neutral_front/001_03.jpg --out exp2_vs_photo.png
+  appeal stimuli photo-sheet stimuli/exp2/manifest.csv --photo "$(appeal data path london-frl)/neutral_front/001_03.jpg" --out exp2_vs_photo.png
   appeal stimuli photo-sheet stimuli/erp/manifest.csv --photo a.jpg --photo b.jpg --out erp_vs_photo.png""")
 @click.argument("manifest", metavar="MANIFEST", type=click.Path(path_type=Path))
 @click.option("--photo", "photos", multiple=True, required=True, type=click.Path(path_type=Path),

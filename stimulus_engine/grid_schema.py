@@ -7,7 +7,7 @@ Example (``protocols/grids/exp1a_shape_material.yaml``)::
     name: exp1a_shape_material
     characters:
       - name: ict000
-        ict: ../../../shared/data/meshes/ict-facekit
+        ict: data:ict-facekit               # a registered dataset: appeal data fetch ict-facekit
         identity: identity000
     shapes: [0.0, 0.5, 1.0]                 # stylisation levels (0 realistic ... 1 cartoon)
     materials: [original, blur50, flat]     # albedo styles, or {name, style, from_character}
@@ -15,7 +15,8 @@ Example (``protocols/grids/exp1a_shape_material.yaml``)::
     lighting: [gi_soft]
     shading: [pbr]
 
-Relative paths resolve against the grid file's folder.
+Relative paths resolve against the grid file's folder; ``data:NAME[/file]`` names a registered
+dataset (:mod:`appeal.datasets`).
 """
 
 from __future__ import annotations

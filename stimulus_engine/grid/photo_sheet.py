@@ -86,7 +86,7 @@ def realism_sheet(manifest_path: str | Path, photos: Sequence[str | Path], *, th
     manifest_path : path-like
         A rendered grid's ``manifest.csv`` (image paths are relative to its folder).
     photos : sequence of path-like
-        Frontal photographs of real people (e.g. ``../shared/data/faces2d/london-frl/neutral_front/``).
+        Frontal photographs of real people (e.g. ``neutral_front/`` of the ``london-frl`` dataset: ``appeal data path london-frl``).
     thumb_width : int
         Width of each cell.
     """

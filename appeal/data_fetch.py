@@ -1,0 +1,167 @@
+"""Download and check the registered datasets (:mod:`appeal.datasets`): ``appeal data fetch|verify``.
+
+Each file is downloaded over HTTP(S) into ``FILE.part`` next to its place in the data tree,
+resumed with a ``Range`` request when a ``.part`` is left from an interrupted fetch, checked
+against the registry's sha256 and only then moved into place, so a data tree never holds a
+half-written or unchecked file under its real name. Files already there with the right content
+are not downloaded again; a corrupted one is fetched anew. Sources: the file's upstream URL,
+or a mirror of the whole data tree (``base_url``: ``BASE/FOLDER/FILE``, e.g. a lab's server or a
+test's loopback server).
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import os
+import shutil
+import sys
+import urllib.error
+import urllib.request
+from dataclasses import dataclass
+from pathlib import Path
+
+from appeal.datasets import DataFile, Dataset, dataset, fetch_root
+from appeal.errors import AppealInputError
+from appeal.progress import progress_enabled
+
+__all__ = ["MIRROR_ENV", "FetchReport", "content_sha256", "fetch_dataset", "verify_dataset"]
+
+#: Environment variable naming a mirror of the data tree (used when ``--url`` is not given).
+MIRROR_ENV = "APPEAL_DATA_URL"
+_CHUNK = 1 << 16
+_TIMEOUT_S = 30
+
+
+def content_sha256(path: Path, gz: bool = False) -> str:
+    """sha256 of a file's content (of the decompressed bytes when ``gz``)."""
+    h = hashlib.sha256()
+    with (gzip.open(path, "rb") if gz else open(path, "rb")) as f:
+        for block in iter(lambda: f.read(_CHUNK), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _state(path: Path, f: DataFile) -> str:
+    if not path.is_file():
+        return "missing"
+    try:
+        return "ok" if content_sha256(path, f.gzip) == f.sha256 else "corrupt"
+    except (OSError, EOFError, gzip.BadGzipFile):
+        return "corrupt"
+
+
+def verify_dataset(name: str, root: Path | None = None) -> list[tuple[str, str]]:
+    """``(file, state)`` for every file of dataset ``name`` in the data tree ``root`` (default:
+    :func:`appeal.datasets.fetch_root`); state is ``ok``, ``missing`` or ``corrupt``."""
+    ds = dataset(name)
+    folder = (root or fetch_root()) / ds.folder
+    return [(f.path, _state(folder / f.path, f)) for f in ds.files]
+
+
+@dataclass
+class FetchReport:
+    """What :func:`fetch_dataset` did: files downloaded, already there, and their folder."""
+
+    dataset: Dataset
+    folder: Path
+    downloaded: list[str]
+    present: list[str]
+
+
+def _source(ds: Dataset, f: DataFile, base_url: str | None) -> str:
+    if base_url:
+        return f"{base_url.rstrip('/')}/{ds.folder}/{f.path}"
+    if f.url is None:
+        raise AppealInputError(f"{ds.name}: {f.path} has no public upstream copy ({ds.upstream}); fetch it from a "
+                               f"mirror of the data tree: {ds.fetch_command} --url URL (or set {MIRROR_ENV})")
+    return f.url
+
+
+def _download(src: str, part: Path, bar: object | None) -> None:
+    """``src`` into ``part``, continuing a partial ``part`` with a Range request."""
+    have = part.stat().st_size if part.exists() else 0
+    req = urllib.request.Request(src, headers={"User-Agent": "appeal-lab", **({"Range": f"bytes={have}-"} if have else {})})
+    with urllib.request.urlopen(req, timeout=_TIMEOUT_S) as resp:
+        resumed = have and resp.status == 206
+        if bar is not None and resumed:
+            bar.update(have)
+        with open(part, "ab" if resumed else "wb") as out:
+            for block in iter(lambda: resp.read(_CHUNK), b""):
+                out.write(block)
+                if bar is not None:
+                    bar.update(len(block))
+
+
+def _fetch_file(ds: Dataset, f: DataFile, dest: Path, base_url: str | None, bar: object | None) -> None:
+    src = _source(ds, f, base_url)
+    part = dest.with_name(dest.name + ".part")
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        _download(src, part, bar)
+    except urllib.error.HTTPError as exc:
+        if not (exc.code == 416 and part.exists()):  # 416: the partial file is already whole
+            raise AppealInputError(f"{ds.name}: cannot download {f.path} from {src} (HTTP {exc.code} {exc.reason}); "
+                                   f"retry: {ds.fetch_command}") from None
+    except (urllib.error.URLError, OSError, ValueError) as exc:
+        reason = getattr(exc, "reason", None) or exc
+        raise AppealInputError(f"{ds.name}: cannot download {f.path} from {src} ({reason}); check the connection "
+                               f"and retry: {ds.fetch_command}") from None
+    upstream_raw = f.gzip and not base_url  # upstream serves the uncompressed file
+    got = content_sha256(part, f.gzip and not upstream_raw) if part.is_file() else ""
+    if got != f.sha256:
+        part.unlink(missing_ok=True)
+        raise AppealInputError(f"{ds.name}: {f.path} from {src} has sha256 {got[:12]}..., expected "
+                               f"{f.sha256[:12]}... (a corrupted download, or the source changed); the partial "
+                               f"file was removed, retry: {ds.fetch_command}")
+    if upstream_raw:
+        packed = dest.with_name(dest.name + ".gz-part")
+        with open(part, "rb") as src_f, gzip.GzipFile(packed, "wb", mtime=0) as out:
+            shutil.copyfileobj(src_f, out)
+        part.unlink()
+        part = packed
+    os.replace(part, dest)
+
+
+def fetch_dataset(name: str, *, base_url: str | None = None, root: Path | None = None) -> FetchReport:
+    """Download what is missing or corrupted of dataset ``name`` into the data tree.
+
+    Parameters
+    ----------
+    name : str
+        A registered dataset (``appeal data list``).
+    base_url : str, optional
+        A mirror of the data tree (default: ``$APPEAL_DATA_URL``, else each file's upstream URL).
+    root : Path, optional
+        The data tree (default :func:`appeal.datasets.fetch_root`).
+
+    Returns
+    -------
+    FetchReport
+
+    Raises
+    ------
+    AppealInputError
+        One line naming the dataset, the file, the source and the command to retry.
+    """
+    from tqdm.auto import tqdm
+
+    ds = dataset(name)
+    base_url = base_url or os.environ.get(MIRROR_ENV) or None
+    folder = (root or fetch_root()) / ds.folder
+    todo, present = [], []
+    for f in ds.files:
+        (present if _state(folder / f.path, f) == "ok" else todo).append(f)
+    # documentation files without a source are skipped rather than failing the dataset
+    todo = [f for f in todo if not (f.docs and f.url is None and not base_url)]
+    for f in todo:
+        _source(ds, f, base_url)  # every file has a source before anything is downloaded
+    raw = any(f.gzip for f in todo) and not base_url  # sizes are of the stored (compressed) files
+    bar = tqdm(total=None if raw else sum(f.size for f in todo), unit="B", unit_scale=True, desc=name, file=sys.stderr,
+               disable=not progress_enabled() or not todo, leave=False)
+    try:
+        for f in todo:
+            _fetch_file(ds, f, folder / f.path, base_url, bar)
+    finally:
+        bar.close()
+    return FetchReport(ds, folder, [f.path for f in todo], [f.path for f in present])

@@ -1,0 +1,150 @@
+"""Rebuild ``appeal/assets/datasets.json``, the registry behind ``appeal data``.
+
+For every dataset below, each file of its folder in a data tree laid out like ``shared/data``
+gets its size and the sha256 of its content (of the decompressed bytes for ``.gz`` files, which
+upstream serves uncompressed), and, when the same bytes are a file of a local snapshot of the
+upstream git repository (matched by git blob id), the URL of that file at the snapshot's commit
+on raw.githubusercontent.com. Files without such a match (a copy converted by the curator) can
+only be fetched from a mirror of the data tree (``appeal data fetch --url``).
+
+Usage::
+
+    python scripts/make_data_registry.py ../shared/data /work/.mirror
+
+where the second folder holds one ``OWNER+REPO/repo`` bare git snapshot per upstream.
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+OUT = Path(__file__).resolve().parents[1] / "appeal" / "assets" / "datasets.json"
+
+#: name -> folder (in the data tree), files (glob patterns in it; default all), description,
+#: licence, credit, upstream (for people), files that are documentation only (not needed to run).
+DATASETS: dict[str, dict] = {
+    "ict-facekit": {
+        "folder": "meshes/ict-facekit",
+        "description": "ICT Face Model (light): neutral head, 3 identities and 33 ARKit/FACS expression "
+                       "blendshapes in one topology (26,719 vertices, UVs), with its region table",
+        "licence": "MIT",
+        "credit": "ICT Face Model, USC Institute for Creative Technologies Vision and Graphics Lab "
+                  "(Li et al. 2020, 'Learning Formation of Physically-Based Face Attributes', CVPR)",
+        "upstream": "https://github.com/ICT-VGL/ICT-FaceKit (FaceXModel/)",
+    },
+    "menpo3d-james": {
+        "folder": "meshes/menpo3d-james",
+        "description": "textured 3D face scan 'james' (6,393 vertices, 2400x1600 photo texture, 68 3D landmarks)",
+        "licence": "BSD-3-Clause",
+        "credit": "menpo3d sample data, (c) 2014 Imperial College London and the menpo developers",
+        "upstream": "https://github.com/menpo/menpo3d (menpo3d/data/)",
+    },
+    "leeperrysmith": {
+        "folder": "meshes/leeperrysmith",
+        "description": "photographic head scan of Lee Perry-Smith (9,223 vertices, 1024x1024 albedo and "
+                       "normal map; eyes closed)",
+        "licence": "CC-BY-3.0",
+        "credit": "'Infinite, 3D Head Scan' by Lee Perry-Smith (Infinite-Realities), CC BY 3.0",
+        "upstream": "three.js examples, examples/models/gltf/LeePerrySmith/ (Draco-compressed GLB; "
+                    "the OBJ here is decoded from it, so it comes from a mirror only)",
+    },
+    "makehuman-cc0": {
+        "folder": "meshes/makehuman-cc0",
+        "description": "MakeHuman base mesh with CC0 eyes, eyebrows, eyelashes and short hair proxies "
+                       "and their .mhclo fitting files",
+        "licence": "CC0-1.0",
+        "credit": "MakeHuman assets, (c) 2020 Data Collection AB, Joel Palmius, Jonas Hauquier (released CC0)",
+        "upstream": "https://github.com/makehumancommunity/makehuman and makehuman-assets",
+        "docs": ["README.md"],
+    },
+    "mediapipe-canonical": {
+        "folder": "meshes/mediapipe-canonical",
+        "description": "MediaPipe canonical face mesh (468 vertices, UVs)",
+        "licence": "Apache-2.0",
+        "credit": "MediaPipe, (c) Google LLC",
+        "upstream": "https://github.com/google-ai-edge/mediapipe (mediapipe/modules/face_geometry/data/)",
+    },
+    "london-frl": {
+        "folder": "faces2d/london-frl",
+        "description": "Face Research Lab London Set (30 identities here): neutral photos with 189-point "
+                       ".tem templates, smiling photos, composites, age/gender/ethnicity table; 1350x1350",
+        "licence": "CC-BY-4.0",
+        "credit": "DeBruine, L. & Jones, B. (2017). Face Research Lab London Set. figshare. "
+                  "doi:10.6084/m9.figshare.5047666.v5",
+        "upstream": "https://github.com/debruine/webmorphR.stim (inst/)",
+    },
+    "biosemi-mne": {
+        "folder": "eeg/biosemi",
+        "files": ["test.bdf", "test_bdf_eeglab.mat", "test_bdf_stim_channel.bdf", "multiple_annotation_chans.bdf"],
+        "description": "BioSemi BDF test recordings of MNE-Python (64+8 channels at 2048 Hz; 3 channels with "
+                       "triggers; trigger and annotation channels) and EEGLAB's reading of test.bdf",
+        "licence": "BSD-3-Clause",
+        "credit": "MNE-Python and mne-testing-data, (c) the MNE-Python developers",
+        "upstream": "https://github.com/mne-tools/mne-python (mne/io/edf/tests/data/), mne-tools/mne-testing-data (BDF/)",
+    },
+    "biosemi-newtest17": {
+        "folder": "eeg/biosemi",
+        "files": ["Newtest17-256.bdf"],
+        "description": "BioSemi's sample recording Newtest17-256 (16 channels + Status, 256 Hz, 60 s)",
+        "licence": "MIT",
+        "credit": "BioSemi sample data, distributed with the eeguana R package (c) Bruno Nicenboim",
+        "upstream": "https://github.com/bnicenboim/eeguana (inst/testdata/)",
+    },
+}
+
+
+def _blob(data: bytes) -> str:
+    return hashlib.sha1(b"blob %d\0" % len(data) + data).hexdigest()
+
+
+def _snapshots(mirrors: Path) -> dict[str, str]:
+    """git blob id -> raw URL of that file at the snapshot's commit."""
+    index: dict[str, str] = {}
+    for snap in sorted(mirrors.iterdir()):
+        repo = snap / "repo"
+        if not repo.exists() or "+" not in snap.name:
+            continue
+        owner, name = snap.name.split("+", 1)
+        git = ["git", "-C", str(repo)]
+        commit = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+        tree = subprocess.run([*git, "ls-tree", "-r", "HEAD"], capture_output=True, text=True, check=True).stdout
+        for line in tree.splitlines():
+            meta, path = line.split("\t", 1)
+            index.setdefault(meta.split()[2], f"https://raw.githubusercontent.com/{owner}/{name}/{commit}/{path}")
+    return index
+
+
+def main(data: Path, mirrors: Path) -> None:
+    index = _snapshots(mirrors)
+    out = {}
+    for name, spec in DATASETS.items():
+        folder = data / spec["folder"]
+        names = spec.get("files") or sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
+        files = []
+        for rel in names:
+            raw = (folder / rel).read_bytes()
+            gz = rel.endswith(".gz")
+            content = gzip.decompress(raw) if gz else raw
+            entry = {"path": rel, "sha256": hashlib.sha256(content).hexdigest(), "size": len(raw),
+                     "url": index.get(_blob(content))}
+            if gz:
+                entry["gzip"] = True
+            if rel in spec.get("docs", ()):
+                entry["docs"] = True
+            files.append(entry)
+        out[name] = {k: v for k, v in spec.items() if k not in ("files", "docs")} | {"files": files}
+        n_url = sum(f["url"] is not None for f in files)
+        print(f"{name}: {len(files)} files, {sum(f['size'] for f in files) / 1e6:.1f} MB, {n_url} with an upstream URL")
+    OUT.write_text(json.dumps(out, indent=1) + "\n")
+    print(OUT)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3:
+        raise SystemExit(__doc__)
+    main(Path(sys.argv[1]), Path(sys.argv[2]))
