@@ -13,18 +13,20 @@ scan becomes a real eye:
    an interpupillary distance of 63 mm: 0.19 × the distance between the two eye centres), its
    front pole on the painted surface, looking ahead (:func:`place_eyeballs`);
 4. a socket (the conjunctiva: dark, wet pink) closes the opening behind the eyeball, so the
-   corners of the eye, where the ball curves away, show tissue and not the inside of the head.
+   corners of the eye, where the ball curves away, show tissue and not the inside of the head;
+5. the bare upper lid margins get lashes (:mod:`stimulus_engine.eyelashes`).
 
 Everything is in the rig's frame (+y up, +z towards the viewer).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from stimulus_engine.eyes import eyeball_asset
+from stimulus_engine.eyelashes import lash_strip
 from stimulus_engine.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, push_behind, relax_around
 
 __all__ = ["EyeGeometry", "eye_geometry", "lid_contour", "cut_openings", "place_eyeballs",
@@ -54,6 +56,9 @@ class EyeGeometry:
         Each socket's vertices (the contour, then the centre pushed back) and fan faces.
     texture : (H, W, 3) uint8 array
         The eyeball texture.
+    lashes : list of ((R, 3) array, (L, 3) int array, (R, 2) array)
+        Each upper lid's lash strip (:func:`stimulus_engine.eyelashes.lash_strip`): vertices,
+        faces, UVs; drawn with :func:`stimulus_engine.eyelashes.lash_texture`.
     """
 
     keep: np.ndarray
@@ -63,6 +68,7 @@ class EyeGeometry:
     ball_uv: list[np.ndarray]
     sockets: list[tuple[np.ndarray, np.ndarray]]
     texture: np.ndarray
+    lashes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
 def lid_contour(points: np.ndarray, n: int = 8) -> np.ndarray:
@@ -285,4 +291,7 @@ def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray
         eye_texture = tint_iris(eye_texture, painted_iris_colour(*texture, ~keep))
     eye_texture = lid_shadow(eye_texture, templates)
     sockets = [_socket(c, radius) for c in contours]
-    return EyeGeometry(keep, v, balls, [t[1] for t in templates], [t[2] for t in templates], sockets, eye_texture)
+    half = len(contours[0]) // 2  # the upper arc, corner to corner
+    lashes = [lash_strip(c[:half + 1], float(np.linalg.norm(p[3] - p[0]))) for c, p in zip(contours, pts)]
+    return EyeGeometry(keep, v, balls, [t[1] for t in templates], [t[2] for t in templates], sockets, eye_texture,
+                       lashes)

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stimulus_engine.eyelashes import ROWS as LASH_ROWS
+from stimulus_engine.eyelashes import lash_texture
 from stimulus_engine.rig import FaceRig
 from stimulus_engine.scan_eyes import EyeGeometry
 
@@ -71,9 +73,10 @@ class ScanSurface:
 
 
 def _eye_pieces(eyes: EyeGeometry) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
-    """The eyeballs (part 1) and sockets (part 2) as (vertices, faces, uv, part) pieces."""
+    """The eyeballs (part 1), sockets (part 2) and lashes (part 3) as (vertices, faces, uv, part) pieces."""
     return ([(b, bf, buv, 1) for b, bf, buv in zip(eyes.balls, eyes.ball_faces, eyes.ball_uv)]
-            + [(sv, sf, np.zeros((len(sv), 2)), 2) for sv, sf in eyes.sockets])
+            + [(sv, sf, np.zeros((len(sv), 2)), 2) for sv, sf in eyes.sockets]
+            + [(lv, lf, luv, 3) for lv, lf, luv in eyes.lashes])
 
 
 def _rig_pieces(rig: FaceRig, parts: tuple[str, ...], first: int) -> tuple[list, list[np.ndarray]]:
@@ -156,9 +159,11 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
     f, ft = f[keep], ft[keep]
     part, names, textures, rigid, follow = np.zeros(len(f), np.int64), ["skin"], {}, (), ()
     n_scan = len(v)
+    lashes: list[np.ndarray] = []
     if eyes is not None:
-        v, f, t, ft, part, balls = _with_pieces(v, f, t, ft, part, _eye_pieces(eyes))
-        names, textures = ["skin", "eye", "socket"], {"eye": eyes.texture}
+        v, f, t, ft, part, pieces = _with_pieces(v, f, t, ft, part, _eye_pieces(eyes))
+        balls, lashes = pieces[:len(eyes.balls)], pieces[len(eyes.balls) + len(eyes.sockets):]
+        names, textures = ["skin", "eye", "socket", "lashes"], {"eye": eyes.texture, "lashes": lash_texture()}
         centres = np.array([rig.vertices[s].mean(axis=0) for s in rig.rigid_sets])
         if len(centres):
             rigid = tuple((b, rig.rigid_sets[int(np.argmin(np.linalg.norm(centres - v[b].mean(axis=0), axis=1)))])
@@ -186,6 +191,9 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
         if len(idx):
             hit = SurfaceIndex(rig.vertices, sf).query(v[idx])
             corners[idx], bary[idx] = sf[hit.face], hit.bary
+    for strip in lashes:  # a lash moves with the lid point at its root
+        root = strip[np.arange(len(strip)) % (len(strip) // LASH_ROWS)]
+        corners[strip], bary[strip] = corners[root], bary[root]
     topology = FaceRig(name=name, vertices=v, faces=f, uv=t, face_uv=ft, face_part=part, part_names=tuple(names),
                        landmarks={}, skin=np.flatnonzero(np.isin(np.arange(len(v)), f[part == 0])),
                        part_textures=textures)

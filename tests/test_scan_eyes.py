@@ -198,3 +198,25 @@ def test_lid_shadow_darkens_the_top_of_the_ball_not_its_middle():
         top, middle = px[d[:, 1] > 0.6], px[(np.abs(d[:, 1]) < 0.05) & (np.abs(d[:, 0]) < 0.2)]
         assert np.median(middle) == pytest.approx(200, abs=3)
         assert np.median(top) < 0.7 * 200
+
+
+def test_lash_strip_curls_up_from_the_lid_and_is_longest_towards_the_outer_corner():
+    from stimulus_engine.eyelashes import ROWS, lash_strip, lash_texture
+
+    # the subject's right eye (x < 0): inner corner at x = -1, outer at x = -4
+    arc = lid_contour(_eye_points(-2.5))[:25]  # the upper arc, corner to corner
+    assert arc[0, 0] < arc[-1, 0]
+    v, f, uv = lash_strip(arc, width=3.0)
+    k = len(arc)
+    assert v.shape == (ROWS * k, 3) and f.max() == len(v) - 1 and uv.shape == (len(v), 2)
+    root, tip = v[:k], v[-k:]
+    np.testing.assert_allclose(root[:, :2], arc[:, :2])  # on the lid margin ...
+    assert (root[:, 2] > arc[:, 2]).all()  # ... a little in front of it
+    assert (tip[:, 1] > root[:, 1]).all() and (tip[:, 2] > root[:, 2]).all()  # curled up and forward
+    length = np.linalg.norm(tip - root, axis=1)
+    assert np.argmax(length) < k // 2  # longest on the outer (x = -4, first) half
+    assert length[-1] < 0.4 * length.max() and length[0] < 0.9 * length.max()  # short at the corners, inner most
+    tex = lash_texture()
+    a = tex[..., 3]
+    assert 0.03 < (a > 128).mean() < 0.5 and ((a > 0) & (a < 255)).any()  # strands with soft edges
+    assert (a[-8:] > 0).mean() > (a[:8] > 0).mean()  # more lash at the root (bottom rows) than the tips

@@ -105,8 +105,10 @@ def _once(text: str, anchor: str) -> int:
     return text.index(anchor)
 
 
-#: Alpha below which a fragment is not drawn (alpha-tested cards: hair; opaque parts have alpha 1).
-ALPHA_CUTOFF = 0.5
+#: Alpha below which a fragment is not drawn (alpha-tested cards: hair, whose texture's alpha is 0
+#: or 1; blended cards, lashes, keep their soft edges above it; opaque parts have alpha 1). Low, so
+#: that mipmapped strands far away fade rather than vanish.
+ALPHA_CUTOFF = 0.1
 
 
 def alpha_test_fragment_shader(text: str) -> str:
@@ -287,6 +289,24 @@ _sp.ShaderProgramCache.get_program = _get_program
 # them, not necessarily the same 4 for the skin and the eyes. With shadow maps the limit is the
 # free texture units (13 per light type here). 16 covers every preset.
 pyrender.renderer.MAX_N_LIGHTS = 16
+_shadow_mapping_pass = pyrender.renderer.Renderer._shadow_mapping_pass
+
+
+def _shadow_pass_without_blended(self, scene, light_node, flags):  # type: ignore[no-untyped-def]
+    """pyrender's shadow-map pass without alpha-blended meshes (lashes): the depth pass ignores
+    alpha, so a card casts the shadow of its whole rectangle (a dark band over the eyeball)."""
+    hidden = [n.mesh for n in scene.mesh_nodes if n.mesh.is_visible and n.mesh.primitives
+              and all(getattr(p.material, "alphaMode", "OPAQUE") == "BLEND" for p in n.mesh.primitives)]
+    for m in hidden:
+        m.is_visible = False
+    try:
+        return _shadow_mapping_pass(self, scene, light_node, flags)
+    finally:
+        for m in hidden:
+            m.is_visible = True
+
+
+pyrender.renderer.Renderer._shadow_mapping_pass = _shadow_pass_without_blended
 # pyrender 0.1.45's getter returns ``self.glossinessFactor`` (infinite recursion)
 pyrender.material.SpecularGlossinessMaterial.glossinessFactor = property(
     lambda self: self._glossinessFactor, pyrender.material.SpecularGlossinessMaterial.glossinessFactor.fset)

@@ -72,6 +72,10 @@ def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray |
         return None if a is None else pyrender.Texture(source=np.ascontiguousarray(a), source_channels=channels)
 
     base = (1.0, 1.0, 1.0, 1.0) if texture is not None else colour
+    if texture is not None and texture.shape[-1] == 4:  # cards (lashes): alpha-blended, both sides
+        return pyrender.MetallicRoughnessMaterial(baseColorFactor=base, baseColorTexture=tex(texture, "RGBA"),
+                                                  metallicFactor=0.0, roughnessFactor=roughness, alphaMode="BLEND",
+                                                  doubleSided=True)
     s = None if specular is None else np.asarray(specular, np.float64) / 255.0
     if shading == "pbr":
         mr = None
