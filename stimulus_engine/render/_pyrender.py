@@ -295,8 +295,11 @@ _shadow_mapping_pass = pyrender.renderer.Renderer._shadow_mapping_pass
 def _shadow_pass_without_blended(self, scene, light_node, flags):  # type: ignore[no-untyped-def]
     """pyrender's shadow-map pass without alpha-blended meshes (lashes): the depth pass ignores
     alpha, so a card casts the shadow of its whole rectangle (a dark band over the eyeball)."""
-    hidden = [n.mesh for n in scene.mesh_nodes if n.mesh.is_visible and n.mesh.primitives
-              and all(getattr(p.material, "alphaMode", "OPAQUE") == "BLEND" for p in n.mesh.primitives)]
+    visible = [n.mesh for n in scene.mesh_nodes if n.mesh.is_visible]
+    hidden = [m for m in visible if m.is_transparent and m.primitives  # see-through and blended
+              and all(getattr(p.material, "alphaMode", "OPAQUE") == "BLEND" for p in m.primitives)]
+    if len(hidden) == len(visible):  # pyrender's pass needs one mesh to draw
+        hidden = []
     for m in hidden:
         m.is_visible = False
     try:
