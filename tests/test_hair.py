@@ -190,3 +190,27 @@ def test_a_rig_with_hair_survives_the_render_cache(ict, tmp_path):
     save_rig(tmp_path / "r.npz", rig)
     back = load_rig(str(tmp_path / "r.npz"))
     np.testing.assert_array_equal(back.hair.pose(ict.vertices), rig.hair.pose(ict.vertices))
+
+
+@pytest.mark.render
+def test_a_see_through_blended_card_casts_no_shadow():
+    """Lashes are blended cards; pyrender's shadow-map pass ignores alpha, so a card shadowed its
+    whole rectangle. A nearly empty blended card in front of a lit plane leaves the plane as it was."""
+    from stimulus_engine.render import CameraSpec, RenderPart, render_mesh
+    from stimulus_engine.render._pyrender import _see_through
+    from stimulus_engine.render.rig_parts import _new_material
+
+    tex = np.zeros((32, 32, 4), np.uint8)
+    tex[15:17, 15:17] = (20, 20, 20, 255)  # one small dark dot, the rest see-through
+    card_mat = _new_material("pbr", (0.05, 0.04, 0.04, 1.0), tex, 0.6)
+    assert _see_through(card_mat) and not _see_through(_new_material("pbr", (0.8, 0.6, 0.5, 1.0), None, 0.6))
+    plane = trimesh.Trimesh([[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]], [[0, 1, 2], [0, 2, 3]], process=False)
+    card = trimesh.Trimesh([[-3, -3, 1.5], [3, -3, 1.5], [3, 3, 1.5], [-3, 3, 1.5]], [[0, 1, 2], [0, 2, 3]], process=False)
+    card.visual = trimesh.visual.TextureVisuals(uv=np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]]))
+    cam = CameraSpec((0.0, 0.0, 12.0), (0.0, 0.0, 0.0), 50.0, (0.0, 1.0, 0.0))
+    kw = dict(width=160, height=160, camera=cam, lighting="direct_hard", shadows=True)
+    alone = render_mesh([RenderPart(plane, name="plane")], **kw).astype(float)
+    both = render_mesh([RenderPart(plane, name="plane"), RenderPart(card, material=card_mat, name="card")], **kw).astype(float)
+    away = np.ones((160, 160), bool)
+    away[70:90, 70:90] = False  # around the dot itself
+    assert np.abs(both - alone)[away].mean() < 1.0

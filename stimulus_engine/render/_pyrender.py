@@ -292,12 +292,19 @@ pyrender.renderer.MAX_N_LIGHTS = 16
 _shadow_mapping_pass = pyrender.renderer.Renderer._shadow_mapping_pass
 
 
+def _see_through(material) -> bool:  # type: ignore[no-untyped-def]
+    """A blended material whose RGBA texture has see-through texels (pyrender's own
+    ``Texture.is_transparent`` starts at False and never looks)."""
+    tex = getattr(material, "baseColorTexture", None)
+    return (getattr(material, "alphaMode", "OPAQUE") == "BLEND" and tex is not None
+            and tex.source_channels == "RGBA" and bool(np.any(np.asarray(tex.source)[..., 3] < 255)))
+
+
 def _shadow_pass_without_blended(self, scene, light_node, flags):  # type: ignore[no-untyped-def]
     """pyrender's shadow-map pass without alpha-blended meshes (lashes): the depth pass ignores
     alpha, so a card casts the shadow of its whole rectangle (a dark band over the eyeball)."""
     visible = [n.mesh for n in scene.mesh_nodes if n.mesh.is_visible]
-    hidden = [m for m in visible if m.is_transparent and m.primitives  # see-through and blended
-              and all(getattr(p.material, "alphaMode", "OPAQUE") == "BLEND" for p in m.primitives)]
+    hidden = [m for m in visible if m.primitives and all(_see_through(p.material) for p in m.primitives)]
     if len(hidden) == len(visible):  # pyrender's pass needs one mesh to draw
         hidden = []
     for m in hidden:
