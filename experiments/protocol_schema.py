@@ -104,7 +104,9 @@ class TimingSpec(StudyModel):
         "before", description="fixation before each stimulus, or after it (ERP: face, then jittered cross)")
     iti_s: Seconds = 0.0
     response_deadline_s: Seconds | None = Field(None, gt=0)
-    stimulus_visible_during_response: bool = True
+    stimulus_visible_during_response: bool = Field(
+        False, description="keep a thumbnail of the face on the response screens; the thesis (and the default) "
+                           "shows the face for stimulus_s, then asks without it, so every face is seen equally long")
 
     @field_validator("fixation_s")
     @classmethod
