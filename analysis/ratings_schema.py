@@ -72,6 +72,17 @@ class ScatterFigure(StudyModel):
     point: str
 
 
+class ReferenceSpec(StudyModel):
+    """Ratings of a reference (e.g. photographs of the real actors, thesis §6.4) compared with
+    the matched stylisation levels: ``rows`` selects the reference ratings (the runner's
+    end-of-session items: ``{phase: [end]}``), ``matched`` the within factors whose levels pair
+    by position (``[shape, material]``: s0/m0 ... s4/m4)."""
+
+    name: str = Field("photograph", min_length=1)
+    rows: dict[str, list[str | int | float]] = Field(min_length=1)
+    matched: list[str] = Field(min_length=1)
+
+
 class Figures(StudyModel):
     """Which figures to draw for every scale."""
 
@@ -104,6 +115,7 @@ class RatingsAnalysis(StudyModel):
     posthoc: PosthocOptions = Field(default_factory=PosthocOptions)
     contrasts: list[ContrastSpec] = Field(default_factory=list)
     reliability: list[list[str]] = Field(default_factory=list)
+    reference: ReferenceSpec | None = None
     figures: Figures = Field(default_factory=Figures)
 
     @model_validator(mode="after")
@@ -132,6 +144,10 @@ class RatingsAnalysis(StudyModel):
             for name in (sc.line, sc.point):
                 if name not in factors:
                     raise ValueError(f"figures.realism_vs_appeal: '{name}' is not a factor (expected one of: {', '.join(factors)})")
+        if self.reference is not None:
+            bad = [f for f in self.reference.matched if f not in self.within]
+            if bad:
+                raise ValueError(f"reference.matched: '{bad[0]}' is not a within factor (expected some of: {', '.join(self.within)})")
         for group in self.reliability:
             if len(group) < 2:
                 raise ValueError(f"reliability: each group needs at least 2 scales (got {group})")

@@ -212,16 +212,29 @@ def _row_numbers(data: pd.DataFrame, mask: np.ndarray) -> list[str]:
     return [str(i + 1) for i in idx]
 
 
+def level_key(value: object) -> tuple:
+    """What identifies a factor level across files: its number when it reads as one (the runner
+    writes shape 1.0 as ``1``, a study file says ``1.0``), else its text."""
+    if not isinstance(value, (bool, np.bool_)):
+        try:
+            return ("n", float(value))
+        except (TypeError, ValueError):
+            pass
+    return ("s", str(value))
+
+
 def factor_levels(values: pd.Series, order: Sequence | None = None) -> list:
-    """The levels of a factor column: ``order`` if given, categories, else sorted values."""
+    """The levels of a factor column: ``order`` if given (matched by :func:`level_key`),
+    categories, else sorted values."""
     present = pd.unique(values.dropna())
     if order is not None:
         order = list(order)
-        as_str = {str(o): o for o in order}
-        missing = [v for v in present if v not in order and str(v) not in as_str]
+        given = {level_key(o) for o in order}
+        missing = [v for v in present if level_key(v) not in given]
         if missing:
             raise ValueError(f"values {', '.join(map(str, missing[:_MAX_LISTED]))} are not among the given levels")
-        return [o for o in order if o in set(present) or str(o) in {str(p) for p in present}]
+        have = {level_key(p) for p in present}
+        return [o for o in order if level_key(o) in have]
     if isinstance(values.dtype, pd.CategoricalDtype):
         return [c for c in values.cat.categories if c in set(present)]
     try:
@@ -351,9 +364,8 @@ def prepare_design(
         if len(lv) < 2:
             got = f"only '{lv[0]}'" if lv else "none"
             problems.append(f"{src}: {col}: a factor needs at least 2 levels (got {got})")
-        pos = {v: i for i, v in enumerate(lv)}
-        pos_str = {str(v): i for i, v in enumerate(lv)}
-        lut = np.array([pos[u] if u in pos else pos_str[str(u)] for u in uniques], dtype=np.int64)
+        pos = {level_key(v): i for i, v in enumerate(lv)}
+        lut = np.array([pos[level_key(u)] for u in uniques], dtype=np.int64)
         fac_levels[col] = lv
         codes[col] = lut[raw_codes]
     if problems:

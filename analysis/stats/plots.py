@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["save_figure", "interaction_plot", "bar_plot", "realism_vs_appeal_plot", "realism_vs_appeal_figure"]
+__all__ = ["save_figure", "interaction_plot", "bar_plot", "realism_vs_appeal_plot", "realism_vs_appeal_figure", "reference_plot"]
 
 #: Node markers of :func:`realism_vs_appeal_plot`, one per ``point`` level (cycled beyond ten).
 MARKERS = ["o", "s", "^", "D", "v", "P", "X", "<", ">", "*"]
@@ -155,3 +155,31 @@ def realism_vs_appeal_figure(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, 
               loc="lower left", bbox_to_anchor=(1.02, 0.0), borderaxespad=0)
     ax.grid(alpha=0.3)
     return fig
+
+
+def reference_plot(table: pd.DataFrame, scale: str, stem: str | Path, ylim: tuple[float, float] | None = None) -> list[Path]:
+    """The matched levels' means (95% CI over participants) with the reference as a band
+    (:func:`analysis.stats.reference.reference_table`; thesis §6.4, photographs vs s/m levels)."""
+    from scipy import stats
+
+    plt = _plt()
+    ref, levels = table.iloc[0], table.iloc[1:]
+    half = lambda r: stats.t.ppf(0.975, max(r["n"] - 1, 1)) * r["sd"] / np.sqrt(max(r["n"], 1))  # noqa: E731
+    x = np.arange(len(levels))
+    fig, ax = plt.subplots(figsize=(1.2 + 0.9 * len(levels), 3.4))
+    h = half(ref)
+    ax.axhspan(ref["mean"] - h, ref["mean"] + h, color="#f0b070", alpha=0.35, lw=0)
+    ax.axhline(ref["mean"], color="#c06010", lw=1.5, label=f"{ref['condition']} (n = {int(ref['n'])})")
+    ax.errorbar(x, levels["mean"], yerr=[half(r) for _, r in levels.iterrows()], fmt="o-", color="#2a4d80",
+                capsize=4, label="matched levels")
+    for i, (_, r) in enumerate(levels.iterrows()):
+        if np.isfinite(r.get("p_holm", np.nan)) and r["p_holm"] < 0.05:
+            ax.annotate("*", (i, r["mean"]), textcoords="offset points", xytext=(6, 4), fontsize=12)
+    ax.set_xticks(x, [c.replace(" / ", "\n") for c in levels["condition"]], fontsize=8)
+    ax.set_ylabel(f"mean {scale} (95% CI)")
+    if ylim:
+        ax.set_ylim(*ylim)
+    ax.set_title(f"{scale}: {ref['condition']} vs matched levels (* Holm p < .05)", fontsize=10)
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(axis="y", alpha=0.3)
+    return save_figure(fig, stem)

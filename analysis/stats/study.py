@@ -17,8 +17,9 @@ from analysis.stats.contrasts import compare_trends, contrasts_from_design
 from analysis.stats.design import keep_rows, prepare_design, read_ratings
 from analysis.stats.intervals import within_ci_from_design
 from analysis.stats.mixed import mixed_model_anova
-from analysis.stats.plots import bar_plot, interaction_plot, realism_vs_appeal_plot
+from analysis.stats.plots import bar_plot, interaction_plot, realism_vs_appeal_plot, reference_plot
 from analysis.stats.posthoc import pairwise_comparisons
+from analysis.stats.reference import reference_table
 from analysis.stats.reliability import cronbach_alpha
 from analysis.stats.reporting import anova_text, format_comparison, markdown_table, sphericity_corrected
 from appeal.atomic import atomic_write_text
@@ -80,6 +81,28 @@ def _csv(df: pd.DataFrame, path: Path) -> Path:
     return path
 
 
+def _reference(cfg, raw: pd.DataFrame, main: pd.DataFrame, col: str, name: str, sec_dir: Path,
+               ylim: tuple | None, source: str) -> tuple[list[str], list[Path], list[Path], list[dict]]:
+    """The reference's ratings beside the matched levels: text, figure, table, records."""
+    ref = cfg.reference
+    rows = keep_rows(raw, ref.rows)
+    if rows.empty or rows[col].isna().all():  # e.g. Exp. 2 run without photographs (if_missing: skip)
+        logger.warning("%s: reference: no %s ratings (rows %s): the comparison is left out", source, ref.name, ref.rows)
+        return [f"No {ref.name} ratings in the data (rows {ref.rows}): the comparison is left out.", ""], [], [], []
+    table = reference_table(rows, main, col, cfg.subject, ref.matched, cfg.levels, ref.name, source)
+    safe = ref.name.replace(" ", "_")
+    tables = [_csv(table, sec_dir / f"reference_{safe}.csv")]
+    figs = [reference_plot(table, name, sec_dir / f"reference_{safe}", ylim)[0]]
+    r = table.iloc[0]
+    lines = [f"{ref.name}: mean {r['mean']:.2f} (SD {r['sd']:.2f}, n = {int(r['n'])}); matched "
+             f"{' / '.join(ref.matched)} levels (paired t-tests, Holm):", ""]
+    for _, row in table.iloc[1:].iterrows():
+        test = (f"; {ref.name} − level = {row['diff']:+.2f}, t({int(row['df'])}) = {row['t']:.2f}, "
+                f"p_Holm = {row['p_holm']:.3g}") if np.isfinite(row["p"]) else ""
+        lines.append(f"- {row['condition']}: {row['mean']:.2f} (SD {row['sd']:.2f}){test}")
+    return lines + [""], figs, tables, json_records(table)
+
+
 def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> StudyResult:
     """Run the analysis described by a :class:`analysis.ratings_schema.RatingsAnalysis`.
 
@@ -99,7 +122,7 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
         ``results.json``).
     """
     data = read_ratings(cfg.data, subject=cfg.subject) if data is None else data
-    data = keep_rows(data, cfg.rows)
+    raw, data = data, keep_rows(data, cfg.rows)
     source = data.attrs.get("source", str(cfg.data))
     scales = scale_columns(data, cfg.scales, source)
     result = StudyResult()
@@ -188,6 +211,9 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
         for factor in cfg.figures.bars:
             ci = within_ci_from_design(design, [factor])
             figs.append(bar_plot(ci, factor, name, sec_dir / f"bars_{factor}", ylim=ylim)[0])
+        if cfg.reference is not None:
+            rtext, rfigs, rtables, info["reference"] = _reference(cfg, raw, data, col, name, sec_dir, ylim, source)
+            text, figs, tables = text + rtext, figs + rfigs, tables + rtables
         result.sections.append(ReportSection(title=f"Scale: {name}", text="\n".join(text[2:]), figures=figs, tables=tables))
         md += text + [f"![{Path(f).stem}]({Path(f).relative_to(out)})" for f in figs] + [""]
         summary["scales"][name] = info
