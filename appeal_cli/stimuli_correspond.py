@@ -141,27 +141,77 @@ def _split_weights(items: tuple, first: str) -> tuple[list[Path], list[float]]:
     return [Path(x) for x in rest], weights
 
 
+def _part_morph(paths: list[Path], regions: str, landmarks: str, interpolation: str, sheet: Path | None,
+                out: Path, force: bool) -> None:
+    """``appeal stimuli morph --regions``: load, check, morph, save (and the sheet)."""
+    from stimulus_engine.mesh_io import load_mesh, save_mesh
+    from stimulus_engine.morph import part_morph
+    from stimulus_engine.morph_regions import parse_regions, part_morph_sheet, read_ibug
+
+    if len(paths) < 2:
+        raise AppealInputError(f"MESH...: expected a base mesh and at least one donor (got {len(paths)})")
+    chosen = parse_regions(regions, len(paths))
+    refuse_existing_file(out, force)
+    loaded = [load_mesh(p) for p in paths]
+    for p, m in zip(paths[1:], loaded[1:]):
+        if m.vertices.shape != loaded[0].vertices.shape or m.faces.shape != loaded[0].faces.shape \
+                or (m.faces != loaded[0].faces).any():
+            raise AppealInputError(f"{p}: not in correspondence with {paths[0]} (expected the same vertex count and "
+                                   f"faces; got {len(m.vertices)} vs {len(loaded[0].vertices)} vertices)")
+    ibug = read_ibug(landmarks, loaded[0], str(paths[0]))
+    result = part_morph(loaded, chosen, ibug, interpolation)
+    save_mesh(result, out)
+    if sheet is not None:
+        labels = [f"base: {paths[0].name}", *[f"{k}: {p.name}" for k, p in enumerate(paths[1:], 1)],
+                  "morph: " + ", ".join(f"{r} from {k}" for r, k in chosen.items())]
+        part_morph_sheet(loaded, result, ibug, labels, sheet)
+    click.echo(f"{out}: " + ", ".join(f"{r} from {paths[k].name}" for r, k in chosen.items())
+               + f" on {paths[0].name} ({interpolation} Laplacians, gradient-domain texture)"
+               + (f"; sheet {sheet}" if sheet else ""))
+
+
 @stimuli.command(context_settings=CONTEXT, epilog="""\b
 Examples:
   appeal stimuli morph corr_a/deformed.obj corr_b/deformed.obj --weights 0.5 0.5 --out half.obj
-  appeal stimuli morph a.obj b.obj c.obj --weights 0.2,0.3,0.5 --out blend.obj --force""")
+  appeal stimuli morph a.obj b.obj c.obj --weights 0.2,0.3,0.5 --out blend.obj --force
+  appeal stimuli morph real.obj cartoon.obj --regions eyes=1 --out eyes.obj --sheet eyes.png
+  appeal stimuli morph a.obj b.obj c.obj --regions eyes=1,mouth=2 --landmarks a.ljson --out parts.obj""")
 @click.argument("meshes", nargs=-1, required=True, metavar="MESH...")
-@click.option("--weights", "weights", required=True, metavar="W...",
+@click.option("--weights", "weights", default=None, metavar="W...",
               help="One weight per mesh, summing to 1: '--weights 0.3 0.7' or '--weights 0.3,0.7'.")
+@click.option("--regions", default=None, metavar="REGION=MESH,...",
+              help="Part-based morph instead: regions (eyes, brows, nose, mouth) from the given meshes "
+                   "(1, 2, ...) on the first mesh, e.g. 'eyes=1,mouth=2'.")
+@click.option("--landmarks", default="auto", show_default=True, metavar="auto|FILE",
+              help="With --regions: the first mesh's 68 iBUG points (found in renders, or a .ljson / JSON file).")
+@click.option("--interpolation", type=click.Choice(["slerp", "linear"]), default="slerp", show_default=True,
+              help="With --regions: how the Laplacians blend (slerp as the thesis, or linearly).")
+@click.option("--sheet", type=click.Path(path_type=Path), default=None, metavar="SHEET.png",
+              help="With --regions: render the meshes and the morph side by side.")
 @click.option("--out", "out", required=True, type=click.Path(path_type=Path), metavar="OUT.obj", help="Output mesh.")
 @click.option("--force", is_flag=True, help="Overwrite OUT.obj (and its texture).")
-def morph(meshes: tuple, weights: str, out: Path, force: bool) -> None:
-    """Blend corresponded meshes (same connectivity and UV layout) with weights (thesis §3.4).
+def morph(meshes: tuple, weights: str | None, regions: str | None, landmarks: str, interpolation: str,
+          sheet: Path | None, out: Path, force: bool) -> None:
+    """Blend corresponded meshes (same connectivity and UV layout): whole faces with weights, or
+    parts of faces with --regions (thesis §3.4).
 
     \b
     The meshes are typically DIR/deformed.obj files of `appeal stimuli correspond` runs from
-    one source. Vertex positions blend linearly; when every mesh has a texture of one size,
-    the textures blend too (OUT.png beside OUT.obj). Region blends (a nose from one face on
-    another) are in the Python API: stimulus_engine.partial_blend.
+    one source. With --weights, vertex positions blend linearly; when every mesh has a texture
+    of one size, the textures blend too (OUT.png beside OUT.obj). With --regions, the named
+    regions come from other meshes: their cotangent Laplacians are interpolated by slerp and
+    the shape recovered by a Poisson solve (Alexa 2003), the rest of the first mesh kept as it
+    is; textures are blended in the gradient domain (Pérez 2003), so the part takes the
+    surrounding skin tone. Regions sit around the first mesh's iBUG landmarks.
     """
     from stimulus_engine.mesh_io import save_mesh
     from stimulus_engine.morph import blend_meshes
 
+    if (weights is None) == (regions is None):
+        raise AppealInputError("morph: give either --weights (a whole-face blend) or --regions (a part-based morph)")
+    if regions is not None:
+        _part_morph([Path(m) for m in meshes], regions, landmarks, interpolation, sheet, out, force)
+        return
     paths, w = _split_weights(meshes, weights)
     refuse_existing_file(out, force)
     save_mesh(blend_meshes(paths, w, "--weights"), out)

@@ -3,9 +3,12 @@
 Meshes that went through :func:`stimulus_engine.correspond` share the source's connectivity and
 UV layout, so they blend vertex by vertex and pixel by pixel. Whole-face blends are linear.
 Partial (region) blends interpolate per-vertex cotangent Laplacians (differential
-coordinates) with per-vertex weights and recover positions with a Poisson solve (Alexa 2003,
-with the cotangent instead of the uniform Laplacian, as in the thesis); vertices whose weights
-equal the base mesh's are kept as they are, so the blend region joins the rest seamlessly.
+coordinates) with per-vertex weights — by spherical linear interpolation of their directions
+and linear interpolation of their lengths (Alexa 2003, with the cotangent instead of the
+uniform Laplacian, as in the thesis; :func:`slerp_vectors`) — and recover positions with a
+Poisson solve; vertices whose weights equal the base mesh's are kept as they are, so the blend
+region joins the rest seamlessly. Linear interpolation of the Laplacians shortens those of a
+part that turns between the meshes (a shrunken, flattened part); slerp keeps them.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from appeal.errors import AppealInputError
 from stimulus_engine.correspondence.laplacian import cotangent_laplacian
 from stimulus_engine.correspondence.solve import factorize
 
-__all__ = ["check_weights", "blend_vertices", "blend_images", "blend_meshes", "partial_blend"]
+__all__ = ["check_weights", "blend_vertices", "blend_images", "blend_meshes", "partial_blend", "slerp_vectors"]
 
 
 def check_weights(weights, n: int, where: str = "weights") -> np.ndarray:
@@ -114,7 +117,46 @@ def blend_meshes(paths: Sequence[str | Path], weights, where: str = "weights"):
     return result
 
 
-def partial_blend(vertex_sets, faces: np.ndarray, vertex_weights: np.ndarray, base: int = 0) -> np.ndarray:
+def slerp_vectors(vectors: np.ndarray, weights: np.ndarray, iterations: int = 8) -> np.ndarray:
+    """Per-row weighted spherical interpolation of K vectors: length interpolated linearly,
+    direction by slerp (K = 2, exact) or its K-vector generalisation, the weighted spherical
+    mean (Buss & Fillmore 2001: log map, weighted mean in the tangent plane, exp map, repeated).
+
+    Parameters
+    ----------
+    vectors : (K, N, 3) array
+    weights : (N, K) array
+        Rows sum to 1.
+
+    Returns
+    -------
+    (N, 3) array
+    """
+    v = np.asarray(vectors, np.float64)
+    w = np.asarray(weights, np.float64).T[:, :, None]  # (K, N, 1)
+    length = np.linalg.norm(v, axis=2, keepdims=True)
+    unit = v / np.maximum(length, 1e-300)
+    mean_len = (w * length).sum(axis=0)
+    d = (w * unit).sum(axis=0)  # the normalised linear mean starts the iteration
+    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    for _ in range(iterations):
+        cos = np.clip(np.einsum("knd,nd->kn", unit, d), -1.0, 1.0)[:, :, None]
+        ang = np.arccos(cos)
+        perp = unit - cos * d[None]
+        norm = np.linalg.norm(perp, axis=2, keepdims=True)
+        log = np.where(norm > 1e-12, perp / np.maximum(norm, 1e-300) * ang, 0.0)  # tangent vectors at d
+        step = (w * log).sum(axis=0)
+        t = np.linalg.norm(step, axis=1, keepdims=True)
+        d = np.where(t > 1e-15, np.cos(t) * d + np.sin(t) * step / np.maximum(t, 1e-300), d)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+    out = mean_len * d
+    zero = (length[..., 0] < 1e-300).any(axis=0)  # a zero vector has no direction: blend linearly
+    out[zero] = (w * v).sum(axis=0)[zero]
+    return out
+
+
+def partial_blend(vertex_sets, faces: np.ndarray, vertex_weights: np.ndarray, base: int = 0,
+                  interpolation: str = "slerp") -> np.ndarray:
     """Blend regions of corresponded meshes through their Laplacians and a Poisson solve.
 
     Parameters
@@ -127,6 +169,8 @@ def partial_blend(vertex_sets, faces: np.ndarray, vertex_weights: np.ndarray, ba
         ``w[:, 1] = nose_mask_smoothed``, ``w[:, 0] = 1 - w[:, 1]``.
     base : int
         The mesh that vertices with ``w[:, base] == 1`` keep exactly (the anchors).
+    interpolation : {"slerp", "linear"}
+        How the Laplacians blend: slerp (the thesis, Alexa 2003) or linearly.
 
     Returns
     -------
@@ -139,8 +183,11 @@ def partial_blend(vertex_sets, faces: np.ndarray, vertex_weights: np.ndarray, ba
         raise AppealInputError(f"morph: vertex weights must have shape ({n}, {k}) (got {w.shape})")
     if np.abs(w.sum(axis=1) - 1).max() > 1e-6:
         raise AppealInputError("morph: per-vertex weights must sum to 1 for every vertex")
+    if interpolation not in ("slerp", "linear"):
+        raise AppealInputError(f"morph: interpolation: expected slerp or linear (got {interpolation!r})")
     # differential coordinates of each mesh with its own cotangent weights, blended per vertex
-    delta = sum(w[:, [j]] * (cotangent_laplacian(v[j], faces) @ v[j]) for j in range(k))
+    deltas = np.stack([cotangent_laplacian(v[j], faces) @ v[j] for j in range(k)])
+    delta = slerp_vectors(deltas, w) if interpolation == "slerp" else np.einsum("ik,kij->ij", w, deltas)
     linear = np.einsum("ik,kij->ij", w, v)
     lap = cotangent_laplacian(linear, faces)
     anchors = w[:, base] >= 1 - 1e-9
@@ -157,3 +204,47 @@ def partial_blend(vertex_sets, faces: np.ndarray, vertex_weights: np.ndarray, ba
     h_ff = h[free][:, free] + sp.identity(int(free.sum())) * (1e-6 * scale)
     out[free] = factorize(h_ff).solve(rhs[free] + 1e-6 * scale * linear[free])
     return out
+
+
+def part_morph(meshes: Sequence, regions: dict[str, int], ibug: np.ndarray, interpolation: str = "slerp"):
+    """A part-based morph of corresponded meshes: named regions (eyes, brows, nose, mouth) from
+    other meshes on mesh 0 (thesis §3.4, Fig. 3.1).
+
+    Geometry by :func:`partial_blend` (Laplacian slerp + Poisson solve) with
+    :func:`stimulus_engine.morph_regions.region_weights`; when every mesh has a texture of one
+    size, texture by :func:`stimulus_engine.gradient_blend.gradient_blend` (gradient domain).
+
+    Parameters
+    ----------
+    meshes : sequence of trimesh.Trimesh
+        In correspondence (same vertices count and faces; mesh 0 is the base).
+    regions : dict of str to int
+        Region -> mesh index (:func:`stimulus_engine.morph_regions.parse_regions`).
+    ibug : (68, 3) array
+        iBUG landmarks on mesh 0.
+    interpolation : {"slerp", "linear"}
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Mesh 0's connectivity and UV layout, the blended vertices (and texture).
+    """
+    import trimesh
+
+    from stimulus_engine.correspondence.pipeline import deformed_mesh
+    from stimulus_engine.gradient_blend import gradient_blend, texel_weights
+    from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
+    from stimulus_engine.morph_regions import region_weights
+
+    first = meshes[0]
+    faces = np.asarray(first.faces)
+    w = region_weights(np.asarray(first.vertices), ibug, regions, len(meshes))
+    v = partial_blend([np.asarray(m.vertices) for m in meshes], faces, w, base=0, interpolation=interpolation)
+    result = deformed_mesh(first, v)
+    images = [texture_image(m) for m in meshes]
+    layout = mesh_uv_layout(first)
+    if layout is not None and all(im is not None for im in images) and len({im.size for im in images}) == 1:
+        arrays = [np.asarray(im.convert("RGB")) for im in images]
+        tw = texel_weights(layout[0], layout[1], faces, w, arrays[0].shape[:2])
+        result.visual.material = trimesh.visual.material.SimpleMaterial(image=Image.fromarray(gradient_blend(arrays, tw)))
+    return result

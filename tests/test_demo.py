@@ -69,7 +69,7 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     page = (out / "index.html").read_text()
     assert "This stage failed" not in page
     names = [s.name for s in discover_stages()]
-    assert {"environment", "grid", "correspond", "avatar", "experiment", "ratings", "erp"} <= set(names)
+    assert {"environment", "grid", "correspond", "part_morph", "avatar", "experiment", "ratings", "erp"} <= set(names)
     links = set(re.findall(r"(?:src|href)='([^'#]+)'", page))
     assert len(links) > 20
     missing = [link for link in links if not (out / link).exists()]
@@ -78,6 +78,7 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     scan = pd.read_csv(out / "grid" / "scan" / "manifest.csv")
     assert len(scan) == 24 and (scan.status == "rendered").all()
     assert "grid/scan/contact_sheet_expressions.png" in links
+    assert "part_morph/part_morph_sheet.png" in links  # the cartoon's eyes on the real face
 
 
 def test_report_page_fits_a_laptop_screen(tmp_path):
