@@ -177,3 +177,46 @@ def reconstruct(model_path, loadings, out, force, resume, json_path) -> None:
         metrics = reconstruct_faces(model, lo, names, run.out)
         _write_metrics(run, metrics, json_path)
     click.echo(f"{run.out}: {metrics['faces']} face(s) in {metrics['seconds_reconstruct']:.3f} s")
+
+
+@morphpca.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli morphpca mimicry models/alice/model.npz models/bob/model.npz \\
+      --source alice_clip/ --mimic bob_mimics_alice/ --out mimicry
+  appeal stimuli morphpca mimicry A.npz B.npz --source a*.png --mimic b*.png --bins 8 --out m --json m.json""")
+@click.argument("source_model", metavar="A.npz", type=click.Path(path_type=Path))
+@click.argument("mimic_model", metavar="B.npz", type=click.Path(path_type=Path))
+@click.option("--source", "source_frames", multiple=True, required=True, type=click.Path(path_type=Path),
+              help="Frames of A's sequence (files or folders, in name order; repeatable).")
+@click.option("--mimic", "mimic_frames", multiple=True, required=True, type=click.Path(path_type=Path),
+              help="Frames of B mimicking it, one per source frame.")
+@out_options()
+@click.option("--no-align", is_flag=True, help="Skip the faceframe affine transform (models of equal size only).")
+@click.option("--bins", type=click.IntRange(min=2), default=None,
+              help="Histogram bins of the entropy / mutual-information measures (default: sqrt(frames)).")
+@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
+def mimicry(source_model, mimic_model, source_frames, mimic_frames, out, force, resume, no_align, bins,
+            json_path) -> None:
+    """Measure how well B mimics A (Nagle et al. §5.1).
+
+    \b
+    B's frames are projected into A's expression space (the model of B encodes them, the
+    faceframe affine aligns the faces, A's components take the loadings) and compared with A's
+    own loadings of the source frames: per frame the Euclidean and variance-normalised distance
+    and the correlation across components; per component the correlation over time, the
+    Shannon entropy of each sequence and their mutual information (bits; normalised
+    I / sqrt(H_A H_B): 1 = a perfect mimicry, 0 = unrelated). Writes frames.csv, components.csv,
+    loadings_*.csv, loadings.png, sheet.png and mimicry.json into DIR.
+    """
+    from appeal.outputs import output_run
+    from stimulus_engine.morphpca.io import load_model
+    from stimulus_engine.morphpca.mimicry_run import measure_mimicry, mimicry_frames
+
+    sf, mf = mimicry_frames(source_frames, mimic_frames)  # bad input: one line, before any output
+    load_model(source_model), load_model(mimic_model)
+    with output_run(out, force=force, resume=resume, inputs=[source_model, mimic_model, *sf, *mf]) as run:
+        summary = measure_mimicry(source_model, mimic_model, source_frames, mimic_frames, run.out,
+                                  align=not no_align, bins=bins)
+        _write_metrics(run, summary, json_path)
+    click.echo(f"{run.out}: {summary['frames']} frames; mean frame correlation {summary['mean_frame_correlation']:.2f}, "
+               f"mean normalised MI {summary['mean_normalised_mi']:.2f}")
