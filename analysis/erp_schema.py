@@ -195,6 +195,11 @@ class SourceConfig(StudyModel):
     components: list[str] | None = None
     p_threshold: float = Field(0.005, gt=0, lt=1)
     min_cluster_voxels: int = Field(25, ge=1)
+    min_cluster_mm3: float | None = Field(
+        None, gt=0, description="smallest cluster as a volume, on any grid (the thesis's 25 voxels of 2 mm = 200 mm³); "
+                                "replaces min_cluster_voxels")
+    smoothing_fwhm_mm: float = Field(0.0, ge=0, description="Gaussian smoothing of each subject's map before the "
+                                                             "voxel-wise test (SPM: 8 mm FWHM; 0 = none)")
     n_permutations: int = Field(1000, ge=10)
 
     @model_validator(mode="after")

@@ -94,14 +94,15 @@ def source_contrasts(result: ErpResult, cfg: ErpConfig, seed: int = 0) -> tuple[
                 continue
             diff = np.array([s.source_maps[(comp, a)] - s.source_maps[(comp, b)] for s in subs], float)
             t, table = contrast_clusters(diff, result.head, p_threshold=src.p_threshold,
-                                         min_voxels=src.min_cluster_voxels, n_permutations=src.n_permutations, seed=seed)
+                                         min_voxels=src.min_cluster_voxels, n_permutations=src.n_permutations, seed=seed,
+                                         min_volume_mm3=src.min_cluster_mm3, smoothing_fwhm_mm=src.smoothing_fwhm_mm)
             tmaps[(comp, a, b)] = t
             table.insert(0, "cluster", np.arange(1, len(table) + 1))
             table.insert(0, "contrast", f"{factor} {a} > {b}")
             table.insert(0, "component", comp)
             table["n_subjects"] = len(subs)
             rows.append(table)
-    cols = ["component", "contrast", "cluster", "n_voxels", "peak_t", "peak_p_uncorrected", "p_fwe", "peak_difference",
+    cols = ["component", "contrast", "cluster", "n_voxels", "volume_mm3", "peak_t", "peak_p_uncorrected", "p_fwe", "peak_difference",
             "x_mm", "y_mm",
             "z_mm", "hemisphere", "n_subjects"]
     table = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=cols)
@@ -198,10 +199,13 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
                      out / "source" / f"{stem}.csv")
                 o.figures += figs.plot_source_map(mni, t, thr, f"{comp}: {a} > {b} ({cfg.source.method}, p < "
                                                   f"{cfg.source.p_threshold} uncorrected)", out / "figures" / stem)
-            src_text = (f"{cfg.source.method} on a {result.head.kind} head model, volume grid "
-                        f"{cfg.source.spacing_mm:g} mm ({len(mni)} voxels); paired t per voxel, one-sided p < "
-                        f"{cfg.source.p_threshold}, clusters ≥ {cfg.source.min_cluster_voxels} voxels, FWE p by "
-                        f"{cfg.source.n_permutations} sign-flip permutations (cluster mass). Coordinates in MNI mm.\n\n"
+            sc = cfg.source
+            extent = f"{sc.min_cluster_mm3:g} mm³" if sc.min_cluster_mm3 else f"{sc.min_cluster_voxels} voxels"
+            smooth = f"maps smoothed with a {sc.smoothing_fwhm_mm:g} mm FWHM Gaussian; " if sc.smoothing_fwhm_mm else ""
+            src_text = (f"{sc.method} on a {result.head.kind} head model, volume grid {sc.spacing_mm:g} mm "
+                        f"({len(mni)} voxels); {smooth}paired t per voxel, one-sided p < {sc.p_threshold}, clusters ≥ "
+                        f"{extent}, FWE p by {sc.n_permutations} sign-flip permutations (cluster mass). Coordinates in "
+                        "MNI mm.\n\n"
                         + (_fmt(table, [c for c in table.columns if c != "n_subjects"]) if len(table) else
                            "No cluster reached the size threshold.\n"))
         else:
