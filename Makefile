@@ -28,7 +28,7 @@ system-deps:
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[dev,fast]'
+	$(BIN)/python -m pip install -q -e '.[dev,fast,atlas]'
 	$(BIN)/python -m pip install -q --no-deps 'pyrender==0.1.45'
 	touch $(STAMP)
 

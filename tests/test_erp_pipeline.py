@@ -132,6 +132,13 @@ def test_source_peaks_near_planted_generators(study):
     top = clusters[(clusters.component == "LPP") & (clusters.contrast == "stylisation 5 > 0")].iloc[0]
     assert top.n_voxels >= 25 and top.p_fwe < 0.05 and top.peak_p_uncorrected < 0.005
     assert np.linalg.norm(top[["x_mm", "y_mm", "z_mm"]].to_numpy(float) - gens["LPP"]) <= 15
+    # the labels name the planted generators' regions (AAL): the LPP's in the precuneus, the N170's
+    # in the lateral occipito-temporal cortex of each hemisphere
+    assert top.region.startswith("Precuneus") and top.brodmann == 7
+    near = peaks[(peaks.component == "N170") & (peaks.level == 0)].iloc[:2]
+    for r in near.itertuples():
+        assert r.region.rsplit("_", 1)[0] in ("Occipital_Inf", "Occipital_Mid", "Fusiform", "Temporal_Inf"), r.region
+        assert r.region.endswith("_L" if r.x_mm < 0 else "_R")
 
 
 def test_amplitudes_equal_plain_mne_script(study):

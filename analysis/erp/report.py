@@ -103,15 +103,15 @@ def source_contrasts(result: ErpResult, cfg: ErpConfig, seed: int = 0) -> tuple[
             table["n_subjects"] = len(subs)
             rows.append(table)
     cols = ["component", "contrast", "cluster", "n_voxels", "volume_mm3", "peak_t", "peak_p_uncorrected", "p_fwe", "peak_difference",
-            "x_mm", "y_mm",
-            "z_mm", "hemisphere", "n_subjects"]
+            "x_mm", "y_mm", "z_mm", "hemisphere", "area", "brodmann", "region", "n_subjects"]
     table = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=cols)
     return table, tmaps
 
 
 def level_peaks(result: ErpResult, n_peaks: int = 3) -> pd.DataFrame:
-    """Peaks of the grand-mean window map of every component and level (thesis Fig. 7.8/7.9 top rows)."""
-    from analysis.erp.source import map_peaks
+    """Peaks of the grand-mean window map of every component and level (thesis Fig. 7.8/7.9 top rows),
+    with their anatomical labels."""
+    from analysis.erp.source import map_peaks, with_labels
 
     mni = result.head.mni
     keys = list(dict.fromkeys(k for s in result.subjects for k in s.source_maps))
@@ -122,7 +122,7 @@ def level_peaks(result: ErpResult, n_peaks: int = 3) -> pd.DataFrame:
         for rank, i in enumerate(map_peaks(grand, mni, n_peaks), start=1):
             rows.append(dict(component=comp, level=level, peak=rank, value=float(grand[i]), x_mm=round(float(mni[i, 0]), 1),
                              y_mm=round(float(mni[i, 1]), 1), z_mm=round(float(mni[i, 2]), 1)))
-    return pd.DataFrame(rows, columns=["component", "level", "peak", "value", "x_mm", "y_mm", "z_mm"])
+    return with_labels(pd.DataFrame(rows, columns=["component", "level", "peak", "value", "x_mm", "y_mm", "z_mm"]))
 
 
 def _fmt(df: pd.DataFrame, cols: list[str]) -> str:
@@ -132,6 +132,24 @@ def _fmt(df: pd.DataFrame, cols: list[str]) -> str:
             d[c] = d[c].map(lambda v: f"{v:.3g}" if pd.notna(v) else "")
     head = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
     return head + "".join("| " + " | ".join(str(v) for v in row) + " |\n" for row in d.itertuples(index=False))
+
+
+def thesis_table(table: pd.DataFrame) -> str:
+    """The clusters as the thesis's Table 7.1: per component and contrast, the cluster's voxels,
+    peak t and uncorrected p, MNI x/y/z and the peak's area (AAL, :mod:`analysis.erp.atlas`)."""
+    if not len(table):
+        return ""
+    lines = ["| Cluster voxels (mm³) | Peak t | Peak p-uncor | x (mm) | y (mm) | z (mm) | Area | BA |",
+             "|---|---|---|---|---|---|---|---|"]
+    for (comp, contrast), g in table.groupby(["component", "contrast"], sort=False):
+        lines.append(f"| **{comp}: {contrast}** | | | | | | | |")
+        for r in g.itertuples(index=False):
+            p = r.peak_p_uncorrected
+            ptxt = "< .001" if p < 0.001 else ("< .005" if p < 0.005 else f"{p:.3f}")
+            lines.append(f"| {int(r.n_voxels)} ({r.volume_mm3:g}) | {r.peak_t:.2f} | {ptxt} | {r.x_mm:g} | {r.y_mm:g} | "
+                         f"{r.z_mm:g} | {r.area if isinstance(r.area, str) else ''} | "
+                         f"{r.brodmann if isinstance(r.brodmann, str) else ''} |")
+    return "\n".join(lines) + "\n"
 
 
 def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int = 0, config_name: str = "config") -> ErpOutputs:
@@ -206,7 +224,7 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
                         f"({len(mni)} voxels); {smooth}paired t per voxel, one-sided p < {sc.p_threshold}, clusters ≥ "
                         f"{extent}, FWE p by {sc.n_permutations} sign-flip permutations (cluster mass). Coordinates in "
                         "MNI mm.\n\n"
-                        + (_fmt(table, [c for c in table.columns if c != "n_subjects"]) if len(table) else
+                        + (thesis_table(table) + "\nAll columns: `source/clusters.csv`.\n" if len(table) else
                            "No cluster reached the size threshold.\n"))
         else:
             src_text = "Source statistics need at least three subjects; skipped.\n"

@@ -33,6 +33,7 @@ __all__ = [
     "grid_adjacency",
     "map_peaks",
     "smooth_on_grid",
+    "with_labels",
 ]
 
 
@@ -371,4 +372,17 @@ def contrast_clusters(diff: np.ndarray, head: HeadModel, *, p_threshold: float =
                          hemisphere="L" if x < -5 else ("R" if x > 5 else "midline")))
     cols = ["n_voxels", "volume_mm3", "peak_t", "peak_p_uncorrected", "p_fwe", "peak_difference", "x_mm", "y_mm", "z_mm", "hemisphere"]
     table = pd.DataFrame(rows, columns=cols).sort_values("peak_t", ascending=False, ignore_index=True)
-    return t_obs, table
+    return t_obs, with_labels(table)
+
+
+def with_labels(table: pd.DataFrame) -> pd.DataFrame:
+    """The peaks' anatomical labels (:mod:`analysis.erp.atlas`; empty without the atlases)."""
+    from analysis.erp.atlas import atlas_available, label_peaks
+
+    for c in ("area", "brodmann", "region"):
+        table[c] = pd.Series(dtype=object)
+    if len(table) and atlas_available():
+        labels = label_peaks(table[["x_mm", "y_mm", "z_mm"]].to_numpy(float))
+        for c in ("area", "brodmann", "region"):
+            table[c] = labels[c].to_numpy()
+    return table
