@@ -188,7 +188,9 @@ class SourceConfig(StudyModel):
     spacing_mm: float = Field(7.0, ge=2, le=20)
     subjects_dir: InputDir | None = None
     subject: str = "fsaverage"
-    bem: InputFile | None = None
+    bem: Literal["fsaverage"] | InputFile | None = Field(
+        None, description="'fsaverage' (a realistic three-layer template from the fsaverage surfaces MNE ships, "
+                          "MNI space), a BEM solution file (with trans), or none (a three-shell sphere)")
     trans: InputFile | None = None
     factor: str | None = None
     contrasts: list[tuple[Level, Level]] | None = None
@@ -204,7 +206,7 @@ class SourceConfig(StudyModel):
 
     @model_validator(mode="after")
     def _bem(self) -> SourceConfig:
-        if self.bem is not None and self.trans is None:
+        if self.bem is not None and self.bem != "fsaverage" and self.trans is None:
             raise ValueError("a bem needs trans (the head<->MRI transform of the template)")
         return self
 

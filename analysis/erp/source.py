@@ -137,6 +137,8 @@ def template_head(info, spacing_mm: float = 7.0, *, bem: str | Path | None = Non
         Grid spacing of the volume source space.
     bem, trans : path-like | None
         A BEM solution (``-bem-sol.fif``) and the head<->MRI transform; both or neither.
+        ``bem="fsaverage"``: the realistic three-layer template built from the fsaverage
+        surfaces MNE ships (:mod:`analysis.erp.fsaverage_head`; cached after the first run).
     subjects_dir : path-like | None
         FreeSurfer subjects folder (with ``bem``: the volume source space fills the
         subject's inner skull).
@@ -149,6 +151,17 @@ def template_head(info, spacing_mm: float = 7.0, *, bem: str | Path | None = Non
     """
     import mne
 
+    if bem == "fsaverage":  # the realistic template (analysis.erp.fsaverage_head), in MNI305 metres
+        from analysis.erp.fsaverage_head import fsaverage_bem, fsaverage_trans_path
+
+        sol = mne.read_bem_solution(str(fsaverage_bem()), verbose="error")
+        src = mne.setup_volume_source_space(None, pos=float(spacing_mm), bem=sol, verbose="error")
+        tr = mne.read_trans(str(fsaverage_trans_path()))
+        if tr["from"] != mne.io.constants.FIFF.FIFFV_COORD_HEAD:
+            tr = mne.transforms.invert_transform(tr)
+        to_mni = np.eye(4)
+        to_mni[:3, :3] *= 1e3
+        return HeadModel(bem=sol, src=src, trans=tr, to_mni=to_mni, kind="fsaverage BEM")
     if bem is None:
         sphere = mne.make_sphere_model("auto", "auto", info, verbose="error")
         src = mne.setup_volume_source_space(pos=float(spacing_mm), sphere=sphere, verbose="error")
