@@ -135,6 +135,14 @@ def test_source_peaks_near_planted_generators(study):
     # the labels name the planted generators' regions (AAL): the LPP's in the precuneus, the N170's
     # in the lateral occipito-temporal cortex of each hemisphere
     assert top.region.startswith("Precuneus") and top.brodmann == 7
+    # per-level FWE maps (thesis Fig. 7.8, upper panel): the N170 activation of the most stylised
+    # level peaks at a planted N170 generator
+    lv = pd.read_csv(out / "source" / "level_fwe.csv")
+    n170 = lv[(lv.component == "N170") & (lv.level == 0)].iloc[0]
+    assert n170.n_significant > 0 and n170.peak_p_fwe < 0.05
+    at = n170[["x_mm", "y_mm", "z_mm"]].to_numpy(float)
+    assert min(np.linalg.norm(at - gens[g]) for g in ("N170_left", "N170_right")) <= 15
+    assert (out / "figures" / "level_N170_0.png").is_file()
     near = peaks[(peaks.component == "N170") & (peaks.level == 0)].iloc[:2]
     for r in near.itertuples():
         assert r.region.rsplit("_", 1)[0] in ("Occipital_Inf", "Occipital_Mid", "Fusiform", "Temporal_Inf"), r.region

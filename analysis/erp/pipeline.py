@@ -162,7 +162,7 @@ def process_subject(path: str | Path, cfg: ErpConfig, emap: EventMap, head=None,
     amps = measure_cells(evokeds, n_trials, epochs.times, emap.factors, comps)
     maps = {}
     if head is not None:
-        from analysis.erp.source import subject_source_maps
+        from analysis.erp.source import BASELINE, subject_source_maps
 
         src = cfg.source
         factor = src.factor or emap.factors[0]
@@ -172,6 +172,7 @@ def process_subject(path: str | Path, cfg: ErpConfig, emap: EventMap, head=None,
             groups.setdefault(cell[fi], []).extend(names)
         comp_names = src.components or list(cfg.components)
         windows = {c: tuple(cfg.components[c].window_s) for c in comp_names}
+        windows[BASELINE] = tuple(cfg.epochs.baseline_s or (cfg.epochs.tmin_s, 0.0))  # for the per-level maps
         maps = subject_source_maps(epochs, head, groups, windows, src.method, src.snr)
     return SubjectResult(subject=subject, path=str(path), qc=qc, amplitudes=amps,
                          evokeds={k: v.astype(np.float32) for k, v in evokeds.items()}, n_trials=n_trials,

@@ -108,13 +108,42 @@ def source_contrasts(result: ErpResult, cfg: ErpConfig, seed: int = 0) -> tuple[
     return table, tmaps
 
 
+def level_maps(result: ErpResult, cfg: ErpConfig, seed: int = 0) -> tuple[pd.DataFrame, dict]:
+    """Per component and level, the FWE-corrected activation map (window above baseline):
+    a table (significant voxels, their volume, peak t and position with its label) and the t maps."""
+    from analysis.erp.source import BASELINE, level_activation, with_labels
+
+    mni = result.head.mni
+    keys = [k for k in dict.fromkeys(k for s in result.subjects for k in s.source_maps) if k[0] != BASELINE]
+    rows, tmaps = [], {}
+    for comp, level in keys:
+        subs = [s for s in result.subjects if (comp, level) in s.source_maps and (BASELINE, level) in s.source_maps]
+        if len(subs) < 3:
+            continue
+        win = np.array([s.source_maps[(comp, level)] for s in subs])
+        base = np.array([s.source_maps[(BASELINE, level)] for s in subs])
+        t, p, thr = level_activation(win, base, n_permutations=cfg.source.n_permutations, seed=seed)
+        tmaps[(comp, level)] = (t, thr)
+        # the peak: the largest mean activation among the significant voxels (the maximum t wanders
+        # with few subjects, see contrast_clusters)
+        effect = np.where(p < 0.05, (win - base).mean(axis=0), -np.inf)
+        i = int(np.argmax(effect)) if np.isfinite(effect).any() else int(np.argmax(t))
+        n_sig = int((p < 0.05).sum())
+        spacing = float(cfg.source.spacing_mm)
+        rows.append(dict(component=comp, level=level, n_significant=n_sig, volume_mm3=n_sig * spacing ** 3,
+                         peak_t=float(t[i]), peak_p_fwe=float(p[i]), x_mm=round(float(mni[i, 0]), 1),
+                         y_mm=round(float(mni[i, 1]), 1), z_mm=round(float(mni[i, 2]), 1), n_subjects=len(subs)))
+    cols = ["component", "level", "n_significant", "volume_mm3", "peak_t", "peak_p_fwe", "x_mm", "y_mm", "z_mm", "n_subjects"]
+    return with_labels(pd.DataFrame(rows, columns=cols)), tmaps
+
+
 def level_peaks(result: ErpResult, n_peaks: int = 3) -> pd.DataFrame:
     """Peaks of the grand-mean window map of every component and level (thesis Fig. 7.8/7.9 top rows),
     with their anatomical labels."""
     from analysis.erp.source import map_peaks, with_labels
 
     mni = result.head.mni
-    keys = list(dict.fromkeys(k for s in result.subjects for k in s.source_maps))
+    keys = [k for k in dict.fromkeys(k for s in result.subjects for k in s.source_maps) if not k[0].startswith("_")]
     rows = []
     for comp, level in keys:
         maps = [s.source_maps[(comp, level)] for s in result.subjects if (comp, level) in s.source_maps]
@@ -217,6 +246,11 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
                      out / "source" / f"{stem}.csv")
                 o.figures += figs.plot_source_map(mni, t, thr, f"{comp}: {a} > {b} ({cfg.source.method}, p < "
                                                   f"{cfg.source.p_threshold} uncorrected)", out / "figures" / stem)
+            lv_table, lv_maps = level_maps(result, cfg, seed)
+            o.tables.append(_csv(lv_table, out / "source" / "level_fwe.csv"))
+            for (comp, level), (t, lthr) in lv_maps.items():
+                o.figures += figs.plot_source_map(mni, t, lthr, f"{comp}, {level}: activation above baseline (FWE p < .05)",
+                                                  out / "figures" / f"level_{comp}_{level}")
             sc = cfg.source
             extent = f"{sc.min_cluster_mm3:g} mm³" if sc.min_cluster_mm3 else f"{sc.min_cluster_voxels} voxels"
             smooth = f"maps smoothed with a {sc.smoothing_fwhm_mm:g} mm FWHM Gaussian; " if sc.smoothing_fwhm_mm else ""
@@ -225,7 +259,10 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
                         f"{extent}, FWE p by {sc.n_permutations} sign-flip permutations (cluster mass). Coordinates in "
                         "MNI mm.\n\n"
                         + (thesis_table(table) + "\nAll columns: `source/clusters.csv`.\n" if len(table) else
-                           "No cluster reached the size threshold.\n"))
+                           "No cluster reached the size threshold.\n")
+                        + "\nPer level, the window's magnitude above the baseline's, FWE-corrected (maximum t over "
+                        f"{sc.n_permutations} sign flips, p < .05; thesis Fig. 7.8 upper panel): `source/level_fwe.csv`, "
+                        "figures `level_*`.\n")
         else:
             src_text = "Source statistics need at least three subjects; skipped.\n"
     qc = result.qc
