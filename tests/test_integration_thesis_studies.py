@@ -1,4 +1,4 @@
-"""Exp. 1b, 1c, 2 (with the photographs rated at the end) and 3 end to end from their shipped files: simulated participants in the real runner
+"""Exp. 1a, 1b, 1c, 2 (with the photographs rated at the end) and 3 end to end from their shipped files: simulated participants in the real runner
 (the shipped protocol with drawn faces as stimuli), then the shipped analysis file (its data glob
 pointed at them) writes the ANOVA tables, post-hocs, reliabilities and figures the thesis reports."""
 
@@ -16,6 +16,10 @@ from appeal.assets import protocols_dir
 from appeal_cli import main
 
 STUDIES = {
+    "exp1a": ("exp1a_shape_material.yaml", ["exp1a_ratings.yaml"],
+              {"shape": [1.0, 0.5, 0.0], "material": ["flat", "bilateral", "original"],
+               "expression": ["neutral", "anger", "happiness", "sadness", "surprise"]},
+              {"shape": 2, "material": 2, "expression": 4, "shape:material": 4}),
     "exp1b": ("exp1b_shading_lighting.yaml", ["exp1b_ratings.yaml"],
               {"shape": [0.0, 0.5, 1.0], "material": ["original"], "shading": ["pbr", "phong"],
                "lighting": ["direct_hard", "direct_soft", "gi_soft"],
