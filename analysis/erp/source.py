@@ -432,6 +432,6 @@ def level_activation(window: np.ndarray, baseline: np.ndarray, *, n_permutations
     diff = np.asarray(window, float) - np.asarray(baseline, float)
     if diff.shape[0] < 3:
         raise AppealInputError(f"source: per-level maps need at least 3 subjects (got {diff.shape[0]})")
-    t, p, _ = mne.stats.permutation_t_test(diff, n_permutations=n_permutations, tail=1, seed=seed, verbose="error")
+    t, p, _ = mne.stats.permutation_t_test(diff, n_permutations=n_permutations, tail=1, rng=seed, verbose="error")
     sig = p < alpha
     return t, p, float(t[sig].min()) if sig.any() else float("inf")
