@@ -183,7 +183,7 @@ class SourceConfig(StudyModel):
     """Source-space summaries: forward, inverse, window maps and voxel-wise contrasts."""
 
     enabled: bool = True
-    method: Literal["dSPM", "sLORETA", "MNE", "eLORETA"] = "sLORETA"
+    method: Literal["dSPM", "sLORETA", "MNE", "eLORETA", "LCMV"] = "sLORETA"
     snr: float = Field(3.0, gt=0)
     spacing_mm: float = Field(7.0, ge=2, le=20)
     subjects_dir: InputDir | None = None

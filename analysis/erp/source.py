@@ -238,7 +238,9 @@ def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, me
     windows : dict
         component -> (start, end) seconds.
     method : str
-        ``"dSPM"``, ``"sLORETA"``, ``"MNE"`` or ``"eLORETA"``.
+        ``"dSPM"``, ``"sLORETA"``, ``"MNE"``, ``"eLORETA"`` (minimum-norm, free orientation, depth
+        0.8) or ``"LCMV"`` (:func:`_lcmv_maps`: a unit-noise-gain beamformer, which finds deep
+        ventral generators — a right fusiform one — the minimum-norm estimates put 20-40 mm off).
     snr : float
         Assumed SNR; ``lambda2 = 1 / snr**2``.
 
@@ -252,6 +254,8 @@ def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, me
     ep = epochs.copy().set_eeg_reference("average", projection=True, verbose="error")
     fwd = _forward(head, ep.info)
     cov = mne.compute_covariance(ep, tmax=0.0, method="empirical", verbose="error")
+    if method == "LCMV":
+        return _lcmv_maps(ep, fwd, cov, groups, windows)
     inv = mne.minimum_norm.make_inverse_operator(ep.info, fwd, cov, loose=1.0, depth=0.8, verbose="error")
     out = {}
     for level, names in groups.items():
@@ -265,6 +269,30 @@ def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, me
         for comp, (a, b) in windows.items():
             mask = (stc.times >= a - 0.5 / evoked.info["sfreq"]) & (stc.times <= b + 0.5 / evoked.info["sfreq"])
             out[(comp, level)] = stc.data[:, mask].mean(axis=1).astype(np.float32)
+    return out
+
+
+def _lcmv_maps(ep, fwd, noise_cov, groups: dict, windows: dict) -> dict:
+    """Window-mean source magnitudes by an LCMV beamformer (MNE: unit-noise-gain weights, the
+    max-power orientation per voxel, 5 % regularisation), its data covariance from the
+    post-stimulus part of all epochs and its noise covariance from the baseline."""
+    import mne
+
+    data_cov = mne.compute_covariance(ep, tmin=0.0, method="empirical", verbose="error")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        filters = mne.beamformer.make_lcmv(ep.info, fwd, data_cov, reg=0.05, noise_cov=noise_cov, pick_ori="max-power",
+                                           weight_norm="unit-noise-gain", verbose="error")
+    out = {}
+    for level, names in groups.items():
+        names = [n for n in names if n in ep.event_id and len(ep[n])]
+        if not names:
+            continue
+        evoked = ep[names].average()
+        stc = mne.beamformer.apply_lcmv(evoked, filters, verbose="error")
+        for comp, (a, b) in windows.items():
+            mask = (stc.times >= a - 0.5 / evoked.info["sfreq"]) & (stc.times <= b + 0.5 / evoked.info["sfreq"])
+            out[(comp, level)] = np.abs(stc.data[:, mask]).mean(axis=1).astype(np.float32)
     return out
 
 
