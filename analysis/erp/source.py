@@ -282,6 +282,7 @@ def _lcmv_maps(ep, fwd, noise_cov, groups: dict, windows: dict) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         filters = mne.beamformer.make_lcmv(ep.info, fwd, data_cov, reg=0.05, noise_cov=noise_cov, pick_ori="max-power",
+                                           reduce_rank=True,
                                            weight_norm="unit-noise-gain", verbose="error")
     out = {}
     for level, names in groups.items():
