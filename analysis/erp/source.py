@@ -239,7 +239,7 @@ def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, me
         component -> (start, end) seconds.
     method : str
         ``"dSPM"``, ``"sLORETA"``, ``"MNE"``, ``"eLORETA"`` (minimum-norm, free orientation, depth
-        0.8) or ``"LCMV"`` (:func:`_lcmv_maps`: a unit-noise-gain beamformer, which finds deep
+        0.8) or ``"LCMV"`` (:func:`_lcmv_apply`: a unit-noise-gain beamformer, which finds deep
         ventral generators — a right fusiform one — the minimum-norm estimates put 20-40 mm off).
     snr : float
         Assumed SNR; ``lambda2 = 1 / snr**2``.
@@ -255,8 +255,15 @@ def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, me
     fwd = _forward(head, ep.info)
     cov = mne.compute_covariance(ep, tmax=0.0, method="empirical", verbose="error")
     if method == "LCMV":
-        return _lcmv_maps(ep, fwd, cov, groups, windows)
+        return _window_maps(ep, groups, windows, _lcmv_apply(ep, fwd, cov))
     inv = mne.minimum_norm.make_inverse_operator(ep.info, fwd, cov, loose=1.0, depth=0.8, verbose="error")
+    return _window_maps(ep, groups, windows, lambda evoked: mne.minimum_norm.apply_inverse(
+        evoked, inv, lambda2=1.0 / snr ** 2, method=method, verbose="error"))
+
+
+def _window_maps(ep, groups: dict, windows: dict, to_stc) -> dict:
+    """(component, level) -> each level's evoked response through ``to_stc``, its magnitude
+    averaged over the component's window (whole samples, as ``mne.Evoked.crop``)."""
     out = {}
     for level, names in groups.items():
         names = [n for n in names if n in ep.event_id and len(ep[n])]
@@ -265,36 +272,26 @@ def subject_source_maps(epochs, head: HeadModel, groups: dict, windows: dict, me
         evoked = ep[names].average()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            stc = mne.minimum_norm.apply_inverse(evoked, inv, lambda2=1.0 / snr ** 2, method=method, verbose="error")
+            stc = to_stc(evoked)
         for comp, (a, b) in windows.items():
             mask = (stc.times >= a - 0.5 / evoked.info["sfreq"]) & (stc.times <= b + 0.5 / evoked.info["sfreq"])
-            out[(comp, level)] = stc.data[:, mask].mean(axis=1).astype(np.float32)
+            out[(comp, level)] = np.abs(stc.data[:, mask]).mean(axis=1).astype(np.float32)
     return out
 
 
-def _lcmv_maps(ep, fwd, noise_cov, groups: dict, windows: dict) -> dict:
-    """Window-mean source magnitudes by an LCMV beamformer (MNE: unit-noise-gain weights, the
-    max-power orientation per voxel, 5 % regularisation), its data covariance from the
-    post-stimulus part of all epochs and its noise covariance from the baseline."""
+def _lcmv_apply(ep, fwd, noise_cov):
+    """An LCMV beamformer (MNE: unit-noise-gain weights, the max-power orientation per voxel, 5 %
+    regularisation, rank reduced where interpolated channels leave the data rank-deficient), its
+    data covariance from the post-stimulus part of all epochs and its noise covariance from the
+    baseline, as an evoked -> source estimate function."""
     import mne
 
     data_cov = mne.compute_covariance(ep, tmin=0.0, method="empirical", verbose="error")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         filters = mne.beamformer.make_lcmv(ep.info, fwd, data_cov, reg=0.05, noise_cov=noise_cov, pick_ori="max-power",
-                                           reduce_rank=True,
-                                           weight_norm="unit-noise-gain", verbose="error")
-    out = {}
-    for level, names in groups.items():
-        names = [n for n in names if n in ep.event_id and len(ep[n])]
-        if not names:
-            continue
-        evoked = ep[names].average()
-        stc = mne.beamformer.apply_lcmv(evoked, filters, verbose="error")
-        for comp, (a, b) in windows.items():
-            mask = (stc.times >= a - 0.5 / evoked.info["sfreq"]) & (stc.times <= b + 0.5 / evoked.info["sfreq"])
-            out[(comp, level)] = np.abs(stc.data[:, mask]).mean(axis=1).astype(np.float32)
-    return out
+                                           reduce_rank=True, weight_norm="unit-noise-gain", verbose="error")
+    return lambda evoked: mne.beamformer.apply_lcmv(evoked, filters, verbose="error")
 
 
 def map_peaks(values: np.ndarray, mni: np.ndarray, n_peaks: int = 3, min_distance_mm: float = 30.0) -> list[int]:
