@@ -144,20 +144,15 @@ def _split_weights(items: tuple, first: str) -> tuple[list[Path], list[float]]:
 def _part_morph(paths: list[Path], regions: str, landmarks: str, interpolation: str, sheet: Path | None,
                 out: Path, force: bool) -> None:
     """``appeal stimuli morph --regions``: load, check, morph, save (and the sheet)."""
-    from stimulus_engine.mesh_io import load_mesh, save_mesh
-    from stimulus_engine.morph import part_morph
+    from stimulus_engine.mesh_io import save_mesh
+    from stimulus_engine.morph import load_corresponded, part_morph
     from stimulus_engine.morph_regions import parse_regions, part_morph_sheet, read_ibug
 
     if len(paths) < 2:
         raise AppealInputError(f"MESH...: expected a base mesh and at least one donor (got {len(paths)})")
     chosen = parse_regions(regions, len(paths))
     refuse_existing_file(out, force)
-    loaded = [load_mesh(p) for p in paths]
-    for p, m in zip(paths[1:], loaded[1:]):
-        if m.vertices.shape != loaded[0].vertices.shape or m.faces.shape != loaded[0].faces.shape \
-                or (m.faces != loaded[0].faces).any():
-            raise AppealInputError(f"{p}: not in correspondence with {paths[0]} (expected the same vertex count and "
-                                   f"faces; got {len(m.vertices)} vs {len(loaded[0].vertices)} vertices)")
+    loaded = load_corresponded(paths)
     ibug = read_ibug(landmarks, loaded[0], str(paths[0]))
     result = part_morph(loaded, chosen, ibug, interpolation)
     save_mesh(result, out)

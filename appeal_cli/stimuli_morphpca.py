@@ -213,10 +213,9 @@ def mimicry(source_model, mimic_model, source_frames, mimic_frames, out, force, 
     from stimulus_engine.morphpca.mimicry_run import measure_mimicry, mimicry_frames
 
     sf, mf = mimicry_frames(source_frames, mimic_frames)  # bad input: one line, before any output
-    load_model(source_model), load_model(mimic_model)
+    ma, mb = load_model(source_model), load_model(mimic_model)
     with output_run(out, force=force, resume=resume, inputs=[source_model, mimic_model, *sf, *mf]) as run:
-        summary = measure_mimicry(source_model, mimic_model, source_frames, mimic_frames, run.out,
-                                  align=not no_align, bins=bins)
+        summary = measure_mimicry(ma, mb, sf, mf, run.out, align=not no_align, bins=bins)
         _write_metrics(run, summary, json_path)
     click.echo(f"{run.out}: {summary['frames']} frames; mean frame correlation {summary['mean_frame_correlation']:.2f}, "
                f"mean normalised MI {summary['mean_normalised_mi']:.2f}")

@@ -24,7 +24,8 @@ from appeal.errors import AppealInputError
 from stimulus_engine.correspondence.laplacian import cotangent_laplacian
 from stimulus_engine.correspondence.solve import factorize
 
-__all__ = ["check_weights", "blend_vertices", "blend_images", "blend_meshes", "partial_blend", "slerp_vectors"]
+__all__ = ["check_weights", "blend_vertices", "blend_images", "blend_meshes", "load_corresponded", "part_morph",
+           "partial_blend", "slerp_vectors"]
 
 
 def check_weights(weights, n: int, where: str = "weights") -> np.ndarray:
@@ -68,6 +69,22 @@ def blend_images(images, weights) -> Image.Image:
     return Image.fromarray(np.clip(np.rint(out), 0, 255).astype(np.uint8))
 
 
+def load_corresponded(paths: Sequence[Path]) -> list:
+    """Load meshes that must be in correspondence with the first (same vertex count and faces);
+    one-line error naming the first that is not."""
+    from stimulus_engine.mesh_io import load_mesh
+
+    loaded = [load_mesh(p) for p in paths]
+    first = loaded[0]
+    for p, m in zip(paths[1:], loaded[1:]):
+        if m.vertices.shape != first.vertices.shape or m.faces.shape != first.faces.shape or (m.faces != first.faces).any():
+            raise AppealInputError(
+                f"{p}: not in correspondence with {paths[0]} (expected the same vertex count and faces; "
+                f"got {len(m.vertices)} vs {len(first.vertices)} vertices)"
+            )
+    return loaded
+
+
 def blend_meshes(paths: Sequence[str | Path], weights, where: str = "weights"):
     """Load corresponded meshes and blend them: vertices always, textures when all have one of one size.
 
@@ -96,20 +113,14 @@ def blend_meshes(paths: Sequence[str | Path], weights, where: str = "weights"):
     import trimesh
 
     from stimulus_engine.correspondence.pipeline import deformed_mesh
-    from stimulus_engine.mesh_io import load_mesh, texture_image
+    from stimulus_engine.mesh_io import texture_image
 
     paths = [Path(p) for p in paths]
     if len(paths) < 2:
         raise AppealInputError(f"MESH...: expected at least two meshes to blend (got {len(paths)})")
     w = check_weights(weights, len(paths), where)
-    loaded = [load_mesh(p) for p in paths]
+    loaded = load_corresponded(paths)
     first = loaded[0]
-    for p, m in zip(paths[1:], loaded[1:]):
-        if m.vertices.shape != first.vertices.shape or m.faces.shape != first.faces.shape or (m.faces != first.faces).any():
-            raise AppealInputError(
-                f"{p}: not in correspondence with {paths[0]} (expected the same vertex count and faces; "
-                f"got {len(m.vertices)} vs {len(first.vertices)} vertices)"
-            )
     result = deformed_mesh(first, blend_vertices([m.vertices for m in loaded], w))
     images = [texture_image(m) for m in loaded]
     if all(im is not None for im in images) and len({im.size for im in images}) == 1:

@@ -129,8 +129,7 @@ def level_maps(result: ErpResult, cfg: ErpConfig, seed: int = 0) -> tuple[pd.Dat
         effect = np.where(p < 0.05, (win - base).mean(axis=0), -np.inf)
         i = int(np.argmax(effect)) if np.isfinite(effect).any() else int(np.argmax(t))
         n_sig = int((p < 0.05).sum())
-        spacing = float(cfg.source.spacing_mm)
-        rows.append(dict(component=comp, level=level, n_significant=n_sig, volume_mm3=n_sig * spacing ** 3,
+        rows.append(dict(component=comp, level=level, n_significant=n_sig, volume_mm3=round(n_sig * result.head.voxel_mm3, 1),
                          peak_t=float(t[i]), peak_p_fwe=float(p[i]), x_mm=round(float(mni[i, 0]), 1),
                          y_mm=round(float(mni[i, 1]), 1), z_mm=round(float(mni[i, 2]), 1), n_subjects=len(subs)))
     cols = ["component", "level", "n_significant", "volume_mm3", "peak_t", "peak_p_fwe", "x_mm", "y_mm", "z_mm", "n_subjects"]

@@ -78,6 +78,19 @@ class HeadModel:
         return s["rr"][s["vertno"]]
 
     @property
+    def spacing(self) -> float:
+        """The grid step (metres): the median distance to each voxel's nearest neighbour."""
+        from scipy.spatial import cKDTree
+
+        pos = self.positions
+        return float(np.median(cKDTree(pos).query(pos, k=2)[0][:, 1]))
+
+    @property
+    def voxel_mm3(self) -> float:
+        """One voxel's volume in mm³."""
+        return (self.spacing * 1e3) ** 3
+
+    @property
     def mni(self) -> np.ndarray:
         """Used source positions in MNI millimetres."""
         p = self.positions
@@ -387,10 +400,8 @@ def contrast_clusters(diff: np.ndarray, head: HeadModel, *, p_threshold: float =
         raise AppealInputError(f"source: voxel-wise tests need at least 3 subjects (got {n})")
     thresh = float(stats.t.ppf(1 - p_threshold, n - 1))
     pos = head.positions
-    from scipy.spatial import cKDTree
 
-    spacing = float(np.median(cKDTree(pos).query(pos, k=2)[0][:, 1]))  # the grid step
-    voxel_mm3 = (spacing * 1e3) ** 3
+    spacing, voxel_mm3 = head.spacing, head.voxel_mm3
     if min_volume_mm3 is not None:
         min_voxels = max(1, int(np.ceil(min_volume_mm3 / voxel_mm3 - 1e-9)))
     diff = smooth_on_grid(diff, pos, smoothing_fwhm_mm / 1e3)

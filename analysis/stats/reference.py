@@ -82,10 +82,10 @@ def reference_table(reference: pd.DataFrame, main: pd.DataFrame, dv: str, subjec
     if ref.empty:
         raise AppealInputError(f"{source}: reference: no '{name}' ratings in {dv} (check reference.rows)")
     rows = [{"condition": name, **{f: "" for f in matched}, "mean": ref.mean(), "sd": ref.std(ddof=1), "n": len(ref)}]
-    keys = {f: [level_key(v) for v in main[f]] for f in matched}
+    keys = {f: np.array([repr(level_key(v)) for v in main[f]]) for f in matched}  # each row's level, once
     tests = []
     for combo in matched_levels(main, matched, levels, source):
-        sel = np.logical_and.reduce([np.array([k == level_key(v) for k in keys[f]]) for f, v in zip(matched, combo)])
+        sel = np.logical_and.reduce([keys[f] == repr(level_key(v)) for f, v in zip(matched, combo)])
         per = main.loc[sel].dropna(subset=[dv]).groupby(subject)[dv].mean()
         both = ref.index.intersection(per.index)
         row = {"condition": " / ".join(f"{f} {v}" for f, v in zip(matched, combo)), **dict(zip(matched, combo)),

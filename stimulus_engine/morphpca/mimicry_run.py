@@ -56,18 +56,18 @@ def plot_loadings(source: np.ndarray, mimic: np.ndarray, variances: np.ndarray, 
     return path
 
 
-def measure_mimicry(source_model: str | Path, mimic_model: str | Path, source_frames: Sequence[str | Path],
-                    mimic_frames: Sequence[str | Path], out: Path, *, align: bool = True, bins: int | None = None) -> dict:
+def measure_mimicry(ma, mb, sf: Sequence[Path], mf: Sequence[Path], out: Path, *, align: bool = True,
+                    bins: int | None = None) -> dict:
     """Compare a mimicry with its source in the source's expression space.
 
     Parameters
     ----------
-    source_model, mimic_model : path
+    ma, mb : MorphModel
         Morph-PCA models (``appeal stimuli morphpca build``) of the source person (A) and of the
         person mimicking (B).
-    source_frames, mimic_frames : sequence of paths
-        Frames (or folders of frames, in name order) of the source sequence and of its mimicry,
-        one mimic frame per source frame.
+    sf, mf : sequence of paths
+        Frame files of the source sequence and of its mimicry, one mimic frame per source frame
+        (:func:`mimicry_frames`).
     out : Path
         An existing output folder: ``loadings_source.csv``, ``loadings_mimic.csv`` (the mimic
         projected into A), ``frames.csv`` (per-frame distances and correlation),
@@ -85,7 +85,7 @@ def measure_mimicry(source_model: str | Path, mimic_model: str | Path, source_fr
     """
     import pandas as pd
 
-    from stimulus_engine.morphpca.io import load_model, read_images
+    from stimulus_engine.morphpca.io import read_images
     from stimulus_engine.morphpca.mimicry import (
         component_correlations,
         information_measures,
@@ -95,8 +95,6 @@ def measure_mimicry(source_model: str | Path, mimic_model: str | Path, source_fr
     from stimulus_engine.morphpca.project import project_expression
 
     t0 = time.perf_counter()
-    ma, mb = load_model(source_model), load_model(mimic_model)
-    sf, mf = mimicry_frames(source_frames, mimic_frames)
     src, mim = read_images(sf, ma.size), read_images(mf, mb.size)
     la = ma.project(ma.encode(src))
     proj = project_expression(mim, mb, ma, align=align)

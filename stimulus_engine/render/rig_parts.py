@@ -52,12 +52,17 @@ def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | Non
     of the per-image time on llvmpipe. The key holds the array's id and the entry the array
     itself, so a new array that reuses a freed id never hits a stale material.
     """
-    arrays = (texture, normal, specular)
-    key = (shading, tuple(colour), float(roughness)) + tuple(None if a is None else id(a) for a in arrays)
+    return _cached(("part", shading, tuple(colour), float(roughness)), (texture, normal, specular),
+                   lambda: _new_material(shading, colour, texture, roughness, normal, specular))
+
+
+def _cached(key: tuple, arrays: tuple, make) -> object:
+    """``make()``'s material, kept per ``key`` and the identity of ``arrays`` (see :func:`_material`)."""
+    key = key + tuple(None if a is None else id(a) for a in arrays)
     hit = _MATERIALS.get(key)
     if hit is not None and all(x is a for x, a in zip(hit[0], arrays)):
         return hit[1]
-    mat = _new_material(shading, colour, texture, roughness, normal, specular)
+    mat = make()
     if len(_MATERIALS) > 32:
         _MATERIALS.clear()
     _MATERIALS[key] = (arrays, mat)
@@ -184,10 +189,10 @@ def hair_render_part(hair: Hair, vertices: np.ndarray, shading: str = "pbr") -> 
 
 def _hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray) -> object:
     """A cached material per (shading, colour, texture) for the hair (see :func:`_material`)."""
-    key = ("hair", shading, tuple(colour), id(texture))
-    hit = _MATERIALS.get(key)
-    if hit is not None and hit[0][0] is texture:
-        return hit[1]
+    return _cached(("hair", shading, tuple(colour)), (texture,), lambda: _new_hair_material(shading, colour, texture))
+
+
+def _new_hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray) -> object:
     from stimulus_engine.render._pyrender import pyrender
 
     tex = pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGBA")
@@ -198,5 +203,4 @@ def _hair_material(shading: str, colour: tuple[float, float, float], texture: np
     else:
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0,
                                                  roughnessFactor=HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
-    _MATERIALS[key] = ((texture,), mat)
     return mat
