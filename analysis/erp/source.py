@@ -400,7 +400,6 @@ def contrast_clusters(diff: np.ndarray, head: HeadModel, *, p_threshold: float =
         raise AppealInputError(f"source: voxel-wise tests need at least 3 subjects (got {n})")
     thresh = float(stats.t.ppf(1 - p_threshold, n - 1))
     pos = head.positions
-
     spacing, voxel_mm3 = head.spacing, head.voxel_mm3
     if min_volume_mm3 is not None:
         min_voxels = max(1, int(np.ceil(min_volume_mm3 / voxel_mm3 - 1e-9)))
