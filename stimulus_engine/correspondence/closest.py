@@ -9,7 +9,10 @@ on the dense, near-coincident meshes the registration works with.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -22,6 +25,19 @@ __all__ = [
     "closest_point_on_triangles",
     "project_to_triangles",
 ]
+
+
+#: queries of at least this many points are split over the cores (NumPy and the k-d tree
+#: release the GIL: two threads answer 19k queries in half the time on two cores)
+_PARALLEL_MIN = 8192
+
+
+_THREADS = min(os.cpu_count() or 1, 8)
+
+
+@lru_cache(maxsize=1)
+def _pool() -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(_THREADS, thread_name_prefix="closest")
 
 
 def project_to_triangles(
@@ -158,9 +174,13 @@ class SurfaceIndex:
 
     def _closest(self, points: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        if len(p) <= chunk:
+        if _THREADS > 1 and len(p) >= _PARALLEL_MIN:
+            n_parts = max(_THREADS, -(-len(p) // chunk))
+            parts = list(_pool().map(self._query, np.array_split(p, n_parts)))
+        elif len(p) <= chunk:
             return self._query(p)
-        parts = [self._query(p[a : a + chunk]) for a in range(0, len(p), chunk)]
+        else:
+            parts = [self._query(p[a : a + chunk]) for a in range(0, len(p), chunk)]
         return tuple(np.concatenate(x) for x in zip(*parts))
 
     def query(self, points: np.ndarray, chunk: int = 65536) -> ClosestPoints:
