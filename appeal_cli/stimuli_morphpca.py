@@ -49,8 +49,10 @@ Examples:
 @click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
 @out_options()
 @click.option("--keypoints", "keypoints", default=None, metavar="FILE|tem|detect",
-              help="Eye centres + philtrum per image: a CSV (image,left_eye_x,left_eye_y,right_eye_x,right_eye_y,"
-                   "philtrum_x,philtrum_y), 'tem' (WebMorph .tem beside each image) or 'detect' (dlib, offline).")
+              help="Keypoints per image: a CSV (image,left_eye_x,left_eye_y,right_eye_x,right_eye_y,philtrum_x,"
+                   "philtrum_y, optionally dense landmarks p0_x,p0_y,p1_x,...), 'tem' (the 189-point WebMorph .tem "
+                   "beside each image) or 'detect' (dlib's 68 points, offline). Dense landmarks guide the warps "
+                   "(see --warp).")
 @click.option("--register", is_flag=True, help="Similarity-align faces on their eye centres first (needs --keypoints).")
 @click.option("--size", default=None, metavar="HxW", help="Resize (or, with --register, crop) images to this size, e.g. 240x200.")
 @click.option("--components", type=click.IntRange(min=1), default=None, help="Principal components to keep (default: all).")
@@ -62,9 +64,13 @@ Examples:
               help="Optical flow (the paper's McGM is not available).")
 @click.option("--holdout", type=click.IntRange(min=0), default=0, show_default=True,
               help="Leave the last N images out of the model and report their reconstruction PSNR/SSIM.")
+@click.option("--warp", type=click.Choice(["guided", "flow", "landmarks"]), default="guided", show_default=True,
+              help="With dense landmarks (tem, detect, or pK_x/pK_y columns): 'guided' = a thin-plate spline through "
+                   "them refined by optical flow inside the face (for faces of different people), 'flow' = optical "
+                   "flow alone (frames of one person), 'landmarks' = the spline alone (Psychomorph-style).")
 @click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
 def build(images, out, force, resume, keypoints, register, size, components, variance, reference, backend, holdout,
-          json_path) -> None:
+          warp, json_path) -> None:
     """Build a PCA morph model from aligned face IMAGES (files or folders).
 
     Writes DIR/model.npz (+ model.json metadata), DIR/mean.png, DIR/components.png (the mean
@@ -76,10 +82,12 @@ def build(images, out, force, resume, keypoints, register, size, components, var
     inputs = read_morph_inputs(images, keypoints=keypoints, register=register, size=size, reference=reference,
                                holdout=holdout)  # bad input: one-line errors before any output folder is made
     with output_run(out, force=force, resume=resume, inputs=inputs.files) as run:
-        model, metrics = build_morph_model(inputs, run.out, components=components, variance=variance, backend=backend)
+        model, metrics = build_morph_model(inputs, run.out, components=components, variance=variance, backend=backend,
+                                           warp=warp)
         _write_metrics(run, metrics, json_path)
     click.echo(f"{run.out / 'model.npz'}: {model.n_components} components, "
-               f"{100 * metrics['explained_variance']:.1f}% variance, train PSNR {metrics['train_psnr_db']:.1f} dB")
+               f"{100 * metrics['explained_variance']:.1f}% variance, train PSNR {metrics['train_psnr_db']:.1f} dB"
+               + (f", hold-out PSNR {metrics['holdout_psnr_db']:.1f} dB" if "holdout_psnr_db" in metrics else ""))
 
 
 @morphpca.command(context_settings=CONTEXT, epilog="""\b

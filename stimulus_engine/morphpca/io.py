@@ -113,7 +113,8 @@ def canonical_eyes(size: tuple[int, int], eye_y: float = 0.40, eye_distance: flo
 
 
 def register_faces(images: Sequence[np.ndarray] | np.ndarray, frames: np.ndarray, size: tuple[int, int],
-                   eye_y: float = 0.40, eye_distance: float = 0.30) -> tuple[np.ndarray, np.ndarray]:
+                   eye_y: float = 0.40, eye_distance: float = 0.30, points: np.ndarray | None = None,
+                   ) -> tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Similarity-align faces on their eye centres and crop to ``size`` (h, w).
 
     Large images are first shrunk by area averaging so the final resampling does not alias.
@@ -122,10 +123,12 @@ def register_faces(images: Sequence[np.ndarray] | np.ndarray, frames: np.ndarray
     -------
     images : (n, h, w, 3) float32
     frames : (n, 3, 2) the faceframes in the registered images
+    points : (n, K, 2)
+        Only when ``points`` (landmarks of the input images) are given: moved with them.
     """
     dst = canonical_eyes(size, eye_y, eye_distance)
-    out_imgs, out_frames = [], []
-    for img, fr in zip(images, frames):
+    out_imgs, out_frames, out_points = [], [], []
+    for i, (img, fr) in enumerate(zip(images, frames)):
         img = np.asarray(img, np.float32)
         fr = np.asarray(fr, float)
         m = similarity_from_eyes(fr[:2], dst)
@@ -139,6 +142,10 @@ def register_faces(images: Sequence[np.ndarray] | np.ndarray, frames: np.ndarray
                                 borderMode=cv2.BORDER_REPLICATE)
         out_imgs.append(warped)
         out_frames.append(transform_points(m, fr * pre))
+        if points is not None:
+            out_points.append(transform_points(m, np.asarray(points[i], float) * pre))
+    if points is not None:
+        return np.stack(out_imgs), np.stack(out_frames), np.stack(out_points)
     return np.stack(out_imgs), np.stack(out_frames)
 
 
@@ -171,8 +178,9 @@ def save_model(model: MorphModel, path: str | Path) -> Path:
                   reference=np.clip(model.reference * 255 + 0.5, 0, 255).astype(np.uint8),
                   ref_positions=model.ref_positions, loadings=model.loadings,
                   metadata_json=np.array(json.dumps(meta)))
-    if model.faceframe is not None:
-        arrays["faceframe"] = np.asarray(model.faceframe, float)
+    for name in ("faceframe", "ref_landmarks", "landmarks"):
+        if getattr(model, name) is not None:
+            arrays[name] = np.asarray(getattr(model, name), float)
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     atomic_write_bytes(path, buf.getvalue())
@@ -207,4 +215,6 @@ def load_model(path: str | Path) -> MorphModel:
                       size=size, reference=z["reference"].astype(np.float32) / 255.0,
                       ref_positions=z["ref_positions"].astype(np.float32), loadings=loadings, faceframe=frame,
                       total_variance=float(meta.get("total_variance", 0.0)),
-                      meta={k: v for k, v in meta.items() if k not in known})
+                      meta={k: v for k, v in meta.items() if k not in known},
+                      ref_landmarks=z["ref_landmarks"] if "ref_landmarks" in z.files else None,
+                      landmarks=z["landmarks"] if "landmarks" in z.files else None)

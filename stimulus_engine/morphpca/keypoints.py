@@ -23,8 +23,8 @@ import numpy as np
 
 from appeal.errors import AppealInputError
 
-__all__ = ["FRAME_COLUMNS", "read_tem", "faceframe_from_tem", "read_keypoints_csv", "write_keypoints_csv",
-           "detect_landmarks", "detect_landmarks_scored", "detect_faceframe"]
+__all__ = ["FRAME_COLUMNS", "read_tem", "faceframe_from_tem", "faceframe_from_68", "read_keypoints_csv",
+           "read_landmarks_csv", "write_keypoints_csv", "detect_landmarks", "detect_landmarks_scored", "detect_faceframe"]
 
 FRAME_COLUMNS = ("left_eye_x", "left_eye_y", "right_eye_x", "right_eye_y", "philtrum_x", "philtrum_y")
 _TEM_PUPILS = (0, 1)
@@ -158,9 +158,37 @@ def detect_landmarks_scored(image: np.ndarray, name: str = "image", max_side: in
     return np.array([[p.x, p.y] for p in shape.parts()], dtype=np.float64), float(scores[k])
 
 
-def detect_faceframe(image: np.ndarray, name: str = "image") -> np.ndarray:
-    """Faceframe ``(3, 2)`` of ``image`` from the detected 68 landmarks."""
-    lm = detect_landmarks(image, name)
+def faceframe_from_68(points: np.ndarray) -> np.ndarray:
+    """Faceframe ``(3, 2)`` from the 68 iBUG/dlib landmarks (eye means, midpoint of 33 and 51)."""
+    lm = np.asarray(points, float)
     eyes = np.array([lm[36:42].mean(axis=0), lm[42:48].mean(axis=0)])
     eyes = eyes[np.argsort(eyes[:, 0])]
     return np.vstack([eyes, (lm[33] + lm[51]) / 2.0])
+
+
+def detect_faceframe(image: np.ndarray, name: str = "image") -> np.ndarray:
+    """Faceframe ``(3, 2)`` of ``image`` from the detected 68 landmarks."""
+    return faceframe_from_68(detect_landmarks(image, name))
+
+
+def read_landmarks_csv(path: str | Path, images: Sequence[str | Path]) -> np.ndarray | None:
+    """Dense landmarks ``(n, K, 2)`` from the optional ``p0_x, p0_y, p1_x, …`` columns of a keypoints
+    CSV (matched by image name, as :func:`read_keypoints_csv`), or None when it has none."""
+    import pandas as pd
+
+    df = pd.read_csv(path)
+    k = 0
+    while f"p{k}_x" in df.columns and f"p{k}_y" in df.columns:
+        k += 1
+    if k == 0:
+        return None
+    cols = [c for j in range(k) for c in (f"p{j}_x", f"p{j}_y")]
+    by_name = df.assign(image=df["image"].astype(str).map(lambda s: Path(s).name)).set_index("image")
+    out = np.empty((len(images), k, 2))
+    for i, img in enumerate(images):
+        vals = pd.to_numeric(by_name.loc[Path(img).name, cols], errors="coerce").to_numpy(float)
+        if not np.all(np.isfinite(vals)):
+            raise AppealInputError(f"{path}: p0_x..p{k - 1}_y: missing or non-numeric for '{Path(img).name}' "
+                                   "(expected every landmark of every image)")
+        out[i] = vals.reshape(k, 2)
+    return out

@@ -29,6 +29,7 @@ from stimulus_engine.morphpca.flow import (
     sample_field,
     warp_image,
 )
+from stimulus_engine.morphpca.landmark_warp import guided_flow
 
 __all__ = ["TEXTURE_SCALE", "MorphSet", "serialise", "deserialise", "decompose", "encode_with_reference"]
 
@@ -94,7 +95,8 @@ def encode_with_reference(image: np.ndarray, reference: np.ndarray, ref_position
 
 
 def decompose(images: np.ndarray, reference_index: int = 0, backend: str = "dis", levels: int = 1,
-              weights: Sequence[float] | None = None, desc: str = "warp fields") -> MorphSet:
+              weights: Sequence[float] | None = None, desc: str = "warp fields", landmarks: np.ndarray | None = None,
+              refine: bool = True) -> MorphSet:
     """Split images into textures and warps on their (weighted) mean shape.
 
     Parameters
@@ -107,6 +109,11 @@ def decompose(images: np.ndarray, reference_index: int = 0, backend: str = "dis"
     weights : sequence of float, optional
         Weights of the mean shape (default equal; they must sum to 1). Other weights move the
         mean towards or beyond some images (used for identity weights of avatars).
+    landmarks : (n, K, 2) array, optional
+        The same K keypoints in every image: warps start from them and the flow refines
+        (:func:`~.landmark_warp.guided_flow`); without, plain optical flow from the reference.
+    refine : bool
+        With landmarks: False keeps the landmark spline alone (Psychomorph-style).
 
     Returns
     -------
@@ -118,8 +125,13 @@ def decompose(images: np.ndarray, reference_index: int = 0, backend: str = "dis"
     flows = np.empty((n, h, w, 2), np.float32)
     flows[reference_index] = 0.0
     for i in progress(range(n), total=n, desc=desc):
-        if i != reference_index:
+        if i == reference_index:
+            continue
+        if landmarks is None:
             flows[i] = compute_flow(ref_grey, images[i], backend, levels)
+        else:
+            flows[i] = guided_flow(ref_grey, images[i], landmarks[reference_index], landmarks[i], backend=backend,
+                                   levels=levels, refine=refine)
     wts = np.full(n, 1.0 / n, np.float32) if weights is None else np.asarray(weights, np.float32)
     mean_d = fix_foldovers((wts @ flows.reshape(n, -1)).reshape(h, w, 2))
     ref_positions = grid(h, w) + invert_displacement(mean_d)

@@ -17,6 +17,7 @@ import numpy as np
 
 from appeal.errors import AppealInputError
 from stimulus_engine.morphpca.flow import grey_u8, grid, sample_field
+from stimulus_engine.morphpca.landmark_warp import check_landmarks, guided_flow
 from stimulus_engine.morphpca.morphvec import decompose, deserialise, encode_with_reference, serialise
 
 __all__ = ["MorphModel", "pca", "pca_with_loadings", "gram", "build_model", "check_image_stack"]
@@ -138,6 +139,11 @@ class MorphModel:
     total_variance : float
     meta : dict
         Names of the training images, flow backend, timings, format version …
+    ref_landmarks : (K, 2) float64 or None
+        The keypoints of the reference image when the warps were landmark-guided: new images
+        with the same K keypoints are encoded the same way (:meth:`encode`).
+    landmarks : (K, 2) float64 or None
+        Their average position on the mean image.
     """
 
     components: np.ndarray
@@ -150,6 +156,8 @@ class MorphModel:
     faceframe: np.ndarray | None = None
     total_variance: float = 0.0
     meta: dict = field(default_factory=dict)
+    ref_landmarks: np.ndarray | None = None
+    landmarks: np.ndarray | None = None
 
     @property
     def n_components(self) -> int:
@@ -159,17 +167,32 @@ class MorphModel:
     def explained_variance_ratio(self) -> np.ndarray:
         return self.variances / self.total_variance if self.total_variance > 0 else np.zeros_like(self.variances)
 
-    def encode(self, images: np.ndarray) -> np.ndarray:
-        """Absolute morph vectors ``(n, D)`` of new images of this face (flow from the reference)."""
+    def encode(self, images: np.ndarray, landmarks: np.ndarray | None = None) -> np.ndarray:
+        """Absolute morph vectors ``(n, D)`` of new images (flow from the reference).
+
+        ``landmarks`` ``(n, K, 2)``: the images' keypoints (the model's K) for landmark-guided
+        warps; a model built with landmarks encodes images without them by optical flow alone.
+        """
         imgs = check_image_stack(images if np.ndim(images) == 4 else [images], "image", min_images=1)
         if imgs.shape[1:3] != tuple(self.size):
             raise AppealInputError(f"image: size {imgs.shape[1]}x{imgs.shape[2]} differs from the model's "
                                    f"{self.size[0]}x{self.size[1]} (expected images of the model's size)")
+        if landmarks is not None:
+            landmarks = np.asarray(landmarks, float).reshape(len(imgs), -1, 2)
+            if self.ref_landmarks is None or landmarks.shape[1] != len(self.ref_landmarks):
+                k = "none" if self.ref_landmarks is None else len(self.ref_landmarks)
+                raise AppealInputError(f"landmarks: {landmarks.shape[1]} points per image, but the model was built "
+                                       f"with {k} (expected the template the model was built with)")
         backend, levels = self.meta.get("backend", "dis"), int(self.meta.get("levels", 1))
+        refine = bool(self.meta.get("landmark_refine", True))
         ref = grey_u8(self.reference)  # converted once for all images
         out = np.empty((len(imgs), self.mean.shape[0]), np.float32)
         for i, img in enumerate(imgs):
-            out[i] = serialise(*encode_with_reference(img, ref, self.ref_positions, backend, levels))
+            flow = None
+            if landmarks is not None:
+                flow = guided_flow(ref, img, self.ref_landmarks, landmarks[i], backend=backend, levels=levels,
+                                   refine=refine)
+            out[i] = serialise(*encode_with_reference(img, ref, self.ref_positions, backend, levels, flow=flow))
         return out
 
     def relative(self, vectors: np.ndarray) -> np.ndarray:
@@ -222,7 +245,8 @@ def faceframe_on_mean(warps: np.ndarray, frames: np.ndarray, iterations: int = 1
 def build_model(images: Any, *, n_components: int | None = None, variance: float | None = None,
                 reference_index: int = 0, backend: str = "dis", levels: int = 1,
                 faceframes: np.ndarray | None = None, names: Sequence[str] | None = None,
-                weights: Sequence[float] | None = None) -> MorphModel:
+                weights: Sequence[float] | None = None, landmarks: np.ndarray | None = None,
+                refine: bool = True) -> MorphModel:
     """Build a PCA morph model from aligned images of one face (or of many faces: a face space).
 
     Parameters
@@ -239,6 +263,12 @@ def build_model(images: Any, *, n_components: int | None = None, variance: float
         Image names kept in the metadata.
     weights : sequence of float, optional
         Weights of the mean (default equal).
+    landmarks : (n, K, 2), optional
+        The same K keypoints in every image (a .tem template, the 68 detected points):
+        landmark-guided warps (:mod:`~.landmark_warp`) instead of optical flow alone.
+    refine : bool
+        With landmarks: refine the landmark spline by optical flow inside the face (False:
+        the spline alone, as Psychomorph).
 
     Returns
     -------
@@ -252,7 +282,14 @@ def build_model(images: Any, *, n_components: int | None = None, variance: float
     if faceframes is not None and np.shape(faceframes) != (n, 3, 2):
         raise AppealInputError(f"keypoints: expected 3 points (left eye, right eye, philtrum) for each of the {n} "
                                f"images (got shape {np.shape(faceframes)})")
-    ms = decompose(imgs, reference_index, backend, levels, weights=weights)
+    if landmarks is not None:
+        landmarks = np.asarray(landmarks, float)
+        if landmarks.ndim != 3 or landmarks.shape[0] != n or landmarks.shape[2] != 2:
+            raise AppealInputError(f"landmarks: expected the same K (x, y) points for each of the {n} images "
+                                   f"(got shape {landmarks.shape})")
+        for i, pts in enumerate(landmarks):
+            check_landmarks(pts, (h, w), f"landmarks[{i}]" if names is None else f"{names[i]}: keypoints")
+    ms = decompose(imgs, reference_index, backend, levels, weights=weights, landmarks=landmarks, refine=refine)
     t_flow = time.perf_counter() - t0
     rel = ms.vectors()
     wts = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, float)
@@ -264,6 +301,10 @@ def build_model(images: Any, *, n_components: int | None = None, variance: float
             "n_images": n, "reference_index": reference_index,
             "names": list(names) if names is not None else [f"image{i}" for i in range(n)],
             "seconds_flow": t_flow, "seconds_total": time.perf_counter() - t0}
+    if landmarks is not None:
+        meta.update(landmark_points=int(landmarks.shape[1]), landmark_refine=bool(refine))
     return MorphModel(components=components, mean=mean, variances=variances, size=(h, w), reference=imgs[reference_index],
                       ref_positions=ms.ref_positions, loadings=loadings, faceframe=frame,
-                      total_variance=total, meta=meta)
+                      total_variance=total, meta=meta,
+                      ref_landmarks=None if landmarks is None else landmarks[reference_index],
+                      landmarks=None if landmarks is None else faceframe_on_mean(ms.warps, landmarks))

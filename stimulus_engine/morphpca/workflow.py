@@ -42,6 +42,9 @@ class MorphInputs:
         Registered to one size when asked.
     faceframes : (n, 3, 2) array or None
         Eye centres and philtrum per image.
+    landmarks : (n, K, 2) array or None
+        All keypoints per image (a .tem template, the 68 detected points, or the CSV's
+        ``pK_x/pK_y`` columns): the warps are then landmark-guided.
     reference : int
         Index of the reference image (neutral, eyes open) among the training images.
     n_train : int
@@ -56,23 +59,53 @@ class MorphInputs:
     reference: int
     n_train: int
     seconds: float = 0.0
+    landmarks: np.ndarray | None = None
 
     @property
     def names(self) -> list[str]:
         return [f.name for f in self.files]
 
 
-def _faceframes(spec: str | None, files: list[Path], images: list[np.ndarray]) -> np.ndarray | None:
-    """Faceframes for ``files``: a CSV path, 'tem' (templates beside the images) or 'detect'."""
-    from stimulus_engine.morphpca.keypoints import detect_faceframe, faceframe_from_tem, read_keypoints_csv, read_tem
+def read_keypoints(spec: str | None, files: list[Path], images: list[np.ndarray],
+                   ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Faceframes ``(n, 3, 2)`` and dense landmarks ``(n, K, 2)`` (or None) for ``files``.
+
+    ``spec``: a CSV path (faceframes; landmarks from its optional ``pK_x/pK_y`` columns), 'tem'
+    (the 189-point templates beside the images) or 'detect' (dlib's 68 points). Every image must
+    have the same template, and its points must lie on that image (one-line errors otherwise).
+    """
+    from stimulus_engine.morphpca.keypoints import (
+        detect_landmarks,
+        faceframe_from_68,
+        faceframe_from_tem,
+        read_keypoints_csv,
+        read_landmarks_csv,
+        read_tem,
+    )
+    from stimulus_engine.morphpca.landmark_warp import check_landmarks
 
     if spec is None:
-        return None
+        return None, None
     if spec == "tem":
-        return np.stack([faceframe_from_tem(read_tem(f.with_suffix(".tem")), f.with_suffix(".tem")) for f in files])
-    if spec == "detect":
-        return np.stack([detect_faceframe(img, str(f)) for f, img in zip(files, images)])
-    return read_keypoints_csv(spec, files)
+        sources = [f.with_suffix(".tem") for f in files]
+        points = [read_tem(t) for t in sources]
+        frames = np.stack([faceframe_from_tem(p, t) for p, t in zip(points, sources)])
+    elif spec == "detect":
+        sources = files
+        points = [detect_landmarks(img, str(f)) for f, img in zip(files, images)]
+        frames = np.stack([faceframe_from_68(p) for p in points])
+    else:
+        frames = read_keypoints_csv(spec, files)
+        dense = read_landmarks_csv(spec, files)
+        if dense is None:
+            return frames, None
+        sources, points = [Path(spec)] * len(files), list(dense)
+    for src, p, img in zip(sources, points, images):
+        if len(p) != len(points[0]):
+            raise AppealInputError(f"{src}: {len(p)} points where {sources[0].name} has {len(points[0])} "
+                                   "(expected the same template for every image)")
+        check_landmarks(p, np.shape(img)[:2], f"{src}", margin=0.1)
+    return frames, np.stack(points)
 
 
 def read_morph_inputs(images: Sequence[str | Path], *, keypoints: str | None = None, register: bool = False,
@@ -110,9 +143,15 @@ def read_morph_inputs(images: Sequence[str | Path], *, keypoints: str | None = N
     if register and keypoints is None:
         raise AppealInputError("--register: needs --keypoints FILE, 'tem' or 'detect' (the eye centres to align)")
     imgs = read_images(files, None if register else shape)
-    frames = _faceframes(keypoints, files, imgs)
+    frames, landmarks = read_keypoints(keypoints, files, imgs)
     if register:
-        imgs, frames = register_faces(imgs, frames, shape or (240, 200))
+        if landmarks is None:
+            imgs, frames = register_faces(imgs, frames, shape or (240, 200))
+        else:
+            imgs, frames, landmarks = register_faces(imgs, frames, shape or (240, 200), points=landmarks)
+    elif landmarks is not None and shape is not None:
+        raise AppealInputError("--size: resizing without --register would move the keypoints off the faces "
+                               "(give --register, or images of one size)")
     names = [f.name for f in files]
     ref = int(reference) if reference.isdigit() else (names.index(reference) if reference in names else -1)
     if not 0 <= ref < len(files):
@@ -120,11 +159,14 @@ def read_morph_inputs(images: Sequence[str | Path], *, keypoints: str | None = N
     n_train = len(files) - holdout
     if n_train < 2:
         raise AppealInputError(f"--holdout: leaves {n_train} training image(s) (expected at least 2)")
-    return MorphInputs(files, imgs, frames, min(ref, n_train - 1), n_train, time.perf_counter() - t0)
+    return MorphInputs(files, imgs, frames, min(ref, n_train - 1), n_train, time.perf_counter() - t0, landmarks)
+
+
+WARP_METHODS = ("guided", "flow", "landmarks")
 
 
 def build_morph_model(inputs: MorphInputs, out: Path, *, components: int | None = None, variance: float | None = None,
-                      backend: str = "dis") -> tuple[object, dict]:
+                      backend: str = "dis", warp: str = "guided") -> tuple[object, dict]:
     """Build a PCA morph model and write ``model.npz``, ``mean.png`` and ``components.png`` into ``out``.
 
     Parameters
@@ -137,6 +179,10 @@ def build_morph_model(inputs: MorphInputs, out: Path, *, components: int | None 
         Components to keep, or the fraction of variance they must explain (default: all).
     backend : {"dis", "farneback"}
         Optical flow.
+    warp : {"guided", "flow", "landmarks"}
+        With dense landmarks (``inputs.landmarks``): a landmark spline refined by optical flow
+        (default), optical flow alone, or the spline alone (Psychomorph-style). Without
+        landmarks the warps are optical flow.
 
     Returns
     -------
@@ -150,12 +196,15 @@ def build_morph_model(inputs: MorphInputs, out: Path, *, components: int | None 
     from stimulus_engine.morphpca.mimicry import save_contact_sheet
     from stimulus_engine.morphpca.pca import build_model
 
+    if warp not in WARP_METHODS:
+        raise AppealInputError(f"--warp: expected one of {', '.join(WARP_METHODS)} (got {warp!r})")
     t0 = time.perf_counter()
     n = inputs.n_train
     imgs = inputs.images
+    lm = None if warp == "flow" else inputs.landmarks
     model = build_model(imgs[:n], n_components=components, variance=variance, reference_index=inputs.reference,
                         backend=backend, faceframes=None if inputs.faceframes is None else inputs.faceframes[:n],
-                        names=inputs.names[:n])
+                        names=inputs.names[:n], landmarks=None if lm is None else lm[:n], refine=warp == "guided")
     save_model(model, out / "model.npz")
     save_image(out / "mean.png", model.mean_image())
     sd = np.sqrt(model.variances[: min(4, model.n_components)])
@@ -171,10 +220,11 @@ def build_morph_model(inputs: MorphInputs, out: Path, *, components: int | None 
                "explained_variance_ratio": [float(v) for v in model.explained_variance_ratio[:20]],
                "train_psnr_db": _mean_scores(imgs[:n], train_rec, psnr),
                "train_ssim": _mean_scores(imgs[:n], train_rec, ssim),
+               "warp": warp if lm is not None else "flow",
                "seconds_build": model.meta["seconds_total"]}
     if n < len(imgs):
         test = imgs[n:]
-        rec = model.reconstruct(model.project(model.encode(test)))
+        rec = model.reconstruct(model.project(model.encode(test, None if lm is None else lm[n:])))
         metrics.update(holdout_psnr_db=_mean_scores(test, rec, psnr), holdout_ssim=_mean_scores(test, rec, ssim))
     metrics["seconds"] = inputs.seconds + time.perf_counter() - t0
     return model, metrics
