@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import click
+import numpy as np
 
 from appeal.atomic import atomic_write_text
 from appeal_cli.groups import CONTEXT, stimuli
@@ -88,6 +89,48 @@ def build(images, out, force, resume, keypoints, register, size, components, var
     click.echo(f"{run.out / 'model.npz'}: {model.n_components} components, "
                f"{100 * metrics['explained_variance']:.1f}% variance, train PSNR {metrics['train_psnr_db']:.1f} dB"
                + (f", hold-out PSNR {metrics['holdout_psnr_db']:.1f} dB" if "holdout_psnr_db" in metrics else ""))
+
+
+@morphpca.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli morphpca pair neutral_front/001_03.jpg smiling_front/001_08.jpg --out models/p001
+  appeal stimuli morphpca pair a_neutral.jpg a_smile.jpg --frames 16 --size 300x250 --out models/a
+  appeal stimuli morphpca project models/p001/frames --from models/p001/model.npz --to models/p002/model.npz --out smile""")
+@click.argument("neutral", type=click.Path(path_type=Path))
+@click.argument("expressive", type=click.Path(path_type=Path))
+@out_options()
+@click.option("--frames", "n_frames", type=click.IntRange(min=2), default=10, show_default=True,
+              help="Frames of the morph sequence that stands in for a video.")
+@click.option("--size", default="240x200", show_default=True, metavar="HxW", help="Registered image size.")
+@click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
+def pair(neutral, expressive, out, force, resume, n_frames, size, json_path) -> None:
+    """An expression space from two photographs of one person (NEUTRAL and EXPRESSIVE).
+
+    \b
+    Detects 68 landmarks in both (dlib, offline), registers them on the eyes, morphs one into
+    the other (thin-plate splines + cross-dissolve) and builds a morph-PCA model from the
+    frames: a stand-in for the video frames Nagle et al. model. Writes DIR/model.npz,
+    DIR/mean.png, DIR/frames/frameNNN.png and DIR/metrics.json; project the frames onto
+    another person's model with 'appeal stimuli morphpca project'.
+    """
+    import time
+
+    from appeal.outputs import output_run
+    from stimulus_engine.morphpca.io import list_images, parse_size
+    from stimulus_engine.morphpca.metrics import psnr
+    from stimulus_engine.morphpca.workflow import pair_expression_model
+
+    files = list_images([neutral, expressive])  # missing files: one line before any output
+    shape = parse_size(size)
+    with output_run(out, force=force, resume=resume, inputs=files) as run:
+        t0 = time.perf_counter()
+        model, frames, _ = pair_expression_model(files[0], files[1], run.out, size=shape, n_frames=n_frames)
+        rec = model.reconstruct(model.loadings)
+        metrics = {"frames": n_frames, "n_components": model.n_components,
+                   "train_psnr_db": float(np.mean([psnr(a, b) for a, b in zip(rec, frames)])),
+                   "seconds": time.perf_counter() - t0}
+        _write_metrics(run, metrics, json_path)
+    click.echo(f"{run.out / 'model.npz'}: {n_frames} frames, {model.n_components} components")
 
 
 @morphpca.command(context_settings=CONTEXT, epilog="""\b

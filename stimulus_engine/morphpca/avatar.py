@@ -19,8 +19,9 @@ import numpy as np
 
 from appeal.errors import AppealInputError
 from appeal.progress import progress
-from stimulus_engine.morphpca.faceframe import align_image
-from stimulus_engine.morphpca.morphvec import decompose
+from stimulus_engine.morphpca.faceframe import align_image, faceframe_affine, transform_points
+from stimulus_engine.morphpca.flow import sample_field
+from stimulus_engine.morphpca.morphvec import decompose, deserialise
 from stimulus_engine.morphpca.pca import MorphModel, build_model
 from stimulus_engine.morphpca.project import project_relative
 from stimulus_engine.morphpca.reconstruct import render_vectors
@@ -59,13 +60,16 @@ def unsharp_mask(image: np.ndarray, sigma: float = 1.0, amount: float = 0.6) -> 
 
 
 def morph_average(images: np.ndarray, reference_index: int = 0, weights: Sequence[float] | None = None,
-                  backend: str = "dis") -> np.ndarray:
+                  backend: str = "dis", landmarks: np.ndarray | None = None) -> np.ndarray:
     """Morph average of aligned faces: the (weighted) mean texture shown on the mean shape.
 
     Because the mean of the absolute warps is the identity on the mean shape, the mean
-    morph image is the mean texture itself.
+    morph image is the mean texture itself. ``landmarks`` ``(n, K, 2)``: the faces' keypoints,
+    for landmark-guided warps between them (no doubled features where flow between different
+    people fails).
     """
-    ms = decompose(np.asarray(images, np.float32), reference_index, backend, weights=weights, desc="morph average")
+    ms = decompose(np.asarray(images, np.float32), reference_index, backend, weights=weights, desc="morph average",
+                   landmarks=landmarks)
     wts = np.full(len(images), 1.0 / len(images)) if weights is None else np.asarray(weights, float)
     return np.clip(np.tensordot(wts, ms.textures, axes=1), 0.0, 1.0).astype(np.float32)
 
@@ -120,6 +124,10 @@ def build_avatar(models: Sequence[MorphModel], *, reference_model: int = 0, weig
     ref = models[reference_model]
     sources = [(s, i) for s, m in enumerate(models) for i in range(len(m.loadings))]
     projections = np.empty((len(sources), k) + tuple(ref.size) + (3,), np.float32)
+    # with the same landmarks on every identity's mean, the averages are landmark-guided
+    guided = len({None if m.landmarks is None else len(m.landmarks) for m in models} - {None}) == 1 and all(
+        m.landmarks is not None for m in models)
+    points = np.empty((len(sources), k, len(ref.landmarks), 2)) if guided else None
     for j, (s, i) in enumerate(progress(sources, total=len(sources), desc="projecting expressions")):
         src = models[s]
         rel = src.loadings[i : i + 1] @ src.components  # R = P l (the training face, relative)
@@ -129,7 +137,13 @@ def build_avatar(models: Sequence[MorphModel], *, reference_model: int = 0, weig
             if sharpen > 0:
                 img = unsharp_mask(img, amount=sharpen)
             projections[j, t] = align_image(img, tgt.faceframe, ref.faceframe, ref.size)
-    frames = np.stack([morph_average(projections[j], reference_model, w, backend)
+            if guided:
+                # the mean's landmarks go where the rendered warp takes them, then through the alignment
+                warp = deserialise(m_b[0], tgt.size)[1]
+                moved = sample_field(np.ascontiguousarray(warp), tgt.landmarks.astype(np.float32)[None])[0]
+                points[j, t] = transform_points(faceframe_affine(tgt.faceframe, ref.faceframe), moved)
+    frames = np.stack([morph_average(projections[j], reference_model, w, backend,
+                                     landmarks=None if points is None else points[j])
                        for j in progress(range(len(sources)), total=len(sources), desc="blending identities")])
     ref_index = next(j for j, (s, _) in enumerate(sources) if s == reference_model)
     frame_points = np.repeat(np.asarray(ref.faceframe, float)[None], len(frames), axis=0)

@@ -102,7 +102,7 @@ def information_measures(source: np.ndarray, mimic: np.ndarray, bins: int | None
 
 def contact_sheet(rows: Sequence[Sequence[np.ndarray]], row_labels: Sequence[str] = (),
                   col_labels: Sequence[str] = (), gap: int = 4) -> np.ndarray:
-    """A uint8 grid of same-sized images (rows × columns) with optional text labels."""
+    """A uint8 grid of images (rows × columns, each resized to the first's size) with optional text labels."""
     first = np.asarray(rows[0][0])
     h, w = first.shape[:2]
     ncol = max(len(r) for r in rows)
@@ -114,8 +114,10 @@ def contact_sheet(rows: Sequence[Sequence[np.ndarray]], row_labels: Sequence[str
             im = np.asarray(img)
             if im.dtype != np.uint8:
                 im = np.clip(im * 255.0 + 0.5, 0, 255).astype(np.uint8)
+            if im.shape[:2] != (h, w):
+                im = cv2.resize(im, (w, h), interpolation=cv2.INTER_AREA)
             y0, x0 = top + i * (h + gap), left + j * (w + gap)
-            sheet[y0 : y0 + h, x0 : x0 + w] = im[:h, :w]
+            sheet[y0 : y0 + h, x0 : x0 + w] = im
         if i < len(row_labels):
             cv2.putText(sheet, str(row_labels[i])[:12], (3, top + i * (h + gap) + h // 2), cv2.FONT_HERSHEY_SIMPLEX,
                         0.4, (0, 0, 0), 1, cv2.LINE_AA)

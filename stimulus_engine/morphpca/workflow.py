@@ -280,7 +280,8 @@ def read_projection_inputs(images: Sequence[str | Path], source: str | Path, tar
 def project_images(inputs: ProjectionInputs, out: Path, *, align: bool = True, caricature: float = 1.0,
                    texture_weight: float = 0.1, naive: bool = False) -> dict:
     """Project the expressions of A's images onto B's face; write ``projected/NAME.png``,
-    ``loadings.csv`` (loadings in B) and, with ``naive``, ``naive/NAME.png``.
+    ``loadings.csv`` (loadings in B), ``sheet.png`` (inputs beside projections) and, with
+    ``naive``, ``naive/NAME.png``.
 
     Parameters
     ----------
@@ -328,8 +329,20 @@ def project_images(inputs: ProjectionInputs, out: Path, *, align: bool = True, c
                        ssim_naive=_mean_scores(base.images, truth, ssim),
                        psnr_projection_db=_mean_scores(res.images, truth, psnr),
                        psnr_naive_db=_mean_scores(base.images, truth, psnr))
+    _projection_sheet(out / "sheet.png", imgs, res.images, None if base is None or not naive else base.images, truth)
     metrics["seconds"] = inputs.seconds + time.perf_counter() - t0
     return metrics
+
+
+def _projection_sheet(path: Path, source, projected, naive, truth, max_rows: int = 8) -> None:
+    """A contact sheet: up to ``max_rows`` inputs (evenly spread) beside their projections (and baseline, truth)."""
+    from stimulus_engine.morphpca.mimicry import save_contact_sheet
+
+    rows_at = np.linspace(0, len(source) - 1, min(max_rows, len(source))).round().astype(int)
+    cols = [("source (A)", source), ("projected on B", projected), ("naive transfer", naive), ("B's true image", truth)]
+    cols = [(name, imgs) for name, imgs in cols if imgs is not None]
+    save_contact_sheet(path, [[imgs[j] for _, imgs in cols] for j in rows_at], [f"#{j}" for j in rows_at],
+                       [name for name, _ in cols])
 
 
 def build_avatar_model(models: Sequence, out: Path, *, reference: int = 0, weights: Sequence[float] | None = None,
@@ -427,3 +440,43 @@ def reconstruct_faces(model, loadings: np.ndarray, names: Sequence[str], out: Pa
     for name, img in zip(names, imgs):
         save_image(out / (name + ".png"), img)
     return {"faces": len(names), "seconds_reconstruct": dt, "faces_per_second": len(names) / max(dt, 1e-9)}
+
+
+def pair_expression_model(neutral: str | Path, expressive: str | Path, out: Path | None = None, *,
+                          size: tuple[int, int] = (240, 200), n_frames: int = 10, backend: str = "dis",
+                          ) -> tuple[object, np.ndarray, np.ndarray]:
+    """A person's expression space from a neutral and an expressive photograph.
+
+    Both photos get dlib's 68 landmarks, are similarity-registered on the eyes to ``size``, and
+    a morph sequence between them (:func:`~.morph_video.morph_sequence`, ``n_frames``) stands in
+    for the video frames of Nagle et al.; the model is built from the frames with
+    landmark-guided warps (the frames' landmarks are known exactly). With ``out`` the model,
+    its mean, components sheet and the frames are written there.
+
+    Returns
+    -------
+    model : MorphModel
+        Reference = the neutral photo; faceframe and landmarks on the mean.
+    frames : (n_frames, h, w, 3)
+    photos : (2, h, w, 3)
+        The two registered photographs (the expressive one is the last frame's truth).
+    """
+    from stimulus_engine.morphpca.io import read_images, register_faces, save_image, save_model
+    from stimulus_engine.morphpca.keypoints import detect_landmarks, faceframe_from_68
+    from stimulus_engine.morphpca.morph_video import morph_sequence
+    from stimulus_engine.morphpca.pca import build_model
+
+    files = [Path(neutral), Path(expressive)]
+    imgs = read_images(files)
+    lms = np.stack([detect_landmarks(img, str(f)) for f, img in zip(files, imgs)])
+    photos, _, pts = register_faces(imgs, np.stack([faceframe_from_68(p) for p in lms]), size, points=lms)
+    frames, frame_pts = morph_sequence(photos[0], pts[0], photos[1], pts[1], n_frames)
+    model = build_model(frames, faceframes=np.stack([faceframe_from_68(p) for p in frame_pts]), backend=backend,
+                        landmarks=frame_pts, names=[f"{files[0].stem}-{files[1].stem}-{k:02d}" for k in range(n_frames)])
+    if out is not None:
+        save_model(model, out / "model.npz")
+        save_image(out / "mean.png", model.mean_image())
+        (out / "frames").mkdir(exist_ok=True)
+        for k, fr in enumerate(frames):
+            save_image(out / "frames" / f"frame{k:03d}.png", fr)
+    return model, frames, photos
