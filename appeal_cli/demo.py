@@ -38,8 +38,10 @@ Examples:
 def demo(out: Path, force: bool, resume: bool, seed: int, only: tuple[str, ...], list_only: bool) -> int:
     """Run every stage of the platform end to end on the embedded default assets.
 
-    Nothing is downloaded: stimuli come from procedurally generated heads and the one real
-    face scan in the package (menpo3d's "james", BSD-3), participants and EEG are simulated. The result is DIR/index.html linking every figure and table.
+    Nothing is downloaded: stimuli come from procedurally generated heads, the real face scan
+    in the package (menpo3d's "james", BSD-3) and eight photographs of four people (London
+    set, CC BY 4.0); participants and EEG are simulated. The result is DIR/index.html linking
+    every figure and table.
     Exits 1 if any stage failed (the page says which and why).
     """
     stages = discover_stages()

@@ -12,6 +12,7 @@ from appeal.atomic import atomic_write_text
 from appeal_cli.groups import CONTEXT, stimuli
 from appeal_cli.options import out_options
 from appeal.errors import AppealInputError
+from stimulus_engine.morphpca.defaults import DEFAULT_TEXTURE_WEIGHT
 
 _JSON_HELP = "Also write the metrics (explained variance, PSNR/SSIM, seconds) to this JSON file."
 
@@ -95,7 +96,8 @@ def build(images, out, force, resume, keypoints, register, size, components, var
 Examples:
   appeal stimuli morphpca pair neutral_front/001_03.jpg smiling_front/001_08.jpg --out models/p001
   appeal stimuli morphpca pair a_neutral.jpg a_smile.jpg --frames 16 --size 300x250 --out models/a
-  appeal stimuli morphpca project models/p001/frames --from models/p001/model.npz --to models/p002/model.npz --out smile""")
+  appeal stimuli morphpca project models/p001/frames --keypoints models/p001/frames/keypoints.csv \\
+      --from models/p001/model.npz --to models/p002/model.npz --out smile""")
 @click.argument("neutral", type=click.Path(path_type=Path))
 @click.argument("expressive", type=click.Path(path_type=Path))
 @out_options()
@@ -124,7 +126,7 @@ def pair(neutral, expressive, out, force, resume, n_frames, size, json_path) -> 
     shape = parse_size(size)
     with output_run(out, force=force, resume=resume, inputs=files) as run:
         t0 = time.perf_counter()
-        model, frames, _ = pair_expression_model(files[0], files[1], run.out, size=shape, n_frames=n_frames)
+        model, frames, _, _ = pair_expression_model(files[0], files[1], run.out, size=shape, n_frames=n_frames)
         rec = model.reconstruct(model.loadings)
         metrics = {"frames": n_frames, "n_components": model.n_components,
                    "train_psnr_db": float(np.mean([psnr(a, b) for a, b in zip(rec, frames)])),
@@ -144,22 +146,26 @@ Examples:
 @out_options()
 @click.option("--no-align", is_flag=True, help="Skip the faceframe affine transform (models of equal size only).")
 @click.option("--caricature", type=float, default=1.0, show_default=True, help="Scale the projected warp (1.5 = 50% stronger).")
-@click.option("--texture-weight", type=click.FloatRange(min=0), default=0.1, show_default=True,
+@click.option("--texture-weight", type=click.FloatRange(min=0), default=DEFAULT_TEXTURE_WEIGHT, show_default=True,
               help="Weight of texture vs warp when fitting B's loadings (1 = the paper's inner product; 0.1 lets the warp decide).")
+@click.option("--keypoints", "keypoints", default=None, metavar="FILE",
+              help="The images' landmarks (a CSV with pK_x/pK_y columns, e.g. the frames/keypoints.csv of "
+                   "'morphpca pair'): encode them as model A's training images were (landmark-guided).")
 @click.option("--naive", is_flag=True, help="Also write the naive loading-transfer baseline.")
 @click.option("--truth", "truth", multiple=True, type=click.Path(path_type=Path),
               help="True images of B with the same expressions (one per IMAGE): report SSIM/PSNR of both methods.")
 @click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
-def project(images, source, target, out, force, resume, no_align, caricature, texture_weight, naive, truth, json_path) -> None:
+def project(images, source, target, out, force, resume, no_align, caricature, texture_weight, keypoints, naive, truth,
+            json_path) -> None:
     """Project the expressions of IMAGES (person A) onto the face of model B.
 
     Writes DIR/projected/NAME.png (and DIR/naive/NAME.png with --naive), DIR/loadings.csv
-    (loadings in B) and DIR/metrics.json.
+    (loadings in B), DIR/sheet.png (inputs beside their projections) and DIR/metrics.json.
     """
     from appeal.outputs import output_run
     from stimulus_engine.morphpca.workflow import project_images, read_projection_inputs
 
-    inputs = read_projection_inputs(images, source, target, truth)
+    inputs = read_projection_inputs(images, source, target, truth, keypoints)
     with output_run(out, force=force, resume=resume, inputs=[source, target, *inputs.files]) as run:
         metrics = project_images(inputs, run.out, align=not no_align, caricature=caricature,
                                  texture_weight=texture_weight, naive=naive)
@@ -179,7 +185,7 @@ Examples:
 @click.option("--reference", type=int, default=0, show_default=True, help="Model whose faceframe the avatar uses.")
 @click.option("--weights", default=None, metavar="W1,W2,...", help="Identity weights (sum 1; default equal).")
 @click.option("--components", type=click.IntRange(min=1), default=None, help="Components of the avatar model.")
-@click.option("--texture-weight", type=click.FloatRange(min=0), default=0.1, show_default=True,
+@click.option("--texture-weight", type=click.FloatRange(min=0), default=DEFAULT_TEXTURE_WEIGHT, show_default=True,
               help="See 'project --help'.")
 @click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
 def avatar(models, out, force, resume, reference, weights, components, texture_weight, json_path) -> None:

@@ -233,6 +233,39 @@ def real_photographs() -> None:
                 dt = time.perf_counter() - t
             print(f"  {len(files) - 3:2d} train  {label:42s} train {m['train_psnr_db']:5.2f} dB  held-out "
                   f"{m['holdout_psnr_db']:5.2f} dB  (SSIM {m['train_ssim']:.3f} / {m['holdout_ssim']:.3f})  {dt:.1f} s")
+        _span_bounds(model_of(inputs), inputs)
+
+
+def model_of(inputs):
+    """The landmark-guided model of the training part of ``inputs``."""
+    from stimulus_engine.morphpca import build_model
+
+    n = inputs.n_train
+    return build_model(inputs.images[:n], landmarks=inputs.landmarks[:n], faceframes=inputs.faceframes[:n])
+
+
+def _span_bounds(model, inputs) -> None:
+    """How well *any* reconstruction from this face space could do on the held-out identities:
+    their encoding with texture (or warp) kept exactly and only the other part projected, and
+    both parts projected each on its own (not one loading vector: an upper bound)."""
+    from stimulus_engine.morphpca import psnr
+    from stimulus_engine.morphpca.pca import pca_with_loadings
+    from stimulus_engine.morphpca.reconstruct import render_vectors
+
+    n = inputs.n_train
+    held = inputs.images[n:]
+    enc = model.encode(held, inputs.landmarks[n:])
+    rel_train = model.vectors(model.loadings) - model.mean
+    nt = model.size[0] * model.size[1] * 3
+    split = enc.copy()
+    for part in (slice(0, nt), slice(nt, None)):
+        comps = pca_with_loadings(np.ascontiguousarray(rel_train[:, part]))[0]
+        split[:, part] = ((enc[:, part] - model.mean[part]) @ comps.T) @ comps + model.mean[part]
+    score = lambda v: np.mean([psnr(a, b) for a, b in zip(render_vectors(v, model.size), held)])  # noqa: E731
+    tex_exact, warp_exact = split.copy(), split.copy()
+    tex_exact[:, :nt], warp_exact[:, nt:] = enc[:, :nt], enc[:, nt:]
+    print(f"     bounds of the {n}-face space on the held-out faces: shape and texture projected each on its own "
+          f"{score(split):5.2f} dB; texture exact {score(tex_exact):5.2f} dB; warp exact {score(warp_exact):5.2f} dB")
 
 
 if __name__ == "__main__":

@@ -52,7 +52,7 @@ def test_projection_beats_naive_transfer(two_models):
     w[:, 1] = np.maximum(w[:, 1], 0.5)  # visible mouth movement in every test face
     src = np.stack([render_synthetic_face(a, x)[0] for x in w])
     truth = np.stack([render_synthetic_face(b, x)[0] for x in w])
-    proj = project_expression(src, ma, mb)  # warp-weighted (texture_weight 0.1)
+    proj = project_expression(src, ma, mb)  # warp-weighted (the default texture weight)
     base = naive_transfer(src, ma, mb)
     s_proj = np.mean([ssim(x, y) for x, y in zip(proj.images, truth)])
     s_naive = np.mean([ssim(x, y) for x, y in zip(base.images, truth)])

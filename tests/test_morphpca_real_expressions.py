@@ -27,7 +27,7 @@ def people(shared_data):
 
 
 def test_morph_sequence_runs_from_one_photo_to_the_other(people):
-    _, frames, photos = people["001"]
+    _, frames, photos, _ = people["001"]
     assert frames.shape == (8, 240, 200, 3)
     assert psnr(frames[0], photos[0]) > 40 and psnr(frames[-1], photos[1]) > 40
     # in between it is neither photo
@@ -36,9 +36,9 @@ def test_morph_sequence_runs_from_one_photo_to_the_other(people):
 
 def test_smile_projected_onto_another_person_is_closer_to_their_true_smile(people):
     """§3 on real photos: A's smile frames rendered on B, compared with B's own smiling photo."""
-    model_a, frames_a, _ = people["001"]
-    model_b, _, photos_b = people["002"]
-    proj = project_expression(frames_a, model_a, model_b)
+    model_a, frames_a, _, points_a = people["001"]
+    model_b, _, photos_b, _ = people["002"]
+    proj = project_expression(frames_a, model_a, model_b, landmarks=points_a)
     naive = naive_transfer(frames_a, model_a, model_b)
     truth = photos_b[1]
     s_proj, s_naive, s_neutral = ssim(proj.images[-1], truth), ssim(naive.images[-1], truth), ssim(photos_b[0], truth)
@@ -73,7 +73,7 @@ def test_avatar_from_real_photos_has_single_sharp_features(people):
 
 
 def test_ghosting_index_sees_doubled_features(people):
-    model, frames, _ = people["001"]
+    model, frames, _, _ = people["001"]
     img, pts = frames[0], model.ref_landmarks
     doubled = 0.5 * (img + np.roll(img, 4, axis=1))
     assert ghosting_index(img, pts, [img], [pts], model.faceframe) == pytest.approx(0.0, abs=1e-6)
@@ -83,7 +83,7 @@ def test_ghosting_index_sees_doubled_features(people):
 def test_video_frames_read_like_images(people, tmp_path):
     import cv2
 
-    _, frames, _ = people["002"]
+    _, frames, _, _ = people["002"]
     path = tmp_path / "smile.avi"
     vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (200, 240))
     for f in frames:
@@ -100,7 +100,8 @@ def test_cli_pair_and_project_with_sheet(shared_data, tmp_path):
                      str(d / "smiling_front" / f"{p}_08.jpg"), "--frames", "6", "--out", str(tmp_path / p)]) == 0
     m = json.loads((tmp_path / "001" / "metrics.json").read_text())
     assert m["frames"] == 6 and m["train_psnr_db"] > 35
-    assert main(["-q", "stimuli", "morphpca", "project", str(tmp_path / "001" / "frames"), "--from",
+    assert main(["-q", "stimuli", "morphpca", "project", str(tmp_path / "001" / "frames"), "--keypoints",
+                 str(tmp_path / "001" / "frames" / "keypoints.csv"), "--from",
                  str(tmp_path / "001" / "model.npz"), "--to", str(tmp_path / "002" / "model.npz"), "--naive",
                  "--out", str(tmp_path / "proj")]) == 0
     assert (tmp_path / "proj" / "sheet.png").is_file() and len(list((tmp_path / "proj" / "projected").glob("*.png"))) == 6

@@ -19,6 +19,7 @@ import numpy as np
 
 from appeal.errors import AppealInputError
 from appeal.progress import progress
+from stimulus_engine.morphpca.defaults import DEFAULT_TEXTURE_WEIGHT
 from stimulus_engine.morphpca.faceframe import align_image, faceframe_affine, transform_points
 from stimulus_engine.morphpca.flow import sample_field
 from stimulus_engine.morphpca.morphvec import decompose, deserialise
@@ -87,7 +88,7 @@ def _check_weights(weights, k: int) -> np.ndarray:
 
 
 def build_avatar(models: Sequence[MorphModel], *, reference_model: int = 0, weights: Sequence[float] | None = None,
-                 n_components: int | None = None, sharpen: float = 0.6, texture_weight: float = 0.1,
+                 n_components: int | None = None, sharpen: float = 0.6, texture_weight: float = DEFAULT_TEXTURE_WEIGHT,
                  backend: str = "dis") -> Avatar:
     """Blend k identity models into one avatar model (steps 5–9).
 

@@ -94,14 +94,20 @@ def read_keypoints_csv(path: str | Path, images: Sequence[str | Path]) -> np.nda
     return np.stack(frames)
 
 
-def write_keypoints_csv(path: str | Path, images: Sequence[str | Path], frames: np.ndarray) -> Path:
-    """Write faceframes ``(n, 3, 2)`` in the CSV format :func:`read_keypoints_csv` reads."""
+def write_keypoints_csv(path: str | Path, images: Sequence[str | Path], frames: np.ndarray,
+                        landmarks: np.ndarray | None = None) -> Path:
+    """Write faceframes ``(n, 3, 2)`` (and dense ``landmarks`` ``(n, K, 2)`` as ``pK_x/pK_y``
+    columns) in the CSV format :func:`read_keypoints_csv` / :func:`read_landmarks_csv` read."""
     import pandas as pd
 
     from appeal.atomic import atomic_write_text
 
     df = pd.DataFrame(np.asarray(frames).reshape(len(images), 6), columns=list(FRAME_COLUMNS))
     df.insert(0, "image", [Path(p).name for p in images])
+    if landmarks is not None:
+        lm = np.asarray(landmarks, float)
+        cols = [c for j in range(lm.shape[1]) for c in (f"p{j}_x", f"p{j}_y")]
+        df = pd.concat([df, pd.DataFrame(lm.reshape(len(images), -1), columns=cols)], axis=1)
     return atomic_write_text(path, df.to_csv(index=False, float_format="%.3f"))
 
 

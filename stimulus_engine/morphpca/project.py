@@ -13,12 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from appeal.errors import AppealInputError
+from stimulus_engine.morphpca.defaults import DEFAULT_TEXTURE_WEIGHT
 from stimulus_engine.morphpca.faceframe import align_relative_vector
 from stimulus_engine.morphpca.pca import MorphModel
 from stimulus_engine.morphpca.reconstruct import render_vectors
 
-__all__ = ["Projection", "relative_in_target", "target_loadings", "project_relative", "project_expression", "naive_transfer",
+__all__ = ["DEFAULT_TEXTURE_WEIGHT", "Projection", "relative_in_target", "target_loadings", "project_relative", "project_expression", "naive_transfer",
            "caricature_vector", "caricature_loadings"]
+
 
 
 @dataclass
@@ -53,7 +55,7 @@ def relative_in_target(relative: np.ndarray, source: MorphModel, target: MorphMo
                      for r in rel])
 
 
-def target_loadings(rel_b: np.ndarray, target: MorphModel, texture_weight: float = 0.1) -> np.ndarray:
+def target_loadings(rel_b: np.ndarray, target: MorphModel, texture_weight: float = DEFAULT_TEXTURE_WEIGHT) -> np.ndarray:
     """Loadings of relative vectors in ``target``: ``L_b = P_bᵀ R`` when ``texture_weight`` = 1 (the paper).
 
     With ``texture_weight`` w < 1 the loadings are the weighted least-squares fit
@@ -73,7 +75,7 @@ def target_loadings(rel_b: np.ndarray, target: MorphModel, texture_weight: float
 
 
 def project_relative(relative: np.ndarray, source: MorphModel, target: MorphModel, align: bool = True,
-                     warp_factor: float = 1.0, texture_factor: float = 1.0, texture_weight: float = 0.1,
+                     warp_factor: float = 1.0, texture_factor: float = 1.0, texture_weight: float = DEFAULT_TEXTURE_WEIGHT,
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Steps 3–5: ``L_b = P_bᵀ R`` and the absolute target vectors ``M_b = P_b L_b + M_mb``."""
     rel_b = relative_in_target(relative, source, target, align)
@@ -85,8 +87,8 @@ def project_relative(relative: np.ndarray, source: MorphModel, target: MorphMode
 
 
 def project_expression(images: np.ndarray, source: MorphModel, target: MorphModel, align: bool = True,
-                       warp_factor: float = 1.0, texture_factor: float = 1.0, texture_weight: float = 0.1,
-                       ) -> Projection:
+                       warp_factor: float = 1.0, texture_factor: float = 1.0, texture_weight: float = DEFAULT_TEXTURE_WEIGHT,
+                       landmarks: np.ndarray | None = None) -> Projection:
     """Render the expressions of ``images`` (faces of the source model's person) on the target.
 
     Parameters
@@ -100,14 +102,17 @@ def project_expression(images: np.ndarray, source: MorphModel, target: MorphMode
     warp_factor, texture_factor : float
         Caricature: scale the projected relative warp / texture (1 = as projected).
     texture_weight : float
-        1 = the paper's inner product ``P_bᵀ R``; the default 0.1 lets the warp decide the
+        1 = the paper's inner product ``P_bᵀ R``; the default (:data:`DEFAULT_TEXTURE_WEIGHT`) lets the warp decide the
         loadings (see :func:`target_loadings`), which transfers expressions better.
+    landmarks : (n, K, 2) array, optional
+        The images' keypoints, for a source model built with landmark-guided warps (the
+        images are then encoded as its training images were).
 
     Returns
     -------
     Projection
     """
-    m_a = source.encode(images)
+    m_a = source.encode(images, landmarks)
     la = source.project(m_a)
     lb, m_b = project_relative(source.relative(m_a), source, target, align, warp_factor, texture_factor,
                                texture_weight)

@@ -22,10 +22,12 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from appeal.errors import AppealInputError
+from stimulus_engine.morphpca.defaults import DEFAULT_TEXTURE_WEIGHT
 
 __all__ = ["MorphInputs", "read_morph_inputs", "build_morph_model", "ProjectionInputs", "read_projection_inputs",
            "project_images", "build_avatar_model", "read_loadings", "reconstruct_faces"]
@@ -249,6 +251,8 @@ class ProjectionInputs:
         One true image per input image, at model B's size.
     seconds : float
         Time spent reading.
+    landmarks : (n, K, 2) array or None
+        The images' keypoints (for a source model built with landmark-guided warps).
     """
 
     files: list[Path]
@@ -257,28 +261,42 @@ class ProjectionInputs:
     target: object
     truth: np.ndarray | None
     seconds: float = 0.0
+    landmarks: np.ndarray | None = None
 
 
 def read_projection_inputs(images: Sequence[str | Path], source: str | Path, target: str | Path,
-                           truth: Sequence[str | Path] = ()) -> ProjectionInputs:
-    """Read and check the inputs of an expression projection (``--truth``: one image per input)."""
+                           truth: Sequence[str | Path] = (), keypoints: str | None = None) -> ProjectionInputs:
+    """Read and check the inputs of an expression projection (``--truth``: one image per input;
+    ``keypoints``: a CSV with the images' landmarks, for a source model built with them)."""
     from stimulus_engine.morphpca.io import list_images, load_model, read_images
 
     t0 = time.perf_counter()
     ma, mb = load_model(source), load_model(target)
-    files = list_images(images)
-    imgs = read_images(files, ma.size)
+    files = [f for f in list_images(images) if f.suffix.lower() != ".csv"]
+    landmarks = None
+    if keypoints is not None:
+        imgs = read_images(files)
+        if imgs.shape[1:3] != tuple(ma.size):
+            raise AppealInputError(f"--keypoints: the images are {imgs.shape[1]}x{imgs.shape[2]}, model A "
+                                   f"{ma.size[0]}x{ma.size[1]} (expected images of the model's size, so that the "
+                                   "keypoints stay on them)")
+        landmarks = read_keypoints(keypoints, files, list(imgs))[1]
+        if landmarks is None:
+            raise AppealInputError(f"{keypoints}: no landmark columns p0_x, p0_y, … (expected the model's "
+                                   "keypoints, e.g. frames/keypoints.csv written by 'appeal stimuli morphpca pair')")
+    else:
+        imgs = read_images(files, ma.size)
     truth_imgs = None
     if truth:
         tfiles = list_images(truth)
         if len(tfiles) != len(files):
             raise AppealInputError(f"--truth: expected one true image per input image ({len(files)}), got {len(tfiles)}")
         truth_imgs = read_images(tfiles, mb.size)
-    return ProjectionInputs(files, imgs, ma, mb, truth_imgs, time.perf_counter() - t0)
+    return ProjectionInputs(files, imgs, ma, mb, truth_imgs, time.perf_counter() - t0, landmarks)
 
 
 def project_images(inputs: ProjectionInputs, out: Path, *, align: bool = True, caricature: float = 1.0,
-                   texture_weight: float = 0.1, naive: bool = False) -> dict:
+                   texture_weight: float = DEFAULT_TEXTURE_WEIGHT, naive: bool = False) -> dict:
     """Project the expressions of A's images onto B's face; write ``projected/NAME.png``,
     ``loadings.csv`` (loadings in B), ``sheet.png`` (inputs beside projections) and, with
     ``naive``, ``naive/NAME.png``.
@@ -312,7 +330,7 @@ def project_images(inputs: ProjectionInputs, out: Path, *, align: bool = True, c
     t0 = time.perf_counter()
     files, imgs, truth = inputs.files, inputs.images, inputs.truth
     res = project_expression(imgs, inputs.source, inputs.target, align=align, warp_factor=caricature,
-                             texture_weight=texture_weight)
+                             texture_weight=texture_weight, landmarks=inputs.landmarks)
     for name in ("projected", "naive") if naive else ("projected",):
         (out / name).mkdir(parents=True, exist_ok=True)
     for f, img in zip(files, res.images):
@@ -346,7 +364,7 @@ def _projection_sheet(path: Path, source, projected, naive, truth, max_rows: int
 
 
 def build_avatar_model(models: Sequence, out: Path, *, reference: int = 0, weights: Sequence[float] | None = None,
-                       components: int | None = None, texture_weight: float = 0.1) -> tuple[object, dict]:
+                       components: int | None = None, texture_weight: float = DEFAULT_TEXTURE_WEIGHT) -> tuple[object, dict]:
     """Blend identity models into an avatar model; write ``model.npz``, ``mean.png``,
     ``frames/frameNNN.png`` and ``blend.png`` (projections and blends side by side).
 
@@ -442,27 +460,41 @@ def reconstruct_faces(model, loadings: np.ndarray, names: Sequence[str], out: Pa
     return {"faces": len(names), "seconds_reconstruct": dt, "faces_per_second": len(names) / max(dt, 1e-9)}
 
 
+class PairModel(NamedTuple):
+    """A person's expression space from two photographs (:func:`pair_expression_model`).
+
+    Attributes
+    ----------
+    model : MorphModel
+        Reference = the neutral photo; faceframe and landmarks on the mean.
+    frames : (n_frames, h, w, 3)
+        The morph sequence the model was built from.
+    photos : (2, h, w, 3)
+        The two registered photographs (the expressive one is the last frame's truth).
+    points : (n_frames, 68, 2)
+        The landmarks of every frame (to encode them as the model's training images).
+    """
+
+    model: object
+    frames: np.ndarray
+    photos: np.ndarray
+    points: np.ndarray
+
+
 def pair_expression_model(neutral: str | Path, expressive: str | Path, out: Path | None = None, *,
                           size: tuple[int, int] = (240, 200), n_frames: int = 10, backend: str = "dis",
-                          ) -> tuple[object, np.ndarray, np.ndarray]:
+                          ) -> PairModel:
     """A person's expression space from a neutral and an expressive photograph.
 
     Both photos get dlib's 68 landmarks, are similarity-registered on the eyes to ``size``, and
     a morph sequence between them (:func:`~.morph_video.morph_sequence`, ``n_frames``) stands in
     for the video frames of Nagle et al.; the model is built from the frames with
     landmark-guided warps (the frames' landmarks are known exactly). With ``out`` the model,
-    its mean, components sheet and the frames are written there.
-
-    Returns
-    -------
-    model : MorphModel
-        Reference = the neutral photo; faceframe and landmarks on the mean.
-    frames : (n_frames, h, w, 3)
-    photos : (2, h, w, 3)
-        The two registered photographs (the expressive one is the last frame's truth).
+    its mean, the frames and their keypoints (``frames/keypoints.csv``, the CSV format
+    ``--keypoints`` reads, with the 68 points as ``pK_x/pK_y``) are written there.
     """
     from stimulus_engine.morphpca.io import read_images, register_faces, save_image, save_model
-    from stimulus_engine.morphpca.keypoints import detect_landmarks, faceframe_from_68
+    from stimulus_engine.morphpca.keypoints import detect_landmarks, faceframe_from_68, write_keypoints_csv
     from stimulus_engine.morphpca.morph_video import morph_sequence
     from stimulus_engine.morphpca.pca import build_model
 
@@ -471,12 +503,15 @@ def pair_expression_model(neutral: str | Path, expressive: str | Path, out: Path
     lms = np.stack([detect_landmarks(img, str(f)) for f, img in zip(files, imgs)])
     photos, _, pts = register_faces(imgs, np.stack([faceframe_from_68(p) for p in lms]), size, points=lms)
     frames, frame_pts = morph_sequence(photos[0], pts[0], photos[1], pts[1], n_frames)
-    model = build_model(frames, faceframes=np.stack([faceframe_from_68(p) for p in frame_pts]), backend=backend,
-                        landmarks=frame_pts, names=[f"{files[0].stem}-{files[1].stem}-{k:02d}" for k in range(n_frames)])
+    frame_boxes = np.stack([faceframe_from_68(p) for p in frame_pts])
+    model = build_model(frames, faceframes=frame_boxes, backend=backend, landmarks=frame_pts,
+                        names=[f"{files[0].stem}-{files[1].stem}-{k:02d}" for k in range(n_frames)])
     if out is not None:
         save_model(model, out / "model.npz")
         save_image(out / "mean.png", model.mean_image())
         (out / "frames").mkdir(exist_ok=True)
-        for k, fr in enumerate(frames):
-            save_image(out / "frames" / f"frame{k:03d}.png", fr)
-    return model, frames, photos
+        names = [out / "frames" / f"frame{k:03d}.png" for k in range(n_frames)]
+        for name, fr in zip(names, frames):
+            save_image(name, fr)
+        write_keypoints_csv(out / "frames" / "keypoints.csv", names, frame_boxes, frame_pts)
+    return PairModel(model, frames, photos, frame_pts)
