@@ -1,9 +1,9 @@
 """Rebuild ``stimulus_engine/data/faces2d/``: four London-set identities for the demo's morph-PCA stage.
 
 A neutral and a smiling photograph of each of four people (DeBruine & Jones 2017, Face Research
-Lab London Set, CC BY 4.0), cropped to the central 900 x 900 pixels around the face and
-reduced to 420 x 420 (JPEG quality 90): enough for the 240 x 200 registered models of the
-demo. The licence text is copied beside them and the README names the source and the changes,
+Lab London Set, CC BY 4.0), reduced from 1350 x 1350 to 480 x 480 (JPEG quality 90): enough
+for the 240 x 200 registered models of the demo (a tighter crop left too little around the
+face for the eye registration: its borders were smeared in). The licence text is copied beside them and the README names the source and the changes,
 as the licence asks.
 
 Usage::
@@ -22,8 +22,8 @@ import pandas as pd
 
 #: (face_id, why): a woman and a man of different ethnicities, each with a clear smile
 PEOPLE = ("002", "025", "012", "008")
-CROP = (225, 250, 900)  # x0, y0, side of the square crop in the 1350 x 1350 originals
-SIZE = 420
+CROP = (0, 0, 1350)  # x0, y0, side of the square kept of the 1350 x 1350 originals (all of it)
+SIZE = 480
 
 README = """# London-set faces (reduced) — the embedded real photographs
 
@@ -34,8 +34,8 @@ Creative Commons Attribution 4.0 International (CC BY 4.0), full text in `LICENS
 this file. All individuals gave signed consent for their images to be used in lab-based and
 web-based studies in their original or altered forms and to illustrate research.
 
-Changes made here: cropped to the central {side} x {side} pixels (from x = {x0}, y = {y0} of the
-1350 x 1350 originals) and reduced to {size} x {size} pixels (JPEG quality 90). `people.csv` lists
+Changes made here: reduced from the 1350 x 1350 originals ({side} x {side} pixels kept from
+x = {x0}, y = {y0}) to {size} x {size} pixels (JPEG quality 90). `people.csv` lists
 their self-reported age, gender and ethnicity from the set's `london_info.csv`.
 
 Used by `appeal demo` (stage *avatar*): per-person expression spaces from each neutral/smiling
