@@ -6,18 +6,21 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.appeal-installed
+# Blender's bpy (the Cycles path tracer) pins numpy < 2: it gets its own environment
+CYCLES_VENV := .venv-cycles
+CYCLES_STAMP := $(CYCLES_VENV)/.bpy-installed
 XVFB := xvfb-run -a -s "-screen 0 1280x1024x24"
 PYTEST_ARGS ?= -n 2
 export PYOPENGL_PLATFORM ?= osmesa
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test install system-deps r-deps bench clean
+.PHONY: demo test install cycles system-deps r-deps bench clean
 
 demo: install
 	$(XVFB) $(BIN)/appeal demo --out demo_out --force
 	@echo "The demo report is at $(CURDIR)/demo_out/index.html"
 
-test: install
+test: install cycles
 	$(XVFB) $(BIN)/python -m pytest $(PYTEST_ARGS)
 
 install: system-deps $(STAMP)
@@ -31,6 +34,15 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install -q -e '.[dev,fast,atlas]'
 	$(BIN)/python -m pip install -q --no-deps 'pyrender==0.1.45'
 	touch $(STAMP)
+
+# The optional path-traced tier (render: {engine: cycles}); `make test` installs it so its tests run.
+cycles: $(CYCLES_STAMP)
+
+$(CYCLES_STAMP):
+	test -x $(CYCLES_VENV)/bin/python || $(PYTHON) -m venv $(CYCLES_VENV)
+	$(CYCLES_VENV)/bin/python -m pip install -q --upgrade pip
+	$(CYCLES_VENV)/bin/python -m pip install -q 'bpy==5.0.1'
+	touch $(CYCLES_STAMP)
 
 # R with car/afex/emmeans: only for benchmarks/anova.py and for re-deriving test references.
 r-deps:

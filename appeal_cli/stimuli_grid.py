@@ -121,3 +121,46 @@ def photo_sheet(manifest: Path, photos: tuple[Path, ...], out: Path, force: bool
     sheet = realism_sheet(manifest, list(photos))
     save_png(sheet, out)
     click.echo(f"photo sheet: {out}")
+
+
+@stimuli.command("engine-sheet", context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli engine-sheet protocols/grids/exp1b_shading_lighting.yaml \\
+      --photo "$(appeal data path london-frl)/neutral_front/001_03.jpg" --out engines
+  appeal stimuli engine-sheet protocols/grids/exp2_stylisation.yaml --character lps --photo p.jpg --out lps
+  appeal stimuli engine-sheet my_grid.yaml --photo me.jpg --engine pyrender --out preview""")
+@click.argument("grid_file", metavar="GRID.yaml", type=click.Path(path_type=Path))
+@click.option("--photo", "photo", required=True, type=click.Path(path_type=Path),
+              help="A frontal photograph of a real person, aligned on the eyes in the last column.")
+@click.option("--engine", "engines", multiple=True, type=click.Choice(["pyrender", "cycles"]),
+              help="Engines to compare (repeatable; default: pyrender and cycles).")
+@click.option("--character", default=None, metavar="NAME", help="The grid's character to show (default: the first).")
+@out_options()
+@parallel_options
+def engine_sheet(grid_file: Path, photo: Path, engines: tuple[str, ...], character: str | None, out: Path, force: bool,
+                 resume: bool, n_jobs: int | None, scheduler: str | None) -> None:  # noqa: ARG001 - renders locally
+    """A character of GRID.yaml (the first, or --character) under each render engine, beside a photograph.
+
+    \b
+    Renders the character's realistic level (first material, PBR shading) neutral and happy
+    under direct_hard, direct_soft and gi_soft with each engine — the same scene, only
+    render.engine differs — into DIR/ENGINE/, and writes DIR/engine_sheet.png: one row per
+    expression and lighting, one column per engine, the photograph (eyes aligned) last.
+    """
+    from appeal.outputs import output_run
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid.engine_sheet import engine_sheet as make_sheet
+    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.render import save_png
+    from stimulus_engine.render.cycles import check_cycles
+
+    spec = load_study_file(grid_file, GridFile)
+    engines = engines or ("pyrender", "cycles")
+    if "cycles" in engines:
+        check_cycles("--engine")
+    if not photo.is_file():
+        raise AppealInputError(f"--photo: {photo}: image not found (expected a frontal photograph)")
+    with output_run(out, force=force, resume=resume, inputs=[grid_file, photo]) as run:
+        sheet = make_sheet(spec, run.out, photo, engines=engines, character=character, n_jobs=n_jobs)
+        save_png(sheet, run.out / "engine_sheet.png")
+        click.echo(f"engine sheet: {run.out / 'engine_sheet.png'}")

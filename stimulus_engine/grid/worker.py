@@ -2,8 +2,8 @@
 
 A :class:`RenderItem` names files and settings only (it is pickled to the workers); the
 worker reads the prepared inputs from the cache and hands them to a render engine of
-:data:`ENGINES` by the item's ``engine`` (``pyrender`` now; a path tracer would be another
-entry taking the same item and returning the image).
+:data:`ENGINES` by the item's ``engine``: ``pyrender`` (OpenGL) or ``cycles`` (Blender's path
+tracer, in its own Python), both drawing the same parts from the same camera.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from PIL import Image
 
 from stimulus_engine.grid.cache import load_rig
 
-__all__ = ["ENGINES", "RenderItem", "place_photo", "render_item"]
+__all__ = ["ENGINES", "RenderItem", "item_scene", "place_photo", "render_item"]
 
 
 @dataclass(frozen=True)
@@ -41,6 +41,8 @@ class RenderItem:
     normal_png: str = ""
     specular_png: str = ""
     engine: str = "pyrender"
+    samples: int = 16
+    seed: int = 0
 
 
 @functools.lru_cache(maxsize=16)
@@ -61,9 +63,9 @@ def _map_image(path: str, kind: str) -> np.ndarray | None:
     return _image(path) if kind == "normal" else _grey(path)
 
 
-def _render_pyrender(item: RenderItem) -> np.ndarray:
-    """The image of ``item`` rasterised by pyrender (OpenGL)."""
-    from stimulus_engine.render import CameraSpec, render_mesh
+def item_scene(item: RenderItem) -> tuple[list, object]:
+    """The render parts and the camera of ``item`` (the scene both engines draw)."""
+    from stimulus_engine.render import CameraSpec
     from stimulus_engine.render.rig_parts import rig_render_parts
 
     rig = load_rig(item.rig_npz)
@@ -72,13 +74,29 @@ def _render_pyrender(item: RenderItem) -> np.ndarray:
                              normal_map=_map_image(item.normal_png, "normal"),
                              specular_map=_map_image(item.specular_png, "specular"))
     pos, target, yfov, up = item.camera
-    cam = CameraSpec(tuple(pos), tuple(target), yfov, tuple(up))
+    return parts, CameraSpec(tuple(pos), tuple(target), yfov, tuple(up))
+
+
+def _render_pyrender(item: RenderItem) -> np.ndarray:
+    """The image of ``item`` rasterised by pyrender (OpenGL)."""
+    from stimulus_engine.render import render_mesh
+
+    parts, cam = item_scene(item)
     return render_mesh(parts, width=item.width, height=item.height, lighting=item.lighting, camera=cam,
                        background=item.background, shadows=item.shadows)
 
 
+def _render_cycles(item: RenderItem) -> np.ndarray:
+    """The image of ``item`` path-traced by Blender's Cycles (in its own Python)."""
+    from stimulus_engine.render.cycles import render_cycles
+
+    parts, cam = item_scene(item)
+    return render_cycles(parts, width=item.width, height=item.height, lighting=item.lighting, camera=cam,
+                         background=item.background, samples=item.samples, seed=item.seed)
+
+
 #: Render engines: a :class:`RenderItem` -> its (H, W, 3) uint8 image.
-ENGINES: dict[str, Callable[[RenderItem], np.ndarray]] = {"pyrender": _render_pyrender}
+ENGINES: dict[str, Callable[[RenderItem], np.ndarray]] = {"pyrender": _render_pyrender, "cycles": _render_cycles}
 
 
 def render_item(item: RenderItem) -> float:

@@ -1,0 +1,218 @@
+"""Render an exported scene (:mod:`stimulus_engine.render.scene_export`) with Blender's Cycles.
+
+Run as a script by the Python that has Blender's ``bpy`` wheel (it pins numpy < 2, so it lives in
+its own environment, ``.venv-cycles``)::
+
+    .venv-cycles/bin/python stimulus_engine/render/cycles_worker.py SCENE.json OUT.png \
+        --samples 16 --seed 0 --threads 2
+
+OUT.png is RGBA (straight alpha, the face on a transparent film); the caller composites it onto
+the background.
+
+It imports nothing from this package. Skin is Blender's Principled BSDF with random-walk
+subsurface scattering driven by the albedo (radius red > green > blue, as in skin, in
+millimetres converted to scene units), eyes and teeth wet and glossy, lashes and hair cut out by
+their texture's alpha. Lights: directional → sun (0.5° across: hard shadows), a disc of spot
+samples → a sun as wide as the disc seen from the face (an area light at infinity: soft
+shadows), the ambient level → a uniform world, which with 4 diffuse bounces is the global
+illumination of ``gi_soft``. Film: AgX view transform (Blender's filmic tone curve),
+transparent; OpenImageDenoise; fixed seed, so a re-render gives the same pixels.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def _look_at(position, target, up) -> np.ndarray:
+    z = np.asarray(position, float) - np.asarray(target, float)
+    z /= np.linalg.norm(z)
+    x = np.cross(np.asarray(up, float), z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, y, z, position
+    return m
+
+
+def _light_matrix(direction) -> np.ndarray:
+    """A rotation whose -z axis points along ``direction`` (Blender lights shine along local -z)."""
+    return _look_at(np.zeros(3), np.asarray(direction, float), [0.0, 1.0, 0.0] if abs(direction[1]) < 0.9 else [1.0, 0.0, 0.0])
+
+
+def _image(bpy, folder: Path, name: str, colour: bool):
+    img = bpy.data.images.load(str(folder / name))
+    img.colorspace_settings.name = "sRGB" if colour else "Non-Color"
+    return img
+
+
+def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
+    mat = bpy.data.materials.new(rec["name"] or "part")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    bsdf = nodes["Principled BSDF"]
+    base = rec["base_color"]
+    bsdf.inputs["Base Color"].default_value = (*base[:3], 1.0)
+    bsdf.inputs["Roughness"].default_value = float(np.clip(rec.get("roughness", 0.6), 0.02, 1.0))
+    name = rec["name"]
+    if "texture" in rec:
+        tex = nodes.new("ShaderNodeTexImage")
+        tex.image = _image(bpy, folder, rec["texture"], True)
+        if any(b != 1.0 for b in base[:3]):
+            mix = nodes.new("ShaderNodeMix")
+            mix.data_type, mix.blend_type = "RGBA", "MULTIPLY"
+            mix.inputs["Factor"].default_value = 1.0
+            links.new(tex.outputs["Color"], mix.inputs["A"])
+            mix.inputs["B"].default_value = (*base[:3], 1.0)
+            links.new(mix.outputs["Result"], bsdf.inputs["Base Color"])
+        else:
+            links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+        if rec.get("alpha_blend"):
+            links.new(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
+    if "normal_map" in rec:
+        nt = nodes.new("ShaderNodeTexImage")
+        nt.image = _image(bpy, folder, rec["normal_map"], False)
+        nm = nodes.new("ShaderNodeNormalMap")
+        links.new(nt.outputs["Color"], nm.inputs["Color"])
+        links.new(nm.outputs["Normal"], bsdf.inputs["Normal"])
+    mm = 1.0 / mm_per_unit  # scene units per millimetre
+    if name == "skin" and not rec.get("phong"):
+        # random-walk SSS driven by the albedo; skin's mean free paths ~ 1.0 / 0.4 / 0.2 mm (R, G, B)
+        bsdf.subsurface_method = "RANDOM_WALK"
+        bsdf.inputs["Subsurface Weight"].default_value = 1.0
+        bsdf.inputs["Subsurface Radius"].default_value = (1.0, 0.4, 0.2)
+        bsdf.inputs["Subsurface Scale"].default_value = 1.5 * mm
+        bsdf.inputs["Specular IOR Level"].default_value = 0.45
+        bsdf.inputs["IOR"].default_value = 1.4
+    elif name == "skin":  # the thesis's Phong contrast: no scattering, a plain specular lobe
+        bsdf.inputs["Specular IOR Level"].default_value = 0.5
+    elif name in ("eyes", "eye", "sclera", "iris", "cornea"):
+        bsdf.inputs["Roughness"].default_value = 0.05
+        bsdf.inputs["Coat Weight"].default_value = 1.0
+        bsdf.inputs["Coat Roughness"].default_value = 0.02
+    elif name == "teeth":
+        bsdf.subsurface_method = "RANDOM_WALK"
+        bsdf.inputs["Subsurface Weight"].default_value = 0.3
+        bsdf.inputs["Subsurface Scale"].default_value = 0.5 * mm
+        bsdf.inputs["Roughness"].default_value = 0.25
+    return mat
+
+
+def _mesh(bpy, name: str, v: np.ndarray, f: np.ndarray, n: np.ndarray, uv: np.ndarray | None):
+    me = bpy.data.meshes.new(name or "part")
+    me.vertices.add(len(v))
+    me.vertices.foreach_set("co", v.astype(np.float32).ravel())
+    me.loops.add(f.size)
+    me.loops.foreach_set("vertex_index", f.astype(np.int32).ravel())
+    me.polygons.add(len(f))
+    me.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
+    me.polygons.foreach_set("loop_total", np.full(len(f), 3, np.int32))
+    me.polygons.foreach_set("use_smooth", np.ones(len(f), bool))
+    if uv is not None:
+        layer = me.uv_layers.new(name="UVMap")
+        layer.data.foreach_set("uv", uv[f.ravel()].astype(np.float32).ravel())
+    me.update(calc_edges=True)
+    me.validate(clean_customdata=False)
+    me.normals_split_custom_set_from_vertices([tuple(x) for x in n.astype(float)])
+    return me
+
+
+def build_scene(bpy, scene_path: Path, samples: int, seed: int, threads: int):
+    spec = json.loads(scene_path.read_text())
+    folder = scene_path.parent
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    import addon_utils
+
+    addon_utils.enable("cycles", default_set=True)  # an empty factory scene starts without it
+    sc = bpy.context.scene
+    sc.render.engine = "CYCLES"
+    sc.cycles.device = "CPU"
+    sc.cycles.samples = samples
+    sc.cycles.seed = seed
+    sc.cycles.use_animated_seed = False
+    sc.cycles.use_adaptive_sampling = False  # the same work for every image: reproducible and comparable
+    sc.cycles.use_denoising = True
+    sc.cycles.denoiser = "OPENIMAGEDENOISE"
+    sc.cycles.max_bounces, sc.cycles.diffuse_bounces, sc.cycles.glossy_bounces = 8, 4, 4
+    sc.cycles.transparent_max_bounces = 16
+    sc.render.threads_mode = "FIXED"
+    sc.render.threads = max(1, threads)
+    sc.render.resolution_x, sc.render.resolution_y = spec["width"], spec["height"]
+    sc.render.resolution_percentage = 100
+    sc.render.film_transparent = True
+    sc.render.image_settings.file_format = "PNG"
+    sc.render.image_settings.color_mode = "RGBA"
+    sc.view_settings.view_transform = "AgX"
+    sc.view_settings.look = "None"
+    world = bpy.data.worlds.new("world")
+    world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bg.inputs["Strength"].default_value = float(spec["ambient"])
+    sc.world = world
+    parts = np.load(folder / "parts.npz")
+    for k, rec in enumerate(spec["parts"]):
+        uv = parts[f"uv{k}"] if f"uv{k}" in parts.files else None
+        me = _mesh(bpy, rec["name"], parts[f"v{k}"], parts[f"f{k}"], parts[f"n{k}"], uv)
+        me.materials.append(_material(bpy, rec, folder, spec["mm_per_unit"]))
+        ob = bpy.data.objects.new(rec["name"] or f"part{k}", me)
+        sc.collection.objects.link(ob)
+    for i, light in enumerate(spec["lights"]):
+        data = bpy.data.lights.new(f"light{i}", "SUN")
+        data.energy = float(light["intensity"])
+        data.color = light["color"]
+        # a disc of spot samples at ``radius`` × distance: as wide as seen from the face
+        data.angle = 2 * math.atan(light["radius"]) if light["kind"] == "disc" else math.radians(0.5)
+        data.use_shadow = bool(light["shadow"])
+        ob = bpy.data.objects.new(f"light{i}", data)
+        ob.matrix_world = _matrix(_light_matrix(light["direction"]))
+        sc.collection.objects.link(ob)
+    cam = spec["camera"]
+    cd = bpy.data.cameras.new("camera")
+    cd.sensor_fit = "VERTICAL"
+    cd.angle_y = math.radians(cam["yfov_deg"])
+    dist = float(np.linalg.norm(np.subtract(cam["position"], cam["target"])))
+    cd.clip_start, cd.clip_end = max(dist * 0.05, 1e-4), dist * 20
+    co = bpy.data.objects.new("camera", cd)
+    co.matrix_world = _matrix(_look_at(cam["position"], cam["target"], cam["up"]))
+    sc.collection.objects.link(co)
+    sc.camera = co
+    return spec
+
+
+def _matrix(m: np.ndarray):
+    from mathutils import Matrix
+
+    return Matrix([list(map(float, row)) for row in m])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="Render an appeal-lab scene with Cycles.")
+    ap.add_argument("scene", type=Path)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--samples", type=int, default=16)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=0)
+    a = ap.parse_args(argv)
+    import os
+
+    # run as a script, this file's folder leads sys.path, and its sibling cycles.py would shadow
+    # Blender's own "cycles" add-on
+    here = Path(__file__).resolve().parent
+    sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != here]
+    import bpy
+
+    build_scene(bpy, a.scene, a.samples, a.seed, a.threads or os.cpu_count() or 1)
+    bpy.context.scene.render.filepath = str(a.out)
+    bpy.ops.render.render(write_still=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,154 @@
+"""The path-traced tier: one scene description, two engines (pyrender and Blender's Cycles).
+
+Tests that render with Cycles need its Python (``make cycles``: ``.venv-cycles`` with the bpy
+wheel, which pins numpy < 2); ``make test`` installs it, elsewhere they are skipped with that
+reason. Exporting scenes and checking settings needs no Blender.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from appeal_cli import main
+from appeal.studyfile import load_study_file
+from stimulus_engine.grid import run_grid
+from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.render import CameraSpec, lighting_preset
+from stimulus_engine.render.cycles import cycles_python
+from stimulus_engine.render.scene_export import export_scene, world_lights
+
+needs_cycles = pytest.mark.skipif(cycles_python() is None,
+                                  reason="Cycles not installed: run 'make cycles' (or set APPEAL_CYCLES_PYTHON)")
+
+GRID = """kind: grid
+name: two_engines
+characters:
+  - name: a
+    procedural: {seed: 3, texture_size: 128, resolution: 40}
+shapes: [0.0]
+materials: [original]
+expressions: [neutral]
+lighting: [direct_hard]
+shading: [pbr]
+render: {width: 160, height: 120, engine: ENGINE, samples: 8}
+"""
+
+
+def _grid(tmp_path: Path, engine: str, extra: str = "") -> tuple[Path, GridFile]:
+    p = tmp_path / f"{engine}.yaml"
+    p.write_text(GRID.replace("ENGINE", engine) + extra)
+    return p, load_study_file(p, GridFile)
+
+
+def test_disc_of_spot_samples_becomes_one_soft_light():
+    cam = CameraSpec((0.0, 0.0, 10.0), (0.0, 0.0, 0.0))
+    lights, _ = lighting_preset("direct_soft")
+    out = world_lights(lights, cam)
+    discs = [w for w in out if w["kind"] == "disc"]
+    assert len(discs) == 1
+    spots = [s for s in lights if s.kind == "spot"]
+    assert discs[0]["intensity"] == pytest.approx(sum(s.intensity for s in spots))
+    assert 0.1 < discs[0]["radius"] < 0.2 and discs[0]["shadow"]
+    assert len(out) == len(lights) - len(spots) + 1
+
+
+def test_scene_export_writes_parts_materials_and_camera(tmp_path):
+    from stimulus_engine.grid.prepare import prepare_grid
+    from stimulus_engine.grid.worker import item_scene
+
+    _, grid = _grid(tmp_path, "pyrender")
+    _, items, _ = prepare_grid(grid, tmp_path / "out")
+    parts, cam = item_scene(items[0])
+    lights, ambient = lighting_preset("gi_soft")
+    path = export_scene(parts, lights, ambient, cam, tmp_path / "scene", width=160, height=120,
+                        background=(0.5, 0.5, 0.5))
+    spec = json.loads(path.read_text())
+    assert spec["format"] == "appeal-scene/1" and spec["ambient"] == ambient
+    assert [p["name"] for p in spec["parts"]] == [p.name for p in parts]
+    skin = next(p for p in spec["parts"] if p["name"] == "skin")
+    assert (path.parent / skin["texture"]).is_file()
+    arrays = np.load(path.parent / "parts.npz")
+    k = [p.name for p in parts].index("skin")
+    assert arrays[f"v{k}"].shape == parts[k].mesh.vertices.shape and f"uv{k}" in arrays.files
+    assert 100 < spec["mm_per_unit"] * np.ptp(arrays[f"v{k}"][:, 0]) < 200  # a head ~150 mm wide
+    assert spec["camera"]["yfov_deg"] == cam.yfov_deg
+
+
+@pytest.mark.parametrize("field, value, expected", [
+    ("engine", "mitsuba", "render.engine"),
+    ("samples", 0, "render.samples"),
+    ("samples", -5, "render.samples"),
+])
+def test_bad_engine_settings_are_one_line_errors_before_rendering(tmp_path, capsys, field, value, expected):
+    p = tmp_path / "g.yaml"
+    text = GRID.replace("ENGINE", "pyrender").replace("samples: 8", f"samples: {value}" if field == "samples" else "samples: 8")
+    if field == "engine":
+        text = text.replace("engine: pyrender", f"engine: {value}")
+    p.write_text(text)
+    rc = main(["stimuli", "grid", str(p), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert rc != 0 and len(err.splitlines()) == 1 and expected in err and str(p) in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_cycles_not_installed_is_a_one_line_error(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("APPEAL_CYCLES_PYTHON", str(tmp_path / "no-such-python"))
+    p, _ = tmp_path / "g.yaml", None
+    p.write_text(GRID.replace("ENGINE", "cycles"))
+    rc = main(["stimuli", "grid", str(p), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert rc != 0 and len(err.splitlines()) == 1 and "'cycles' is not installed" in err and "make cycles" in err, err
+    assert not (tmp_path / "out").exists()
+
+
+@needs_cycles
+def test_both_engines_frame_the_face_identically(tmp_path):
+    """Same scene, same camera: the silhouettes (and so the eyes) land on the same pixels."""
+    from stimulus_engine.grid.prepare import prepare_grid
+    from stimulus_engine.grid.worker import item_scene
+    from stimulus_engine.render import render_mesh
+    from stimulus_engine.render.cycles import render_cycles
+
+    _, grid = _grid(tmp_path, "pyrender")
+    _, items, _ = prepare_grid(grid, tmp_path / "out")
+    parts, cam = item_scene(items[0])
+    _, depth = render_mesh(parts, width=160, height=120, lighting="direct_hard", camera=cam, return_depth=True)
+    red = (1.0, 0.0, 0.0)  # a background no face pixel has: the Cycles silhouette is what differs from it
+    img = render_cycles(parts, width=160, height=120, lighting="direct_hard", camera=cam, background=red, samples=4)
+    mask_py = depth > 0
+    mask_cy = ~np.all(img == np.array([255, 0, 0], np.uint8), axis=-1)
+    iou = (mask_py & mask_cy).sum() / (mask_py | mask_cy).sum()
+    assert iou > 0.97, iou
+    c_py = np.argwhere(mask_py).mean(axis=0)
+    c_cy = np.argwhere(mask_cy).mean(axis=0)
+    assert np.abs(c_py - c_cy).max() < 0.5, (c_py, c_cy)
+    for axis in (0, 1):
+        span_py = np.flatnonzero(mask_py.any(axis=1 - axis))
+        span_cy = np.flatnonzero(mask_cy.any(axis=1 - axis))
+        assert abs(span_py[0] - span_cy[0]) <= 2 and abs(span_py[-1] - span_cy[-1]) <= 2
+
+
+@needs_cycles
+def test_cycles_grid_renders_and_rerenders_identically(tmp_path):
+    _, grid = _grid(tmp_path, "cycles")
+    m1, _ = run_grid(grid, tmp_path / "one", n_jobs=1)
+    m2, _ = run_grid(grid, tmp_path / "two", n_jobs=1)
+    assert (m1["status"] == "rendered").all()
+    f = m1["file"].iloc[0]
+    a = np.asarray(Image.open(tmp_path / "one" / f)).astype(int)
+    b = np.asarray(Image.open(tmp_path / "two" / f)).astype(int)
+    # fixed seed, fixed sample count, CPU denoiser: the same pixels
+    assert np.abs(a - b).max() == 0
+    # a face on the 50 % grey background, not an empty frame
+    assert (np.abs(a - 128).sum(-1) > 30).mean() > 0.1
+    # a different seed gives different noise before denoising: not the same image
+    _, other = _grid(tmp_path, "cycles", "")
+    other = other.model_copy(update={"render": other.render.model_copy(update={"seed": 7})})
+    m3, _ = run_grid(other, tmp_path / "three", n_jobs=1)
+    c = np.asarray(Image.open(tmp_path / "three" / m3["file"].iloc[0])).astype(int)
+    assert np.abs(a - c).max() > 0
