@@ -81,6 +81,14 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
         nm = nodes.new("ShaderNodeNormalMap")
         links.new(nt.outputs["Color"], nm.inputs["Color"])
         links.new(nm.outputs["Normal"], bsdf.inputs["Normal"])
+    if not rec.get("double_sided", True):
+        # single-sided, as pyrender draws it: back faces let the rays through
+        out = nodes["Material Output"]
+        geo, clear, mix = nodes.new("ShaderNodeNewGeometry"), nodes.new("ShaderNodeBsdfTransparent"), nodes.new("ShaderNodeMixShader")
+        links.new(geo.outputs["Backfacing"], mix.inputs["Fac"])
+        links.new(bsdf.outputs["BSDF"], mix.inputs[1])
+        links.new(clear.outputs["BSDF"], mix.inputs[2])
+        links.new(mix.outputs["Shader"], out.inputs["Surface"])
     mm = 1.0 / mm_per_unit  # scene units per millimetre
     if name == "skin" and not rec.get("phong"):
         # random-walk SSS driven by the albedo; skin's mean free paths ~ 1.0 / 0.4 / 0.2 mm (R, G, B)
@@ -96,10 +104,7 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
         bsdf.inputs["Roughness"].default_value = 0.05
         bsdf.inputs["Coat Weight"].default_value = 1.0
         bsdf.inputs["Coat Roughness"].default_value = 0.02
-    elif name == "teeth":
-        bsdf.subsurface_method = "RANDOM_WALK"
-        bsdf.inputs["Subsurface Weight"].default_value = 0.3
-        bsdf.inputs["Subsurface Scale"].default_value = 0.5 * mm
+    elif name == "teeth":  # enamel: glossy, no scattering (a thin shell glowed orange with it)
         bsdf.inputs["Roughness"].default_value = 0.25
     return mat
 

@@ -61,7 +61,10 @@ def _texture_array(tex: Any) -> np.ndarray | None:
 
 def _material_record(name: str, mat: Any, folder: Path, index: int) -> dict:
     """The values of a pyrender material (metallic-roughness or specular-glossiness) and its texture files."""
-    rec: dict[str, Any] = {"name": name, "roughness": 0.6, "alpha_blend": False}
+    # pyrender culls the back faces of single-sided materials (ICT's lash shells, the inside of
+    # the mouth): the path tracer must hide them too
+    rec: dict[str, Any] = {"name": name, "roughness": 0.6, "alpha_blend": False,
+                           "double_sided": bool(getattr(mat, "doubleSided", False))}
     if mat is None:
         rec["base_color"] = [0.7, 0.7, 0.7, 1.0]
         return rec
