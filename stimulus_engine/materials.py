@@ -11,8 +11,10 @@ Albedo stylisation (thesis ch. 5 & §6.3, material levels 1a …):
 ``flat``  a "cartoon" albedo: every region becomes its mean colour.
 
 :data:`MATERIAL_LEVELS` orders them as a five-step material-stylisation axis (0 = original …
-4 = flat). Shading models (:data:`SHADINGS`): ``pbr`` (metallic-roughness) and ``phong``
-(specular-glossiness, Blinn-Phong); how an engine draws them: :mod:`stimulus_engine.render.rig_parts`.
+4 = flat). Shading models (:data:`SHADINGS`): ``pbr`` (metallic-roughness), ``phong``
+(specular-glossiness, Blinn-Phong: the thesis's contrast to PBR) and ``skin`` (PBR with
+scattering-softened skin, wet eyes and a filmic tone curve: :mod:`stimulus_engine.render.skin_shader`);
+how an engine draws them: :mod:`stimulus_engine.render.rig_parts`.
 
 Optional maps on the skin, in the albedo's UV layout (:data:`MAP_KINDS`):
 
@@ -58,7 +60,7 @@ MATERIAL_STYLES: tuple[str, ...] = ("original", "blur25", "blur50", "bilateral",
 #: Material stylisation levels 0..4 (thesis: realistic → cartoon albedo).
 MATERIAL_LEVELS: dict[int, str] = dict(enumerate(MATERIAL_STYLES))
 #: Shader models.
-SHADINGS: tuple[str, ...] = ("pbr", "phong")
+SHADINGS: tuple[str, ...] = ("pbr", "phong", "skin")
 #: Texture maps a material may carry besides its albedo.
 MAP_KINDS: tuple[str, ...] = ("normal", "specular")
 #: The tangent-space normal map value of an unperturbed surface.

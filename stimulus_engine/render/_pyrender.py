@@ -23,6 +23,7 @@ if not hasattr(np, "infty"):  # numpy >= 2 removed the alias pyrender still uses
     np.infty = np.inf  # type: ignore[attr-defined]
 
 import ctypes  # noqa: E402
+import threading  # noqa: E402
 
 import OpenGL.contextdata  # noqa: E402
 import pyrender  # noqa: E402
@@ -46,10 +47,17 @@ def _context_key() -> object:
         return cid
 
 
+#: The ``appeal_defines`` of the material whose program is being looked up (set around pyrender's
+#: ``_get_primitive_program``): how a material turns on a shader switch (e.g. the skin shading).
+_MATERIAL = threading.local()
+
+
 def _get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):  # type: ignore[no-untyped-def]
-    """pyrender's ``ShaderProgramCache.get_program`` with a stable context key (see above) and
-    the patched ``mesh.frag`` (:func:`shadow_fragment_shader`, :func:`phong_fragment_shader`)."""
-    defines = defines or {}
+    """pyrender's ``ShaderProgramCache.get_program`` with a stable context key (see above), the
+    patched ``mesh.frag`` (:func:`shadow_fragment_shader`, :func:`phong_fragment_shader`,
+    :func:`~stimulus_engine.render.skin_shader.skin_fragment_shader`) and the defines the
+    material asks for (its ``appeal_defines``)."""
+    defines = {**(defines or {}), **(getattr(_MATERIAL, "defines", None) or {})}
     files = [x for x in (vertex_shader, fragment_shader, geometry_shader) if x is not None]
     key = tuple([_context_key()] + sorted([(os.path.split(f)[1], 1) for f in files] + list(defines.items())))
     if key not in self._program_cache:
@@ -269,10 +277,13 @@ def _mesh_shader_path(shader_dir: str, glossy: bool) -> str:
     import hashlib
     import tempfile
 
+    from stimulus_engine.render.skin_shader import skin_fragment_shader
+
     with open(os.path.join(shader_dir, "mesh.frag")) as f:
         text = alpha_test_fragment_shader(shadow_fragment_shader(f.read()))
     if glossy:
         text = phong_fragment_shader(text)
+    text = skin_fragment_shader(text)  # its switches are off unless a material turns them on
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
     path = os.path.join(tempfile.gettempdir(), f"appeal-pyrender-mesh-{digest}.frag")
     if not os.path.exists(path):
@@ -284,6 +295,18 @@ def _mesh_shader_path(shader_dir: str, glossy: bool) -> str:
 
 
 _sp.ShaderProgramCache.get_program = _get_program
+_get_primitive_program = pyrender.renderer.Renderer._get_primitive_program
+
+
+def _get_primitive_program_with_material_defines(self, primitive, flags, program_flags):  # type: ignore[no-untyped-def]
+    _MATERIAL.defines = getattr(primitive.material, "appeal_defines", None)
+    try:
+        return _get_primitive_program(self, primitive, flags, program_flags)
+    finally:
+        _MATERIAL.defines = None
+
+
+pyrender.renderer.Renderer._get_primitive_program = _get_primitive_program_with_material_defines
 # Without shadow maps pyrender draws at most MAX_N_LIGHTS (4) lights of each type per mesh, the 4
 # nearest to that mesh: gi_soft's dome of 12 directional lights plus 2 rims was drawn with 4 of
 # them, not necessarily the same 4 for the skin and the eyes. With shadow maps the limit is the

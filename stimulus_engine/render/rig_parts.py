@@ -37,14 +37,18 @@ _PART_COLOURS = {
 _PHONG_SPECULAR = 0.08
 #: PBR roughness per part (wet eyes and teeth are glossy; the default is the skin's).
 _PART_ROUGHNESS = {"eye": 0.32, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
+#: Under ``skin`` shading the eyes are wet: a sharp highlight of the key light on the cornea.
+_SKIN_SHADING_ROUGHNESS = {"eye": 0.07, "sclera": 0.08, "iris": 0.07, "teeth": 0.25}
 
 
 _MATERIALS: dict[tuple, tuple[tuple, object]] = {}
 
 
 def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float = 0.62,
-              normal: np.ndarray | None = None, specular: np.ndarray | None = None) -> object:
-    """A pyrender material; cached per (shading, colour, texture array, roughness) in this process.
+              normal: np.ndarray | None = None, specular: np.ndarray | None = None, scatter: bool = False) -> object:
+    """A pyrender material; cached per (shading, colour, texture array, roughness, scatter) in this process.
+
+    ``scatter``: under ``skin`` shading, the subsurface-softened diffuse term (the skin part).
 
     Reusing the same material (and so the same ``pyrender.Texture``) for every image that wears
     the same albedo lets the renderer keep the texture on the GPU (pyrender uploads a texture,
@@ -52,8 +56,8 @@ def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | Non
     of the per-image time on llvmpipe. The key holds the array's id and the entry the array
     itself, so a new array that reuses a freed id never hits a stale material.
     """
-    return _cached(("part", shading, tuple(colour), float(roughness)), (texture, normal, specular),
-                   lambda: _new_material(shading, colour, texture, roughness, normal, specular))
+    return _cached(("part", shading, tuple(colour), float(roughness), scatter), (texture, normal, specular),
+                   lambda: _new_material(shading, colour, texture, roughness, normal, specular, scatter))
 
 
 def _cached(key: tuple, arrays: tuple, make) -> object:
@@ -69,8 +73,15 @@ def _cached(key: tuple, arrays: tuple, make) -> object:
     return mat
 
 
+def _skin_defines(material: object, shading: str, scatter: bool) -> object:
+    """Turn on the ``skin`` shading's shader switches (:mod:`.skin_shader`) for this material."""
+    if shading == "skin":
+        material.appeal_defines = {"TONEMAP_FILMIC": 1, **({"SKIN_SCATTER": 1} if scatter else {})}
+    return material
+
+
 def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float,
-                  normal: np.ndarray | None = None, specular: np.ndarray | None = None) -> object:
+                  normal: np.ndarray | None = None, specular: np.ndarray | None = None, scatter: bool = False) -> object:
     from stimulus_engine.render._pyrender import pyrender
 
     def tex(a: np.ndarray | None, channels: str = "RGB") -> object:
@@ -78,18 +89,19 @@ def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray |
 
     base = (1.0, 1.0, 1.0, 1.0) if texture is not None else colour
     if texture is not None and texture.shape[-1] == 4:  # cards (lashes): alpha-blended, both sides
-        return pyrender.MetallicRoughnessMaterial(baseColorFactor=base, baseColorTexture=tex(texture, "RGBA"),
-                                                  metallicFactor=0.0, roughnessFactor=roughness, alphaMode="BLEND",
-                                                  doubleSided=True)
+        return _skin_defines(pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=base, baseColorTexture=tex(texture, "RGBA"), metallicFactor=0.0, roughnessFactor=roughness,
+            alphaMode="BLEND", doubleSided=True), shading, scatter=False)
     s = None if specular is None else np.asarray(specular, np.float64) / 255.0
-    if shading == "pbr":
+    if shading in ("pbr", "skin"):
         mr = None
         if s is not None:  # pyrender reads roughness from R and metallic from G (× the factors)
             r = np.rint(255 * np.clip(roughness * (1.4 - 0.8 * s), 0, 1))
             mr = np.stack([r, np.full_like(r, 255), np.zeros_like(r)], axis=-1).astype(np.uint8)
-        return pyrender.MetallicRoughnessMaterial(baseColorFactor=base, baseColorTexture=tex(texture),
-                                                  metallicFactor=0.0, roughnessFactor=1.0 if s is not None else roughness,
-                                                  normalTexture=tex(normal), metallicRoughnessTexture=tex(mr))
+        return _skin_defines(pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=base, baseColorTexture=tex(texture), metallicFactor=0.0,
+            roughnessFactor=1.0 if s is not None else roughness, normalTexture=tex(normal),
+            metallicRoughnessTexture=tex(mr)), shading, scatter)
     if shading == "phong":
         gloss = min(0.95, 1.17 - roughness)
         sg, level = None, _PHONG_SPECULAR
@@ -164,8 +176,9 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
             mesh.visual = trimesh.visual.TextureVisuals(uv=rig.uv[uniq[:, 1]])
         tex = (albedo if name == "skin" else rig.part_textures[name]) if textured else None
         skin = name == "skin" and textured
-        mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex,
-                        _PART_ROUGHNESS.get(name, 0.62), normal_map if skin else None, specular_map if skin else None)
+        rough = (_SKIN_SHADING_ROUGHNESS if shading == "skin" else _PART_ROUGHNESS).get(name, _PART_ROUGHNESS.get(name, 0.62))
+        mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough,
+                        normal_map if skin else None, specular_map if skin else None, scatter=name == "skin")
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name))
     if rig.hair is not None:
         parts.append(hair_render_part(rig.hair, v, shading))
@@ -201,6 +214,7 @@ def _new_hair_material(shading: str, colour: tuple[float, float, float], texture
             diffuseFactor=(*colour, 1.0), diffuseTexture=tex, specularFactor=(_PHONG_SPECULAR,) * 3,
             glossinessFactor=1.17 - HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
     else:
-        mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0,
-                                                 roughnessFactor=HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
+        mat = _skin_defines(pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=HAIR_ROUGHNESS,
+            alphaMode="MASK", doubleSided=True), shading, scatter=False)
     return mat

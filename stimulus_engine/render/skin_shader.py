@@ -1,0 +1,104 @@
+"""The ``skin`` shading of the fast tier: scattering-softened skin and a filmic tone curve in pyrender.
+
+:func:`skin_fragment_shader` patches pyrender's metallic-roughness fragment shader with two
+switches a material turns on through its ``appeal_defines`` (see
+:mod:`stimulus_engine.render._pyrender`):
+
+``SKIN_SCATTER`` (the skin part)
+    Light scattered under the skin softens the terminator and reddens it (the look of
+    pre-integrated skin shading, Penner & Borshukov 2011, without its curvature lookup): the
+    diffuse term uses a per-channel *wrapped* cosine ``clamp((n·l + w) / (1 + w), 0, 1)`` with
+    wraps :data:`SCATTER_WRAP` (red reaches furthest past the terminator, blue least); lit
+    areas are unchanged, the specular lobe keeps the true cosine.
+``TONEMAP_FILMIC`` (every part of a ``skin`` render)
+    The linear colour goes through the ACES filmic curve (Narkowicz 2015 fit, exposure
+    :data:`EXPOSURE`) and the exact sRGB encoding instead of pyrender's clipped ``pow(1/2.2)``:
+    highlights roll off instead of burning out.
+"""
+
+from __future__ import annotations
+
+__all__ = ["SCATTER_WRAP", "EXPOSURE", "HUE_KEEP", "skin_fragment_shader"]
+
+#: Per-channel wrap of the diffuse cosine (R, G, B): how far light reaches past the terminator.
+SCATTER_WRAP = (0.45, 0.18, 0.10)
+
+#: Exposure before the ACES curve (0.8 keeps an 18 % grey at about 18 % after the curve).
+EXPOSURE = 0.8
+
+#: Share of the tone curve applied to the luminance (keeping the hue) instead of each channel.
+HUE_KEEP = 0.5
+
+_FUNCTIONS = """
+vec3 compute_skin(vec3 n, vec3 v, vec3 l, float roughness, float metalness, vec3 f0, vec3 c_diff, vec3 albedo,
+                  vec3 radiance)
+{
+        vec3 h = normalize(l+v);
+        float nl_raw = dot(n, l);
+        float nl = clamp(nl_raw, 0.001, 1.0);
+        float nv = clamp(abs(dot(n, v)), 0.001, 1.0);
+        float nh = clamp(dot(n, h), 0.0, 1.0);
+        float lh = clamp(dot(l, h), 0.0, 1.0);
+        float vh = clamp(dot(v, h), 0.0, 1.0);
+        PBRInfo info = PBRInfo(nl, nv, nh, lh, vh, roughness, metalness, f0, c_diff);
+        vec3 F = specular_reflection(info);
+        float G = geometric_occlusion(info);
+        float D = microfacet_distribution(info);
+        vec3 wrap = vec3(SCATTER_WRAP);
+        vec3 nl_wrapped = clamp((vec3(nl_raw) + wrap) / (vec3(1.0) + wrap), 0.0, 1.0);
+        vec3 diffuse_contrib = (1.0 - F) * c_diff / PI;
+        vec3 spec_contrib = F * G * D / (4.0 * nl * nv + 0.001);
+        return radiance * (nl_wrapped * diffuse_contrib + step(0.0, nl_raw) * nl * spec_contrib);
+}
+
+vec3 aces_curve(vec3 x)
+{
+    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
+}
+
+vec3 aces_filmic(vec3 x)
+{
+    // the curve on each channel saturates (skin turns orange); on the luminance it keeps the
+    // hue: half of each
+    x *= EXPOSURE;
+    float y = max(dot(x, vec3(0.2126, 0.7152, 0.0722)), 1e-6);
+    vec3 by_luminance = x * (aces_curve(vec3(y)).x / y);
+    return clamp(mix(aces_curve(x), by_luminance, HUE_KEEP), 0.0, 1.0);
+}
+
+vec3 linear_to_srgb(vec3 c)
+{
+    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}
+
+#ifdef SKIN_SCATTER
+#define SHADE compute_skin
+#else
+#define SHADE compute_brdf
+#endif
+
+"""
+
+_OUTPUT = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
+_TONEMAPPED = """#ifdef TONEMAP_FILMIC
+    frag_color = vec4(linear_to_srgb(aces_filmic(color.xyz)), clamp(color.a * base_color.a, 0.0, 1.0));
+#else
+""" + _OUTPUT + "#endif\n"
+
+
+def skin_fragment_shader(text: str) -> str:
+    """pyrender 0.1.45's ``mesh.frag`` with the ``SKIN_SCATTER`` and ``TONEMAP_FILMIC`` switches.
+
+    Without either define the shader computes exactly what it did before (``SHADE`` is
+    ``compute_brdf``, the output line is pyrender's).
+    """
+    call = "compute_brdf(n, v, l, roughness, metallic,"
+    # after the Phong patch the output line appears again in the glossy branch: only the first
+    # (metallic-roughness) one is switched
+    if text.count(call) != 3 or text.count(_OUTPUT) < 1 or text.count("float texture2DCompare(") != 1:
+        raise RuntimeError("pyrender's mesh.frag changed: the skin shader patch was written for pyrender 0.1.45")
+    functions = (_FUNCTIONS.replace("SCATTER_WRAP", ", ".join(f"{w:.4f}" for w in SCATTER_WRAP))
+                 .replace("EXPOSURE", f"{EXPOSURE:.4f}").replace("HUE_KEEP", f"{HUE_KEEP:.4f}"))
+    i = text.index("float texture2DCompare(")
+    text = text[:i] + functions + text[i:]
+    return text.replace(call, "SHADE(n, v, l, roughness, metallic,").replace(_OUTPUT, _TONEMAPPED, 1)

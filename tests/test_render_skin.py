@@ -1,0 +1,84 @@
+"""The ``skin`` shading of the fast tier: scattering-softened skin, wet eyes, a filmic tone curve."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from stimulus_engine.render import LightSpec, RenderPart, render_mesh
+from stimulus_engine.render.rig_parts import _new_material
+from stimulus_engine.render.skin_shader import SCATTER_WRAP, skin_fragment_shader
+
+SKIN = (0.85, 0.62, 0.52, 1.0)
+
+
+def _sphere(shading: str, scatter: bool, intensity: float = 3.0, lighting=None) -> np.ndarray:
+    """A skin-coloured sphere lit from the side (terminator through the middle of the image)."""
+    s = trimesh.creation.icosphere(subdivisions=4)
+    mat = _new_material(shading, SKIN, None, 0.62, scatter=scatter)
+    lights = lighting or ([LightSpec("directional", (-1.0, 0.0, -0.15), intensity)], 0.0)
+    return render_mesh([RenderPart(s, material=mat)], width=160, height=120, lighting=lights, shadows=False)
+
+
+def test_without_its_switches_the_patched_shader_draws_what_pbr_drew():
+    a = _sphere("pbr", scatter=True)  # pbr materials carry no switches: scatter is ignored
+    b = _sphere("pbr", scatter=False)
+    assert np.array_equal(a, b)
+
+
+def test_scattering_reddens_and_softens_the_terminator():
+    pbr = _sphere("pbr", False).astype(float)
+    skin = _sphere("skin", True).astype(float)
+    # a band just past the terminator (the light comes from the image's right): dark under pbr,
+    # lit by scattered, reddish light under skin
+    row = slice(50, 70)
+    centre = 80
+    band = (slice(None), slice(centre - 22, centre - 8))
+    p, s = pbr[row][band], skin[row][band]
+    assert s[..., 0].mean() > p[..., 0].mean() + 10
+    assert (s[..., 0] - s[..., 1]).mean() > (p[..., 0] - p[..., 1]).mean() + 5
+    # lit side: similar brightness (the wrap leaves fully lit skin alone; the tone curve moves it a little)
+    lit = (row, slice(centre + 25, centre + 40))
+    assert abs(skin[lit].mean() - pbr[lit].mean()) < 40
+
+
+def test_filmic_curve_rolls_highlights_off_instead_of_clipping():
+    pbr = _sphere("pbr", False, intensity=12.0)
+    skin = _sphere("skin", True, intensity=12.0)
+    assert (pbr == 255).all(axis=-1).sum() > 200  # pyrender's pow(1/2.2) clips an over-lit sphere
+    assert (skin == 255).all(axis=-1).sum() < (pbr == 255).all(axis=-1).sum() / 4
+
+
+def test_background_stays_50_percent_grey_and_skin_renders_are_deterministic():
+    a, b = _sphere("skin", True), _sphere("skin", True)
+    assert np.array_equal(a, b)
+    assert (a[0, 0] == 128).all() and (a[-1, -1] == 128).all()
+
+
+def test_skin_shading_in_a_grid(tmp_path):
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid_schema import GridFile
+
+    p = tmp_path / "g.yaml"
+    p.write_text("""kind: grid
+name: skin
+characters:
+  - name: a
+    procedural: {seed: 4, texture_size: 128, resolution: 32}
+shapes: [0.0]
+materials: [original]
+expressions: [neutral]
+lighting: [direct_soft]
+shading: [pbr, skin, phong]
+render: {width: 96, height: 72}
+""")
+    manifest, _ = run_grid(load_study_file(p, GridFile), tmp_path / "out", n_jobs=1)
+    assert (manifest["status"] == "rendered").all() and set(manifest["shading"]) == {"pbr", "skin", "phong"}
+
+
+def test_patch_refuses_another_pyrender_shader():
+    with pytest.raises(RuntimeError, match="pyrender's mesh.frag changed"):
+        skin_fragment_shader("void main() {}")
+    assert all(0 < w < 1 for w in SCATTER_WRAP) and SCATTER_WRAP[0] > SCATTER_WRAP[1] > SCATTER_WRAP[2]
