@@ -82,3 +82,40 @@ def test_patch_refuses_another_pyrender_shader():
     with pytest.raises(RuntimeError, match="pyrender's mesh.frag changed"):
         skin_fragment_shader("void main() {}")
     assert all(0 < w < 1 for w in SCATTER_WRAP) and SCATTER_WRAP[0] > SCATTER_WRAP[1] > SCATTER_WRAP[2]
+
+
+def test_baked_occlusion_darkens_concavities_only():
+    from stimulus_engine.render.occlusion import vertex_occlusion
+
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    vis = vertex_occlusion(sphere.vertices, sphere.faces, sphere.vertex_normals)
+    assert vis.min() > 0.99  # a convex surface sees its whole hemisphere
+    # the inside of a bowl (a sphere's lower half seen from inside) is occluded, most at the bottom
+    bowl = sphere.vertices[:, 2] < 0.2
+    keep = bowl[sphere.faces].all(axis=1)
+    cup = trimesh.Trimesh(sphere.vertices, sphere.faces[keep][:, ::-1], process=False)  # normals inwards
+    used = np.unique(cup.faces)
+    vis_cup = vertex_occlusion(cup.vertices, cup.faces, cup.vertex_normals, reach=1.0)[used]
+    z = cup.vertices[used][:, 2]
+    bottom, rim = z < -0.9, z > 0.0  # the rim sees out of the bowl's opening
+    assert vis_cup[bottom].mean() < 0.8 and vis_cup[bottom].mean() < vis_cup[rim].mean() - 0.05
+    again = vertex_occlusion(cup.vertices, cup.faces, cup.vertex_normals, reach=1.0)[used]
+    assert np.array_equal(vis_cup, again)  # a fixed ray pattern: the bake is deterministic
+
+
+def test_occlusion_dims_only_the_ambient_light_of_skin_shading():
+    s = trimesh.creation.icosphere(subdivisions=3)
+    half = np.full(len(s.vertices), 0.5, np.float32)
+
+    def render(shading: str, occlusion, ambient: float, light: float) -> float:
+        mat = _new_material(shading, SKIN, None, 0.62, scatter=False)
+        lights = ([LightSpec("directional", (0.0, 0.0, -1.0), light)] if light else [], ambient)
+        img = render_mesh([RenderPart(s, material=mat, occlusion=occlusion)], width=64, height=48,
+                          lighting=lights, shadows=False)
+        return float(img[20:28, 28:36].mean())
+
+    # ambient only: half the visibility, darker; direct only: the occlusion changes nothing
+    assert render("skin", half, 0.6, 0.0) < render("skin", None, 0.6, 0.0) - 10
+    assert abs(render("skin", half, 0.0, 2.0) - render("skin", None, 0.0, 2.0)) < 1
+    # pbr materials ignore it (pyrender would otherwise multiply the whole colour by it)
+    assert abs(render("pbr", half, 0.6, 2.0) - render("pbr", None, 0.6, 2.0)) < 1

@@ -63,6 +63,20 @@ def _map_image(path: str, kind: str) -> np.ndarray | None:
     return _image(path) if kind == "normal" else _grey(path)
 
 
+def _occlusion(rig, vertices: np.ndarray, geometry_npy: str) -> np.ndarray:
+    """The geometry's baked ambient visibility, cached beside it (once per character, shape and
+    expression: every lighting, material and shading of that geometry reuses it)."""
+    from stimulus_engine.grid.cache import save_npy
+    from stimulus_engine.render.rig_parts import rig_occlusion
+
+    path = Path(geometry_npy).with_suffix(".occlusion.npy")
+    if path.exists():
+        return np.load(path)
+    occ = rig_occlusion(rig, vertices)
+    save_npy(path, occ)  # atomic: two workers baking the same geometry write the same bytes
+    return occ
+
+
 def item_scene(item: RenderItem) -> tuple[list, object]:
     """The render parts and the camera of ``item`` (the scene both engines draw)."""
     from stimulus_engine.render import CameraSpec
@@ -70,9 +84,10 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
 
     rig = load_rig(item.rig_npz)
     v = np.load(item.geometry_npy).astype(np.float64)
+    occlusion = _occlusion(rig, v, item.geometry_npy) if item.shading == "skin" and item.engine == "pyrender" else None
     parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,
                              normal_map=_map_image(item.normal_png, "normal"),
-                             specular_map=_map_image(item.specular_png, "specular"))
+                             specular_map=_map_image(item.specular_png, "specular"), occlusion=occlusion)
     pos, target, yfov, up = item.camera
     return parts, CameraSpec(tuple(pos), tuple(target), yfov, tuple(up))
 

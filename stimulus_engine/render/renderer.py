@@ -40,12 +40,16 @@ class RenderPart:
         Interpolate vertex normals (True) or shade per face.
     name : str
         For messages only.
+    occlusion : (N,) array or None
+        Baked ambient visibility per vertex (:func:`~stimulus_engine.render.occlusion.vertex_occlusion`);
+        a material that asks for it (the ``skin`` shading) dims its ambient light by it.
     """
 
     mesh: trimesh.Trimesh
     material: Any = None
     smooth: bool = True
     name: str = ""
+    occlusion: Any = None
 
 
 MeshLike = Union[trimesh.Trimesh, trimesh.Scene, RenderPart, "pyrender.Mesh"]
@@ -77,13 +81,19 @@ def release_renderers() -> None:
         r.delete()
 
 
-def _smooth_mesh(mesh: trimesh.Trimesh, material: Any) -> Any:
+def _smooth_mesh(mesh: trimesh.Trimesh, material: Any, occlusion: np.ndarray | None = None) -> Any:
     """A smooth-shaded pyrender mesh that *shares* ``material`` (what ``from_trimesh`` builds, minus
     its deep copy of the material). Sharing lets the renderer keep a texture on the GPU from one
     image to the next (pyrender uploads a texture only when a new one appears in the scene); the
-    copy re-uploaded (and re-mipmapped) every albedo for every image."""
+    copy re-uploaded (and re-mipmapped) every albedo for every image. ``occlusion`` (one value per
+    vertex) travels as the vertex colour, which the ``skin`` shading reads as ambient visibility."""
     uv = mesh.visual.uv if getattr(mesh.visual, "kind", None) == "texture" else None
-    prim = pyrender.Primitive(positions=mesh.vertices, normals=mesh.vertex_normals, texcoord_0=uv,
+    colour = None
+    wants = "AO_IN_COLOR0" in (getattr(material, "appeal_defines", None) or {})  # else pyrender would tint everything
+    if wants and occlusion is not None and len(occlusion) == len(mesh.vertices):
+        a = np.asarray(occlusion, np.float32)
+        colour = np.stack([a, a, a, np.ones_like(a)], axis=1)
+    prim = pyrender.Primitive(positions=mesh.vertices, normals=mesh.vertex_normals, texcoord_0=uv, color_0=colour,
                               indices=mesh.faces, material=material, mode=pyrender.constants.GLTF.TRIANGLES)
     return pyrender.Mesh(primitives=[prim])
 
@@ -131,7 +141,7 @@ def _as_parts(meshes: MeshLike | Sequence[MeshLike]) -> list[Any]:
         if isinstance(m, pyrender.Mesh):
             out.append(m)
         elif isinstance(m, RenderPart) and m.material is not None and m.smooth:
-            out.append(_smooth_mesh(split_uv_seams(m.mesh), m.material))
+            out.append(_smooth_mesh(split_uv_seams(m.mesh), m.material, m.occlusion))
         elif isinstance(m, RenderPart):
             out.append(pyrender.Mesh.from_trimesh(split_uv_seams(m.mesh), material=m.material, smooth=m.smooth))
         elif isinstance(m, trimesh.Trimesh):

@@ -23,7 +23,7 @@ from stimulus_engine.materials import SHADINGS
 from stimulus_engine.hair import Hair
 from stimulus_engine.rig import FaceRig
 
-__all__ = ["hair_render_part", "rig_render_parts"]
+__all__ = ["hair_render_part", "rig_occlusion", "rig_render_parts"]
 
 #: Colours of the untextured parts (linear RGB, alpha). ``mouth`` is the mouth socket (dark, it
 #: is mostly in shadow inside a real mouth), ``tongue`` gums and tongue.
@@ -76,7 +76,7 @@ def _cached(key: tuple, arrays: tuple, make) -> object:
 def _skin_defines(material: object, shading: str, scatter: bool) -> object:
     """Turn on the ``skin`` shading's shader switches (:mod:`.skin_shader`) for this material."""
     if shading == "skin":
-        material.appeal_defines = {"TONEMAP_FILMIC": 1, **({"SKIN_SCATTER": 1} if scatter else {})}
+        material.appeal_defines = {"TONEMAP_FILMIC": 1, "AO_IN_COLOR0": 1, **({"SKIN_SCATTER": 1} if scatter else {})}
     return material
 
 
@@ -143,7 +143,7 @@ def _split_parts(rig: FaceRig, textured_skin: bool) -> list:
 
 def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | None, *,
                      shading: str = "pbr", normal_map: np.ndarray | None = None,
-                     specular_map: np.ndarray | None = None) -> list:
+                     specular_map: np.ndarray | None = None, occlusion: np.ndarray | None = None) -> list:
     """Render parts (skin with texture, eyes, teeth, mouth, lashes) for ``vertices`` of ``rig``.
 
     Skin vertices are split where the UV layout has seams (normals are computed on the welded
@@ -161,6 +161,8 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         Tangent-space normal map of the skin (see :func:`check_map`).
     specular_map : (H, W) uint8 array, optional
         Specularity of the skin, white = shiny.
+    occlusion : (N,) array, optional
+        Ambient visibility per rig vertex (:func:`rig_occlusion`), used by ``skin`` shading.
     """
     from stimulus_engine.render.renderer import RenderPart
 
@@ -179,7 +181,8 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         rough = (_SKIN_SHADING_ROUGHNESS if shading == "skin" else _PART_ROUGHNESS).get(name, _PART_ROUGHNESS.get(name, 0.62))
         mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough,
                         normal_map if skin else None, specular_map if skin else None, scatter=name == "skin")
-        parts.append(RenderPart(mesh, material=mat, smooth=True, name=name))
+        occ = None if occlusion is None else np.asarray(occlusion)[uniq[:, 0]]
+        parts.append(RenderPart(mesh, material=mat, smooth=True, name=name, occlusion=occ))
     if rig.hair is not None:
         parts.append(hair_render_part(rig.hair, v, shading))
     return parts
@@ -218,3 +221,14 @@ def _new_hair_material(shading: str, colour: tuple[float, float, float], texture
             baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=HAIR_ROUGHNESS,
             alphaMode="MASK", doubleSided=True), shading, scatter=False)
     return mat
+
+
+def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32) -> np.ndarray:
+    """Ambient visibility ``(N,)`` of every vertex of ``rig`` at ``vertices``, the whole head
+    (every part, hidden ones too: the inside of the mouth) occluding (:mod:`.occlusion`)."""
+    from stimulus_engine.render.occlusion import vertex_occlusion
+
+    v = np.asarray(vertices, np.float64)
+    normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
+    return vertex_occlusion(v, rig.faces, normals, rays=rays)
+

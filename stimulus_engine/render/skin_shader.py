@@ -10,6 +10,10 @@ switches a material turns on through its ``appeal_defines`` (see
     diffuse term uses a per-channel *wrapped* cosine ``clamp((n·l + w) / (1 + w), 0, 1)`` with
     wraps :data:`SCATTER_WRAP` (red reaches furthest past the terminator, blue least); lit
     areas are unchanged, the specular lobe keeps the true cosine.
+``AO_IN_COLOR0`` (parts of a ``skin`` render that carry a baked occlusion)
+    The ambient light is multiplied by the vertex colour's red channel, the visibility baked
+    by :func:`~stimulus_engine.render.occlusion.vertex_occlusion` (instead of pyrender's
+    multiplying the whole colour by the vertex colour); direct light keeps its shadow maps.
 ``TONEMAP_FILMIC`` (every part of a ``skin`` render)
     The linear colour goes through the ACES filmic curve (Narkowicz 2015 fit, exposure
     :data:`EXPOSURE`) and the exact sRGB encoding instead of pyrender's clipped ``pow(1/2.2)``:
@@ -79,6 +83,17 @@ vec3 linear_to_srgb(vec3 c)
 
 """
 
+_AMBIENT = "    color.xyz += base_color.xyz * ambient_light;\n"
+# pyrender substitutes each define's value for its name, so ``defined(...)`` cannot be used: nested #ifdefs
+_OCCLUDED_AMBIENT = """#ifdef AO_IN_COLOR0
+#ifdef COLOR_0_LOC
+    color.xyz += base_color.xyz * ambient_light * color_multiplier.r;
+#else
+""" + _AMBIENT + """#endif
+#else
+""" + _AMBIENT + "#endif\n"
+_MULTIPLY = "#ifdef COLOR_0_LOC\n    color *= color_multiplier;\n#endif\n"
+_MULTIPLY_UNLESS_AO = "#ifdef COLOR_0_LOC\n#ifdef AO_IN_COLOR0\n#else\n    color *= color_multiplier;\n#endif\n#endif\n"
 _OUTPUT = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
 _TONEMAPPED = """#ifdef TONEMAP_FILMIC
     frag_color = vec4(linear_to_srgb(aces_filmic(color.xyz)), clamp(color.a * base_color.a, 0.0, 1.0));
@@ -95,10 +110,12 @@ def skin_fragment_shader(text: str) -> str:
     call = "compute_brdf(n, v, l, roughness, metallic,"
     # after the Phong patch the output line appears again in the glossy branch: only the first
     # (metallic-roughness) one is switched
-    if text.count(call) != 3 or text.count(_OUTPUT) < 1 or text.count("float texture2DCompare(") != 1:
+    if (text.count(call) != 3 or text.count(_OUTPUT) < 1 or text.count(_AMBIENT) < 1 or text.count(_MULTIPLY) < 1
+            or text.count("float texture2DCompare(") != 1):
         raise RuntimeError("pyrender's mesh.frag changed: the skin shader patch was written for pyrender 0.1.45")
     functions = (_FUNCTIONS.replace("SCATTER_WRAP", ", ".join(f"{w:.4f}" for w in SCATTER_WRAP))
                  .replace("EXPOSURE", f"{EXPOSURE:.4f}").replace("HUE_KEEP", f"{HUE_KEEP:.4f}"))
     i = text.index("float texture2DCompare(")
     text = text[:i] + functions + text[i:]
-    return text.replace(call, "SHADE(n, v, l, roughness, metallic,").replace(_OUTPUT, _TONEMAPPED, 1)
+    return (text.replace(call, "SHADE(n, v, l, roughness, metallic,").replace(_OUTPUT, _TONEMAPPED, 1)
+            .replace(_AMBIENT, _OCCLUDED_AMBIENT, 1).replace(_MULTIPLY, _MULTIPLY_UNLESS_AO, 1))
