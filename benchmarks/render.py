@@ -21,11 +21,18 @@ import numpy as np
 
 
 def _ict_parts(ict: Path, shading: str = "pbr"):
+    """The ICT head's parts; under ``skin`` shading with its baked occlusion (timed and printed)."""
     from stimulus_engine.ict import load_ict_rig
-    from stimulus_engine.render.rig_parts import rig_render_parts
+    from stimulus_engine.render.rig_parts import rig_occlusion, rig_render_parts
 
     rig = load_ict_rig(ict, shapes=[])
-    return rig, rig_render_parts(rig, rig.vertices, None, shading=shading)
+    occlusion = None
+    if shading == "skin":
+        t = time.perf_counter()
+        occlusion = rig_occlusion(rig, rig.vertices)
+        print(f"  occlusion bake ({len(rig.vertices)} vertices x 32 rays, once per geometry): "
+              f"{time.perf_counter() - t:.2f} s")
+    return rig, rig_render_parts(rig, rig.vertices, None, shading=shading, occlusion=occlusion)
 
 
 def ours_ms(ict: str, n: int, shading: str = "pbr", lighting: str = "gi_soft", shadows: bool = False) -> list[float]:

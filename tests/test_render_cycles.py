@@ -98,7 +98,7 @@ def test_bad_engine_settings_are_one_line_errors_before_rendering(tmp_path, caps
 
 def test_cycles_not_installed_is_a_one_line_error(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("APPEAL_CYCLES_PYTHON", str(tmp_path / "no-such-python"))
-    p, _ = tmp_path / "g.yaml", None
+    p = tmp_path / "g.yaml"
     p.write_text(GRID.replace("ENGINE", "cycles"))
     rc = main(["stimuli", "grid", str(p), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err.strip()
@@ -147,8 +147,7 @@ def test_cycles_grid_renders_and_rerenders_identically(tmp_path):
     # a face on the 50 % grey background, not an empty frame
     assert (np.abs(a - 128).sum(-1) > 30).mean() > 0.1
     # a different seed gives different noise before denoising: not the same image
-    _, other = _grid(tmp_path, "cycles", "")
-    other = other.model_copy(update={"render": other.render.model_copy(update={"seed": 7})})
+    other = grid.model_copy(update={"render": grid.render.model_copy(update={"seed": 7})})
     m3, _ = run_grid(other, tmp_path / "three", n_jobs=1)
     c = np.asarray(Image.open(tmp_path / "three" / m3["file"].iloc[0])).astype(int)
     assert np.abs(a - c).max() > 0
