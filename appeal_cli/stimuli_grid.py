@@ -142,10 +142,11 @@ def engine_sheet(grid_file: Path, photo: Path, engines: tuple[str, ...], charact
     """A character of GRID.yaml (the first, or --character) under each render engine, beside a photograph.
 
     \b
-    Renders the character's realistic level (first material, PBR shading) neutral and happy
-    under direct_hard, direct_soft and gi_soft with each engine — the same scene, only
-    render.engine differs — into DIR/ENGINE/, and writes DIR/engine_sheet.png: one row per
-    expression and lighting, one column per engine, the photograph (eyes aligned) last.
+    Renders the character's realistic level (first material) neutral and happy under
+    direct_hard, direct_soft and gi_soft with pyrender's pbr shading (as before), its skin
+    shading, and Cycles — the same scene, only render.engine and shading differ — into
+    DIR/ENGINE-SHADING/, and writes DIR/engine_sheet.png: one row per expression and lighting,
+    one column per renderer, the photograph (eyes aligned) last.
     """
     from appeal.outputs import output_run
     from appeal.studyfile import load_study_file

@@ -324,9 +324,13 @@ def test_required_field_is_asked_again(tmp_path, display):
     assert rc == 0, err[-2000:]
     beh, side, demo = session_files(out)
     assert side["Status"] == "complete" and beh["response_appeal"].tolist() == [6]
-    # the rate was measured after the dialog; Xvfb has no vsync, so its flip speed is not a display's rate
-    assert side["RefreshRateMeasured"] is not None
-    assert side["RefreshRate"] == (60 if side["SoftwarePacing"] else round(side["RefreshRateMeasured"], 2))
+    # the rate was measured after the dialog; Xvfb has no vsync, so its flip speed is not a display's rate.
+    # On a loaded machine PsychoPy finds no 10 identical frame intervals and reports no rate: the
+    # session then paces at 60 Hz in software, which is what must be recorded
+    if side["RefreshRateMeasured"] is None:
+        assert side["SoftwarePacing"] and side["RefreshRate"] == 60
+    else:
+        assert side["RefreshRate"] == (60 if side["SoftwarePacing"] else round(side["RefreshRateMeasured"], 2))
     assert demo.iloc[0].to_dict() == {"participant_id": "04", "gender": "male", "age": "38"}
 
 

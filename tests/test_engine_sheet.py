@@ -1,0 +1,50 @@
+"""The renderer comparison sheet: one scan character, three renderers, a photograph."""
+
+from __future__ import annotations
+
+import pytest
+
+from appeal.errors import AppealInputError
+from appeal.studyfile import load_study_file
+from stimulus_engine.grid.engine_sheet import SHEET_EXPRESSIONS, SHEET_LIGHTING, engine_grid, engine_sheet, variants_for
+from stimulus_engine.grid_schema import GridFile
+
+GRID = """kind: grid
+name: sheet
+characters:
+  - name: james
+    ict: {data}/meshes/ict-facekit
+    identity: identity000
+    mesh: {{file: {data}/meshes/menpo3d-james/james.obj, topology: scan, region: front}}
+shapes: [0.0, 1.0]
+materials: [original, flat]
+expressions: [neutral]
+lighting: [flat]
+shading: [phong]
+render: {{width: 320, height: 240}}
+"""
+
+
+def _grid(shared_data, tmp_path) -> GridFile:
+    p = tmp_path / "g.yaml"
+    p.write_text(GRID.format(data=shared_data))
+    return load_study_file(p, GridFile)
+
+
+def test_variants_and_cut_down_grid(shared_data, tmp_path):
+    assert [v[:2] for v in variants_for(["pyrender"])] == [("pyrender", "pbr"), ("pyrender", "skin")]
+    assert [v[:2] for v in variants_for(["pyrender", "cycles"])][-1] == ("cycles", "pbr")
+    g = engine_grid(_grid(shared_data, tmp_path), "pyrender", shading="skin")
+    assert g.n_images() == len(SHEET_EXPRESSIONS) * len(SHEET_LIGHTING)
+    assert g.shading == ["skin"] and g.shapes == [0.0] and g.materials[0] == "original"
+    with pytest.raises(AppealInputError, match="--character: 'nobody' is not in the grid"):
+        engine_grid(g, "pyrender", "nobody")
+
+
+def test_sheet_of_the_pyrender_variants_beside_a_photo(shared_data, tmp_path):
+    grid = _grid(shared_data, tmp_path)
+    photo = shared_data / "faces2d" / "london-frl" / "neutral_front" / "001_03.jpg"
+    sheet = engine_sheet(grid, tmp_path / "out", photo, engines=("pyrender",), thumb_width=160, n_jobs=1)
+    assert (tmp_path / "out" / "pyrender-pbr").is_dir() and (tmp_path / "out" / "pyrender-skin").is_dir()
+    rows = len(SHEET_EXPRESSIONS) * len(SHEET_LIGHTING)
+    assert sheet.shape[1] >= 3 * 160 and sheet.shape[0] >= rows * 120
