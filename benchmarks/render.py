@@ -116,7 +116,7 @@ def main() -> None:
     for jobs in (1, 2):
         print(f"throughput, {jobs} process(es): {throughput(a.ict, a.n, jobs):6.2f} images/s")
     # the skin shading (scattering-softened skin, wet eyes, filmic tone curve) with soft shadows on
-    for lighting in ("direct_soft", "gi_soft"):
+    for lighting in ("direct_hard", "direct_soft", "gi_soft"):
         pbr = statistics.median(ours_ms(a.ict, a.n, "pbr", lighting, True))
         skin = statistics.median(ours_ms(a.ict, a.n, "skin", lighting, True))
         print(f"{lighting} with shadows: pbr {pbr:7.1f} ms/image, skin {skin:7.1f} ms/image, ratio skin/pbr "
