@@ -7,6 +7,7 @@ one-line error before an output folder exists) and calls one function here:
 command        inputs                           workflow
 =============  ===============================  =======================
 build          :func:`read_morph_inputs`        :func:`build_morph_model`
+pair           two photographs                  :func:`pair_expression_model`
 project        :func:`read_projection_inputs`   :func:`project_images`
 avatar         :func:`~.io.load_model` each     :func:`build_avatar_model`
 reconstruct    :func:`read_loadings`            :func:`reconstruct_faces`
@@ -29,8 +30,9 @@ import numpy as np
 from appeal.errors import AppealInputError
 from stimulus_engine.morphpca.defaults import DEFAULT_TEXTURE_WEIGHT
 
-__all__ = ["MorphInputs", "read_morph_inputs", "build_morph_model", "ProjectionInputs", "read_projection_inputs",
-           "project_images", "build_avatar_model", "read_loadings", "reconstruct_faces"]
+__all__ = ["MorphInputs", "WARP_METHODS", "read_keypoints", "read_morph_inputs", "build_morph_model", "ProjectionInputs",
+           "read_projection_inputs", "project_images", "build_avatar_model", "read_loadings", "reconstruct_faces",
+           "PairModel", "pair_expression_model"]
 
 
 @dataclass

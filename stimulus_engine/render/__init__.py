@@ -12,14 +12,22 @@ LIGHTING_PRESETS, lighting_preset, LightSpec
     ``direct_hard``, ``direct_soft``, ``gi_soft``, ``flat``: key + rim lights (thesis §6.3.2).
 contact_sheet, save_png
     Labelled grids of images (thesis Fig. 6.11) and deterministic PNG writing.
+render_cycles, export_scene
+    The path-traced tier: the same parts and camera exported once and rendered by Blender's
+    Cycles in its own Python (``make cycles``).
+vertex_occlusion
+    Ambient occlusion baked per vertex (Embree rays), used by the ``skin`` shading.
 
 Import ``pyrender`` only through :mod:`stimulus_engine.render._pyrender`.
 """
 
 from stimulus_engine.render.camera import CameraSpec, face_camera, fit_camera
 from stimulus_engine.render.contact_sheet import contact_sheet, save_png
+from stimulus_engine.render.cycles import render_cycles
 from stimulus_engine.render.lighting import LIGHTING_PRESETS, LightSpec, lighting_preset
+from stimulus_engine.render.occlusion import vertex_occlusion
 from stimulus_engine.render.renderer import RenderPart, release_renderers, render_mesh
+from stimulus_engine.render.scene_export import export_scene
 
 __all__ = [
     "CameraSpec",
@@ -27,10 +35,13 @@ __all__ = [
     "LightSpec",
     "RenderPart",
     "contact_sheet",
+    "export_scene",
     "face_camera",
     "fit_camera",
     "lighting_preset",
     "release_renderers",
+    "render_cycles",
     "render_mesh",
     "save_png",
+    "vertex_occlusion",
 ]
