@@ -28,30 +28,16 @@ from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-GRID = """kind: grid
-name: cycles_bench
-characters:
-  - name: james
-    ict: {data}/meshes/ict-facekit
-    identity: identity000
-    mesh: {{file: {data}/meshes/menpo3d-james/james.obj, topology: scan, region: front}}
-shapes: [0.0]
-materials: [original]
-expressions: [neutral]
-lighting: [direct_hard, direct_soft, gi_soft]
-shading: [pbr]
-render: {{width: 1024, height: 768, engine: cycles}}
-"""
-
 
 def _items(folder: Path):
     from appeal.assets import shared_data_dir
     from appeal.studyfile import load_study_file
+    from stimulus_engine.grid.examples import james_grid
     from stimulus_engine.grid.prepare import prepare_grid
     from stimulus_engine.grid_schema import GridFile
 
-    p = folder / "grid.yaml"
-    p.write_text(GRID.format(data=shared_data_dir()))
+    p = james_grid(folder / "cycles_bench.yaml", shared_data_dir(), lighting=("direct_hard", "direct_soft", "gi_soft"),
+                   render="{width: 1024, height: 768, engine: cycles}")
     grid = load_study_file(p, GridFile)
     _, items, _ = prepare_grid(grid, folder / "out")
     return items

@@ -9,25 +9,13 @@ from appeal.studyfile import load_study_file
 from stimulus_engine.grid.engine_sheet import SHEET_EXPRESSIONS, SHEET_LIGHTING, engine_grid, engine_sheet, variants_for
 from stimulus_engine.grid_schema import GridFile
 
-GRID = """kind: grid
-name: sheet
-characters:
-  - name: james
-    ict: {data}/meshes/ict-facekit
-    identity: identity000
-    mesh: {{file: {data}/meshes/menpo3d-james/james.obj, topology: scan, region: front}}
-shapes: [0.0, 1.0]
-materials: [original, flat]
-expressions: [neutral]
-lighting: [flat]
-shading: [phong]
-render: {{width: 320, height: 240}}
-"""
-
 
 def _grid(shared_data, tmp_path) -> GridFile:
-    p = tmp_path / "g.yaml"
-    p.write_text(GRID.format(data=shared_data))
+    from stimulus_engine.grid.examples import james_grid
+
+    # a grid with other factors than the sheet's: the sheet replaces them
+    p = james_grid(tmp_path / "g.yaml", shared_data, lighting=("flat",), shading=("phong",), shapes=(0.0, 1.0),
+                   materials=("original", "flat"), render="{width: 320, height: 240}")
     return load_study_file(p, GridFile)
 
 
