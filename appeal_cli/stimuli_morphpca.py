@@ -112,8 +112,9 @@ def pair(neutral, expressive, out, force, resume, n_frames, size, json_path) -> 
     Detects 68 landmarks in both (dlib, offline), registers them on the eyes, morphs one into
     the other (thin-plate splines + cross-dissolve) and builds a morph-PCA model from the
     frames: a stand-in for the video frames Nagle et al. model. Writes DIR/model.npz,
-    DIR/mean.png, DIR/frames/frameNNN.png and DIR/metrics.json; project the frames onto
-    another person's model with 'appeal stimuli morphpca project'.
+    DIR/mean.png, DIR/frames/frameNNN.png, DIR/frames/keypoints.csv (every frame's 68 points)
+    and DIR/metrics.json; project the frames onto another person's model with 'appeal stimuli
+    morphpca project DIR/frames --keypoints DIR/frames/keypoints.csv …'.
     """
     import time
 
