@@ -126,8 +126,8 @@ def build_avatar(models: Sequence[MorphModel], *, reference_model: int = 0, weig
     sources = [(s, i) for s, m in enumerate(models) for i in range(len(m.loadings))]
     projections = np.empty((len(sources), k) + tuple(ref.size) + (3,), np.float32)
     # with the same landmarks on every identity's mean, the averages are landmark-guided
-    guided = len({None if m.landmarks is None else len(m.landmarks) for m in models} - {None}) == 1 and all(
-        m.landmarks is not None for m in models)
+    counts = {None if m.landmarks is None else len(m.landmarks) for m in models}
+    guided = None not in counts and len(counts) == 1
     points = np.empty((len(sources), k, len(ref.landmarks), 2)) if guided else None
     for j, (s, i) in enumerate(progress(sources, total=len(sources), desc="projecting expressions")):
         src = models[s]

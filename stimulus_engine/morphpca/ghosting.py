@@ -53,7 +53,7 @@ def ghosting_index(average: np.ndarray, average_points: np.ndarray, images, imag
     frame : (3, 2)
         A faceframe of the average (eyes, philtrum): picks the feature landmarks and the scale.
     radius : float
-        Window half-size as a fraction of the eye distance... of the image width.
+        Window size (2 × half-size + 1) as a fraction of the image width.
 
     Returns
     -------

@@ -26,7 +26,7 @@ import numpy as np
 from appeal.errors import AppealInputError
 from stimulus_engine.morphpca.flow import compute_flow, fix_foldovers, grid, sample_field, warp_image
 
-__all__ = ["tps_displacement", "hull_weight", "guided_flow", "check_landmarks"]
+__all__ = ["tps_displacement", "hull_weight", "guided_flow", "reference_flow", "check_landmarks"]
 
 #: Landmark fields are evaluated on at most about this many grid points, then upsampled (they are smooth).
 _TPS_EVAL_POINTS = 15000
@@ -184,3 +184,13 @@ def guided_flow(reference: np.ndarray, image: np.ndarray, reference_points, imag
     cap = max_residual * w
     r *= (wgt[..., None] * np.minimum(1.0, cap / np.maximum(mag, 1e-6))).astype(np.float32)
     return fix_foldovers(r + sample_field(f_l, g + r))
+
+
+def reference_flow(reference: np.ndarray, image: np.ndarray, reference_points=None, image_points=None, *,
+                   backend: str = "dis", levels: int = 1, refine: bool = True) -> np.ndarray:
+    """The warp field from ``reference`` to ``image``: :func:`guided_flow` when both have landmarks,
+    else optical flow alone (:func:`~.flow.compute_flow`)."""
+    if image_points is None:
+        return compute_flow(reference, image, backend, levels)
+    return guided_flow(reference, image, reference_points, image_points, backend=backend, levels=levels,
+                       refine=refine)

@@ -29,7 +29,7 @@ from stimulus_engine.morphpca.flow import (
     sample_field,
     warp_image,
 )
-from stimulus_engine.morphpca.landmark_warp import guided_flow
+from stimulus_engine.morphpca.landmark_warp import reference_flow
 
 __all__ = ["TEXTURE_SCALE", "MorphSet", "serialise", "deserialise", "decompose", "encode_with_reference"]
 
@@ -125,13 +125,10 @@ def decompose(images: np.ndarray, reference_index: int = 0, backend: str = "dis"
     flows = np.empty((n, h, w, 2), np.float32)
     flows[reference_index] = 0.0
     for i in progress(range(n), total=n, desc=desc):
-        if i == reference_index:
-            continue
-        if landmarks is None:
-            flows[i] = compute_flow(ref_grey, images[i], backend, levels)
-        else:
-            flows[i] = guided_flow(ref_grey, images[i], landmarks[reference_index], landmarks[i], backend=backend,
-                                   levels=levels, refine=refine)
+        if i != reference_index:
+            flows[i] = reference_flow(ref_grey, images[i], None if landmarks is None else landmarks[reference_index],
+                                      None if landmarks is None else landmarks[i], backend=backend, levels=levels,
+                                      refine=refine)
     wts = np.full(n, 1.0 / n, np.float32) if weights is None else np.asarray(weights, np.float32)
     mean_d = fix_foldovers((wts @ flows.reshape(n, -1)).reshape(h, w, 2))
     ref_positions = grid(h, w) + invert_displacement(mean_d)

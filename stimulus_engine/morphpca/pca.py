@@ -17,7 +17,7 @@ import numpy as np
 
 from appeal.errors import AppealInputError
 from stimulus_engine.morphpca.flow import grey_u8, grid, sample_field
-from stimulus_engine.morphpca.landmark_warp import check_landmarks, guided_flow
+from stimulus_engine.morphpca.landmark_warp import check_landmarks, reference_flow
 from stimulus_engine.morphpca.morphvec import decompose, deserialise, encode_with_reference, serialise
 
 __all__ = ["MorphModel", "pca", "pca_with_loadings", "gram", "build_model", "check_image_stack"]
@@ -188,11 +188,9 @@ class MorphModel:
         ref = grey_u8(self.reference)  # converted once for all images
         out = np.empty((len(imgs), self.mean.shape[0]), np.float32)
         for i, img in enumerate(imgs):
-            flow = None
-            if landmarks is not None:
-                flow = guided_flow(ref, img, self.ref_landmarks, landmarks[i], backend=backend, levels=levels,
-                                   refine=refine)
-            out[i] = serialise(*encode_with_reference(img, ref, self.ref_positions, backend, levels, flow=flow))
+            flow = reference_flow(ref, img, self.ref_landmarks, None if landmarks is None else landmarks[i],
+                                  backend=backend, levels=levels, refine=refine)
+            out[i] = serialise(*encode_with_reference(img, ref, self.ref_positions, flow=flow))
         return out
 
     def relative(self, vectors: np.ndarray) -> np.ndarray:

@@ -496,14 +496,14 @@ def pair_expression_model(neutral: str | Path, expressive: str | Path, out: Path
     ``--keypoints`` reads, with the 68 points as ``pK_x/pK_y``) are written there.
     """
     from stimulus_engine.morphpca.io import read_images, register_faces, save_image, save_model
-    from stimulus_engine.morphpca.keypoints import detect_landmarks, faceframe_from_68, write_keypoints_csv
+    from stimulus_engine.morphpca.keypoints import faceframe_from_68, write_keypoints_csv
     from stimulus_engine.morphpca.morph_video import morph_sequence
     from stimulus_engine.morphpca.pca import build_model
 
     files = [Path(neutral), Path(expressive)]
     imgs = read_images(files)
-    lms = np.stack([detect_landmarks(img, str(f)) for f, img in zip(files, imgs)])
-    photos, _, pts = register_faces(imgs, np.stack([faceframe_from_68(p) for p in lms]), size, points=lms)
+    boxes, lms = read_keypoints("detect", files, list(imgs))
+    photos, _, pts = register_faces(imgs, boxes, size, points=lms)
     frames, frame_pts = morph_sequence(photos[0], pts[0], photos[1], pts[1], n_frames)
     frame_boxes = np.stack([faceframe_from_68(p) for p in frame_pts])
     model = build_model(frames, faceframes=frame_boxes, backend=backend, landmarks=frame_pts,

@@ -178,7 +178,8 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
             mesh.visual = trimesh.visual.TextureVisuals(uv=rig.uv[uniq[:, 1]])
         tex = (albedo if name == "skin" else rig.part_textures[name]) if textured else None
         skin = name == "skin" and textured
-        rough = (_SKIN_SHADING_ROUGHNESS if shading == "skin" else _PART_ROUGHNESS).get(name, _PART_ROUGHNESS.get(name, 0.62))
+        rough = _SKIN_SHADING_ROUGHNESS.get(name) if shading == "skin" else None
+        rough = _PART_ROUGHNESS.get(name, 0.62) if rough is None else rough
         mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough,
                         normal_map if skin else None, specular_map if skin else None, scatter=name == "skin")
         occ = None if occlusion is None else np.asarray(occlusion)[uniq[:, 0]]
