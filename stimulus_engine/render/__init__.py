@@ -15,8 +15,9 @@ contact_sheet, save_png
 render_cycles, export_scene
     The path-traced tier: the same parts and camera exported once and rendered by Blender's
     Cycles in its own Python (``make cycles``).
-vertex_occlusion
-    Ambient occlusion baked per vertex (Embree rays), used by the ``skin`` shading.
+vertex_occlusion, light_visibility
+    Ambient occlusion and a light's visibility baked per vertex (Embree rays), used by the
+    ``skin`` shading (its ambient light and the soft shadows of ``direct_soft``).
 
 Import ``pyrender`` only through :mod:`stimulus_engine.render._pyrender`.
 """
@@ -25,7 +26,7 @@ from stimulus_engine.render.camera import CameraSpec, face_camera, fit_camera
 from stimulus_engine.render.contact_sheet import contact_sheet, save_png
 from stimulus_engine.render.cycles import render_cycles
 from stimulus_engine.render.lighting import LIGHTING_PRESETS, LightSpec, lighting_preset
-from stimulus_engine.render.occlusion import vertex_occlusion
+from stimulus_engine.render.occlusion import light_visibility, vertex_occlusion
 from stimulus_engine.render.renderer import RenderPart, release_renderers, render_mesh
 from stimulus_engine.render.scene_export import export_scene
 
@@ -38,6 +39,7 @@ __all__ = [
     "export_scene",
     "face_camera",
     "fit_camera",
+    "light_visibility",
     "lighting_preset",
     "release_renderers",
     "render_cycles",

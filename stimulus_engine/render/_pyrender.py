@@ -22,14 +22,17 @@ import numpy as np  # noqa: E402
 if not hasattr(np, "infty"):  # numpy >= 2 removed the alias pyrender still uses
     np.infty = np.inf  # type: ignore[attr-defined]
 
+import contextlib  # noqa: E402
 import ctypes  # noqa: E402
 import threading  # noqa: E402
+from collections.abc import Iterator  # noqa: E402
 
 import OpenGL.contextdata  # noqa: E402
 import pyrender  # noqa: E402
 import pyrender.shader_program as _sp  # noqa: E402
 
-__all__ = ["pyrender", "alpha_test_fragment_shader", "phong_fragment_shader", "shadow_fragment_shader", "platform"]
+__all__ = ["pyrender", "alpha_test_fragment_shader", "phong_fragment_shader", "platform", "scene_defines",
+           "shadow_fragment_shader"]
 
 
 def _context_key() -> object:
@@ -50,14 +53,29 @@ def _context_key() -> object:
 #: The ``appeal_defines`` of the material whose program is being looked up (set around pyrender's
 #: ``_get_primitive_program``): how a material turns on a shader switch (e.g. the skin shading).
 _MATERIAL = threading.local()
+#: Defines the scene being rendered asks of every mesh program (:func:`scene_defines`).
+_SCENE = threading.local()
+
+
+@contextlib.contextmanager
+def scene_defines(defines: dict | None) -> Iterator[None]:
+    """Compile (and look up) every mesh program drawn inside with these extra ``#define`` s: a
+    switch the whole scene needs (the key light's shadow lookup, :mod:`.light_shadows`)."""
+    _SCENE.defines = defines
+    try:
+        yield
+    finally:
+        _SCENE.defines = None
 
 
 def _get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):  # type: ignore[no-untyped-def]
     """pyrender's ``ShaderProgramCache.get_program`` with a stable context key (see above), the
     patched ``mesh.frag`` (:func:`shadow_fragment_shader`, :func:`phong_fragment_shader`,
     :func:`~stimulus_engine.render.skin_shader.skin_fragment_shader`) and the defines the
-    material asks for (its ``appeal_defines``)."""
+    material asks for (its ``appeal_defines``) and the scene (:func:`scene_defines`)."""
     defines = {**(defines or {}), **(getattr(_MATERIAL, "defines", None) or {})}
+    if fragment_shader == "mesh.frag":
+        defines.update(getattr(_SCENE, "defines", None) or {})
     files = [x for x in (vertex_shader, fragment_shader, geometry_shader) if x is not None]
     key = tuple([_context_key()] + sorted([(os.path.split(f)[1], 1) for f in files] + list(defines.items())))
     if key not in self._program_cache:
@@ -198,44 +216,62 @@ float shadow_bilinear(sampler2D depths, vec2 size, vec2 uv, float z, vec2 dz_duv
 
 const vec2 POISSON_DISK[16] = vec2[16](POISSON_POINTS);
 
-float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)
+struct ShadowLookup {
+    vec2 size;     // of the map, in texels
+    vec3 lc;       // the (normal-offset) point in the map: texture coordinates and depth
+    vec2 dz_duv;   // receiver plane: depth change per texel
+    float bias;
+};
+
+ShadowLookup shadow_setup(mat4 light_matrix, sampler2D shadow_map)
 {
-    vec2 size = vec2(textureSize(shadow_map, 0));
+    // screen-space derivatives: call in uniform control flow (shadow_filter may be branched)
+    ShadowLookup s;
+    s.size = vec2(textureSize(shadow_map, 0));
     // Normal offset: look up a point a little above this triangle (its geometric normal, on the
     // side the camera sees), by a number of shadow-map texel widths at this distance from the light
     vec3 ng = normalize(cross(dFdx(frag_position), dFdy(frag_position)));
     ng *= sign(dot(ng, cam_pos - frag_position) + 1e-12);
     vec4 here = light_matrix * vec4(frag_position.xyz, 1.0);
-    float texel_world = 2.0 * here.w / (size.x * length(vec3(light_matrix[0][0], light_matrix[1][0], light_matrix[2][0])));
+    float texel_world = 2.0 * here.w / (s.size.x * length(vec3(light_matrix[0][0], light_matrix[1][0], light_matrix[2][0])));
     // Light-space position of that point: texture coordinates and depth in 0..1
     vec4 proj_coords = light_matrix * vec4(frag_position.xyz + ng * (NORMAL_OFFSET * texel_world), 1.0);
-    vec3 lc = (proj_coords.xyz / proj_coords.w) * 0.5 + 0.5;
-    // Receiver plane (this triangle, from screen-space derivatives, taken before any branch):
-    // depth change per texel
-    vec3 dx = dFdx(lc);
-    vec3 dy = dFdy(lc);
-    if (lc.z > 1.0) {
-        return 0.0;
-    }
-    vec2 ux = dx.xy * size;
-    vec2 uy = dy.xy * size;
+    s.lc = (proj_coords.xyz / proj_coords.w) * 0.5 + 0.5;
+    // Receiver plane (this triangle, from screen-space derivatives): depth change per texel
+    vec3 dx = dFdx(s.lc);
+    vec3 dy = dFdy(s.lc);
+    vec2 ux = dx.xy * s.size;
+    vec2 uy = dy.xy * s.size;
     float det = ux.x * uy.y - ux.y * uy.x;
-    vec2 dz_duv = vec2(0.0);
+    s.dz_duv = vec2(0.0);
     if (abs(det) > 1e-12) {
-        dz_duv = vec2(uy.y * dx.z - ux.y * dy.z, ux.x * dy.z - uy.x * dx.z) / det;
+        s.dz_duv = vec2(uy.y * dx.z - ux.y * dy.z, ux.x * dy.z - uy.x * dx.z) / det;
     }
-    float slope = length(dz_duv);
+    float slope = length(s.dz_duv);
     if (slope > MAX_SLOPE) {
-        dz_duv *= MAX_SLOPE / slope;  // grazing angles: keep the bias bounded
+        s.dz_duv *= MAX_SLOPE / slope;  // grazing angles: keep the bias bounded
     }
     // constant bias: depth quantisation plus the part of a texel the plane does not model
-    float bias = BIAS_TEXELS * TEXEL_DEPTH + 0.5 * min(slope, MAX_SLOPE);
+    s.bias = BIAS_TEXELS * TEXEL_DEPTH + 0.5 * min(slope, MAX_SLOPE);
+    return s;
+}
+
+float shadow_filter(ShadowLookup s, sampler2D shadow_map)
+{
+    if (s.lc.z > 1.0) {
+        return 0.0;
+    }
     float shadow = 0.0;
     for (int i = 0; i < 16; i++) {
         vec2 off = POISSON_DISK[i] * PCF_RADIUS;  // in texels
-        shadow += shadow_bilinear(shadow_map, size, lc.xy + off / size, lc.z + dot(dz_duv, off), dz_duv, bias);
+        shadow += shadow_bilinear(shadow_map, s.size, s.lc.xy + off / s.size, s.lc.z + dot(s.dz_duv, off), s.dz_duv, s.bias);
     }
     return shadow / 16.0;
+}
+
+float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)
+{
+    return shadow_filter(shadow_setup(light_matrix, shadow_map), shadow_map);
 }
 
 """
@@ -277,6 +313,7 @@ def _mesh_shader_path(shader_dir: str, glossy: bool) -> str:
     import hashlib
     import tempfile
 
+    from stimulus_engine.render.light_shadows import light_shadow_fragment_shader
     from stimulus_engine.render.skin_shader import skin_fragment_shader
 
     with open(os.path.join(shader_dir, "mesh.frag")) as f:
@@ -284,6 +321,7 @@ def _mesh_shader_path(shader_dir: str, glossy: bool) -> str:
     if glossy:
         text = phong_fragment_shader(text)
     text = skin_fragment_shader(text)  # its switches are off unless a material turns them on
+    text = light_shadow_fragment_shader(text)
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
     path = os.path.join(tempfile.gettempdir(), f"appeal-pyrender-mesh-{digest}.frag")
     if not os.path.exists(path):
@@ -325,7 +363,12 @@ def _see_through(material) -> bool:  # type: ignore[no-untyped-def]
 
 def _shadow_pass_without_blended(self, scene, light_node, flags):  # type: ignore[no-untyped-def]
     """pyrender's shadow-map pass without alpha-blended meshes (lashes): the depth pass ignores
-    alpha, so a card casts the shadow of its whole rectangle (a dark band over the eyeball)."""
+    alpha, so a card casts the shadow of its whole rectangle (a dark band over the eyeball));
+    lights that cast no shadow map (:mod:`.light_shadows`) are skipped."""
+    from stimulus_engine.render.light_shadows import casts_shadow_map
+
+    if not casts_shadow_map(light_node.light):
+        return None
     visible = [n.mesh for n in scene.mesh_nodes if n.mesh.is_visible]
     hidden = [m for m in visible if m.primitives and all(_see_through(p.material) for p in m.primitives)]
     if len(hidden) == len(visible):  # pyrender's pass needs one mesh to draw
@@ -340,6 +383,32 @@ def _shadow_pass_without_blended(self, scene, light_node, flags):  # type: ignor
 
 
 pyrender.renderer.Renderer._shadow_mapping_pass = _shadow_pass_without_blended
+_bind_lighting = pyrender.renderer.Renderer._bind_lighting
+
+
+def _bind_lighting_and_shadows(self, scene, program, node, flags):  # type: ignore[no-untyped-def]
+    """pyrender's light uniforms plus each light's shadow kind (:mod:`.light_shadows`)."""
+    from stimulus_engine.render.light_shadows import bind_light_shadows
+
+    _bind_lighting(self, scene, program, node, flags)
+    bind_light_shadows(self, scene, program, node, flags)
+
+
+pyrender.renderer.Renderer._bind_lighting = _bind_lighting_and_shadows
+_update_context = pyrender.renderer.Renderer._update_context
+
+
+def _update_context_and_key_shadow(self, scene, flags):  # type: ignore[no-untyped-def]
+    """pyrender's context update, then the key light's shadow map (:mod:`.light_shadows`):
+    ``render`` calls it right before its own shadow passes and the forward pass."""
+    from stimulus_engine.render.light_shadows import key_shadow_pass
+
+    _update_context(self, scene, flags)
+    if not flags & (pyrender.RenderFlags.DEPTH_ONLY | pyrender.RenderFlags.SEG):
+        key_shadow_pass(self, scene, flags)
+
+
+pyrender.renderer.Renderer._update_context = _update_context_and_key_shadow
 # pyrender 0.1.45's getter returns ``self.glossinessFactor`` (infinite recursion)
 pyrender.material.SpecularGlossinessMaterial.glossinessFactor = property(
     lambda self: self._glossinessFactor, pyrender.material.SpecularGlossinessMaterial.glossinessFactor.fset)

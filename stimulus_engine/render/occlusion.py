@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["vertex_occlusion"]
+__all__ = ["light_visibility", "vertex_occlusion"]
 
 
 def _hemisphere(rays: int) -> np.ndarray:
@@ -30,10 +30,22 @@ def _frames(normals: np.ndarray, angle: np.ndarray) -> np.ndarray:
     n = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     t = np.cross(helper, n)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
     b = np.cross(n, t)
     c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
     return np.stack([c * t + s * b, -s * t + c * b, n], axis=1)
+
+
+def _caster(ov: np.ndarray, of: np.ndarray):
+    """An Embree ray caster on the occluders (trimesh's pure-Python one if Embree is missing)."""
+    import trimesh
+
+    scene = trimesh.Trimesh(ov, of, process=False)
+    try:
+        from trimesh.ray.ray_pyembree import RayMeshIntersector
+    except ImportError:  # pragma: no cover - embreex is a dependency
+        from trimesh.ray.ray_triangle import RayMeshIntersector
+    return RayMeshIntersector(scene)
 
 
 def vertex_occlusion(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, *, rays: int = 32,
@@ -53,16 +65,9 @@ def vertex_occlusion(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarra
     occluders : (V, F), optional
         All geometry that can block (default: the surface itself).
     """
-    import trimesh
-
     v = np.asarray(vertices, np.float64)
     ov, of = occluders if occluders is not None else (v, np.asarray(faces))
-    scene = trimesh.Trimesh(ov, of, process=False)
-    try:
-        from trimesh.ray.ray_pyembree import RayMeshIntersector
-    except ImportError:  # pragma: no cover - embreex is a dependency
-        from trimesh.ray.ray_triangle import RayMeshIntersector
-    caster = RayMeshIntersector(scene)
+    caster = _caster(ov, of)
     diag = float(np.linalg.norm(np.ptp(ov, axis=0)))
     dist_max = reach * diag
     golden = np.pi * (3.0 - np.sqrt(5.0))
@@ -75,3 +80,55 @@ def vertex_occlusion(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarra
         d = np.linalg.norm(loc - origins[ray_idx], axis=1)
         occl[ray_idx] = np.clip(1.0 - d / dist_max, 0.0, 1.0)
     return (1.0 - occl.reshape(len(v), rays).mean(axis=1)).astype(np.float32)
+
+
+def cone_directions(direction: np.ndarray, half_angle: float, rays: int) -> np.ndarray:
+    """``rays`` unit directions evenly over a cone of ``half_angle`` radians around ``direction``
+    (a sunflower pattern on the disc the cone cuts at unit distance; one ray: the axis)."""
+    d = np.asarray(direction, np.float64)
+    d = d / np.linalg.norm(d)
+    if rays <= 1 or half_angle <= 0:
+        return d[None]
+    frame = _frames(d[None], np.zeros(1))[0]
+    k = np.arange(rays) + 0.5
+    r = np.tan(half_angle) * np.sqrt(k / rays)
+    phi = k * np.pi * (3.0 - np.sqrt(5.0))
+    out = d + (r * np.cos(phi))[:, None] * frame[0] + (r * np.sin(phi))[:, None] * frame[1]
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def light_visibility(vertices: np.ndarray, normals: np.ndarray, occluders: tuple[np.ndarray, np.ndarray],
+                     directions: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """How much of a light each vertex sees, ``(N,)`` float32 in [0, 1] (1 = unshadowed).
+
+    A ray per direction (towards the light: the samples of a sun or an area light, see
+    :func:`cone_directions`) from each vertex, started a hair off the surface; a ray that hits
+    an occluder counts as shadowed. Rays leaving *behind* a vertex's own surface (``n·l ≤ 0``)
+    are not cast and count as shadowed, as a shadow map has it (the surface itself is in the
+    way): where a cast shadow meets the side turned away from the light, both are dark alike.
+
+    Parameters
+    ----------
+    vertices, normals : (N, 3) arrays
+    occluders : (V, F)
+        Everything that can cast a shadow (the opaque parts of the head).
+    directions : (L, 3) array
+        Unit directions from the surface towards the light.
+    weights : (L,) array, optional
+        Share of the light per direction (default equal).
+    """
+    v = np.asarray(vertices, np.float64)
+    n = np.asarray(normals, np.float64)
+    dirs = np.asarray(directions, np.float64).reshape(-1, 3)
+    w = np.full(len(dirs), 1.0 / len(dirs)) if weights is None else np.asarray(weights, float) / np.sum(weights)
+    ov, of = occluders
+    diag = float(np.linalg.norm(np.ptp(ov, axis=0)))
+    facing = (n @ dirs.T) > 0.0  # (N, L)
+    vi, li = np.nonzero(facing)
+    origins = v[vi] + n[vi] * (2e-4 * diag) + dirs[li] * (2e-4 * diag)
+    blocked = np.zeros(len(vi), bool)
+    if len(vi):
+        blocked = _caster(np.asarray(ov, np.float64), np.asarray(of)).intersects_any(origins, dirs[li])
+    shadow = np.ones(facing.shape)
+    shadow[vi, li] = blocked
+    return (1.0 - shadow @ w).astype(np.float32)

@@ -17,8 +17,16 @@ from typing import Any, Union
 import numpy as np
 import trimesh
 
-from stimulus_engine.render._pyrender import pyrender
+from stimulus_engine.render._pyrender import pyrender, scene_defines
+from stimulus_engine.render.baked_shadows import wants_baked_shadows
 from stimulus_engine.render.camera import CameraSpec, fit_camera
+from stimulus_engine.render.light_shadows import (
+    SHADOW_BAKED,
+    SHADOW_KEY,
+    SHADOW_MAP,
+    SHADOW_NONE,
+    key_shadow_defines,
+)
 from stimulus_engine.render.lighting import LightSpec, lighting_preset
 
 __all__ = ["RenderPart", "render_mesh", "release_renderers", "split_uv_seams"]
@@ -79,20 +87,27 @@ def release_renderers() -> None:
     while _RENDERERS:
         _, r = _RENDERERS.popitem()
         r.delete()
+    _SHADOW_TEXTURES.clear()  # they lived in that context
 
 
-def _smooth_mesh(mesh: trimesh.Trimesh, material: Any, occlusion: np.ndarray | None = None) -> Any:
+def _smooth_mesh(mesh: trimesh.Trimesh, material: Any, occlusion: np.ndarray | None = None,
+                 visibility: np.ndarray | None = None) -> Any:
     """A smooth-shaded pyrender mesh that *shares* ``material`` (what ``from_trimesh`` builds, minus
     its deep copy of the material). Sharing lets the renderer keep a texture on the GPU from one
     image to the next (pyrender uploads a texture only when a new one appears in the scene); the
     copy re-uploaded (and re-mipmapped) every albedo for every image. ``occlusion`` (one value per
-    vertex) travels as the vertex colour, which the ``skin`` shading reads as ambient visibility."""
+    vertex) travels as the vertex colour's red channel, which the ``skin`` shading reads as ambient
+    visibility, and ``visibility`` (of the shadow-casting lights, :mod:`.baked_shadows`) as its green."""
     uv = mesh.visual.uv if getattr(mesh.visual, "kind", None) == "texture" else None
     colour = None
     wants = "AO_IN_COLOR0" in (getattr(material, "appeal_defines", None) or {})  # else pyrender would tint everything
-    if wants and occlusion is not None and len(occlusion) == len(mesh.vertices):
-        a = np.asarray(occlusion, np.float32)
-        colour = np.stack([a, a, a, np.ones_like(a)], axis=1)
+    n = len(mesh.vertices)
+    ao = None if occlusion is None or len(occlusion) != n else np.asarray(occlusion, np.float32)
+    vis = None if visibility is None or len(visibility) != n else np.asarray(visibility, np.float32)
+    if wants and (ao is not None or vis is not None):
+        ao = np.ones(n, np.float32) if ao is None else ao
+        vis = np.ones(n, np.float32) if vis is None else vis
+        colour = np.stack([ao, vis, ao, np.ones_like(ao)], axis=1)
     prim = pyrender.Primitive(positions=mesh.vertices, normals=mesh.vertex_normals, texcoord_0=uv, color_0=colour,
                               indices=mesh.faces, material=material, mode=pyrender.constants.GLTF.TRIANGLES)
     return pyrender.Mesh(primitives=[prim])
@@ -128,32 +143,53 @@ def split_uv_seams(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return out
 
 
-def _as_parts(meshes: MeshLike | Sequence[MeshLike]) -> list[Any]:
+def _items(meshes: MeshLike | Sequence[MeshLike]) -> list[Any]:
+    """The things to draw, a trimesh.Scene split into its parts and UV seams split (see
+    :func:`split_uv_seams`) so that per-vertex data lines up with what is drawn."""
     items = [meshes] if not isinstance(meshes, (list, tuple)) else list(meshes)
     flat: list[Any] = []
     for m in items:  # a trimesh.Scene (e.g. a multi-material OBJ) contributes its parts
         flat.extend(m.dump() if isinstance(m, trimesh.Scene) else [m])
-    items = flat
-    if not items:
+    if not flat:
         raise ValueError("render_mesh: nothing to render (empty list of meshes)")
     out = []
-    for i, m in enumerate(items):
-        if isinstance(m, pyrender.Mesh):
-            out.append(m)
-        elif isinstance(m, RenderPart) and m.material is not None and m.smooth:
-            out.append(_smooth_mesh(split_uv_seams(m.mesh), m.material, m.occlusion))
-        elif isinstance(m, RenderPart):
-            out.append(pyrender.Mesh.from_trimesh(split_uv_seams(m.mesh), material=m.material, smooth=m.smooth))
+    for i, m in enumerate(flat):
+        if isinstance(m, RenderPart):
+            split = split_uv_seams(m.mesh)
+            out.append(m if split is m.mesh else RenderPart(split, m.material, m.smooth, m.name, m.occlusion))
         elif isinstance(m, trimesh.Trimesh):
-            out.append(pyrender.Mesh.from_trimesh(split_uv_seams(m), smooth=True))
+            out.append(split_uv_seams(m))
+        elif isinstance(m, pyrender.Mesh):
+            out.append(m)
         else:
             raise TypeError(f"render_mesh: item {i} is a {type(m).__name__}, expected trimesh.Trimesh, "
                             "RenderPart or pyrender.Mesh")
     return out
 
 
+def _as_part(m: Any, visibility: np.ndarray | None = None) -> Any:
+    """One item of :func:`_items` as a pyrender mesh (``visibility``: baked shadows per vertex)."""
+    if isinstance(m, pyrender.Mesh):
+        return m
+    if isinstance(m, RenderPart) and m.material is not None and m.smooth:
+        return _smooth_mesh(m.mesh, m.material, m.occlusion, visibility)
+    if isinstance(m, RenderPart):
+        return pyrender.Mesh.from_trimesh(m.mesh, material=m.material, smooth=m.smooth)
+    return pyrender.Mesh.from_trimesh(m, smooth=True)
+
+
+def _baked_visibility(items: list[Any], lights: list[LightSpec], camera: CameraSpec) -> list[np.ndarray]:
+    """The shadow-casting lights' visibility per vertex of every item (:mod:`.baked_shadows`)."""
+    from stimulus_engine.render.baked_shadows import bake_shadows
+    from stimulus_engine.render.scene_export import world_lights
+
+    opaque = [getattr(m.material, "alphaMode", "OPAQUE") != "BLEND" for m in items]
+    return bake_shadows([m.mesh for m in items], opaque, world_lights(lights, camera))
+
+
 def _points(parts: list[Any]) -> np.ndarray:
-    return np.concatenate([p.bounds for p in parts], axis=0)
+    """The corners of the parts' bounding boxes (pyrender meshes, trimeshes or render parts)."""
+    return np.concatenate([(p.mesh if isinstance(p, RenderPart) else p).bounds for p in parts], axis=0)
 
 
 class _OrderedNode(pyrender.Node):
@@ -181,7 +217,32 @@ def _add(scene: Any, counter: list[int], pose: np.ndarray | None = None, **what:
     scene.add_node(_OrderedNode(counter[0], matrix=pose, **what))
 
 
-class _FittedDirectionalLight(pyrender.DirectionalLight):
+#: Shadow-map textures of the current renderer, reused by the shadow-casting lights of one
+#: image after another (slot = the light's rank among them), and one 1 x 1 texture that every
+#: light without a shadow map binds: pyrender gives *every* light of a type with shadows on a
+#: new 2048 x 2048 depth texture per image, and allocating those was 20 ms of a 120 ms image.
+_SHADOW_TEXTURES: dict[int, Any] = {}
+
+
+def _pooled_shadow_texture(slot: int) -> Any:
+    tex = _SHADOW_TEXTURES.get(slot)
+    if tex is None:
+        size = 1 if slot < 0 else pyrender.constants.SHADOW_TEX_SZ
+        tex = _SHADOW_TEXTURES[slot] = pyrender.Texture(width=size, height=size, source_channels="D",
+                                                        data_format=pyrender.light.GL_FLOAT)
+    return tex
+
+
+class _PooledShadowTexture:
+    """Mixin: the light's shadow texture comes from :data:`_SHADOW_TEXTURES` (``pool_slot``)."""
+
+    pool_slot = -1
+
+    def _generate_shadow_texture(self, size: int | None = None) -> None:
+        self.shadow_texture = _pooled_shadow_texture(self.pool_slot)
+
+
+class _FittedDirectionalLight(_PooledShadowTexture, pyrender.DirectionalLight):
     """A directional light whose shadow map covers the scene's bounding sphere and nothing more.
 
     pyrender places the shadow camera one scene diagonal ``s`` from the scene's centre, looking
@@ -196,7 +257,7 @@ class _FittedDirectionalLight(pyrender.DirectionalLight):
         return pyrender.OrthographicCamera(xmag=0.51 * s, ymag=0.51 * s, znear=0.48 * s, zfar=1.52 * s)
 
 
-class _FittedSpotLight(pyrender.SpotLight):
+class _FittedSpotLight(_PooledShadowTexture, pyrender.SpotLight):
     """A spot light whose (perspective) shadow map just covers a bounding sphere of the scene.
 
     pyrender's shadow camera for a spot light has the cone's full opening plus 11 degrees and depths
@@ -226,17 +287,20 @@ class _FittedSpotLight(pyrender.SpotLight):
 
 
 def _add_lights(scene: Any, lights: list[LightSpec], camera: CameraSpec, counter: list[int],
-                bounds: np.ndarray) -> bool:
-    """Add camera-relative lights to ``scene``; return True if any casts a shadow.
+                bounds: np.ndarray, *, shadows: bool = True, baked: bool = False) -> int:
+    """Add camera-relative lights to ``scene``; return the pyrender shadow flags they need.
 
-    ``bounds`` (points of the meshes' bounding boxes) fit the shadow maps to the scene.
+    ``bounds`` (points of the meshes' bounding boxes) fit the shadow maps to the scene;
+    ``shadows``: False = no light casts one; ``baked``: shadow-casting spot lights (the samples
+    of a soft light) use the visibility baked per vertex (:mod:`.baked_shadows`). Shadow kinds:
+    :mod:`.light_shadows`.
     """
     rot = camera.rotation()
     target = np.asarray(camera.target, float)
     dist = 1.6 * camera.distance
     lo, hi = bounds.min(axis=0), bounds.max(axis=0)
     centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
-    shadows = False
+    flags, slots, any_key = pyrender.RenderFlags.NONE, 0, False
     for spec in lights:
         d = rot @ np.asarray(spec.direction, float)
         d /= np.linalg.norm(d)
@@ -257,9 +321,24 @@ def _add_lights(scene: Any, lights: list[LightSpec], camera: CameraSpec, counter
                                      outerConeAngle=0.5, centre=centre, radius=radius, pose=pose)
         else:
             raise ValueError(f"unknown light kind '{spec.kind}' (expected directional or spot)")
+        # the first directional caster is the key (its own map); a soft light's spot samples are
+        # baked per vertex where the materials read it, else pyrender's maps
+        if not (spec.shadow and shadows):
+            mode = SHADOW_NONE
+        elif spec.kind == "directional" and not any_key:
+            mode = SHADOW_KEY
+        else:
+            mode = SHADOW_BAKED if baked and spec.kind == "spot" else SHADOW_MAP
+        any_key |= mode == SHADOW_KEY
+        light.appeal_shadow = mode
+        if mode in (SHADOW_MAP, SHADOW_KEY):
+            light.pool_slot, slots = slots, slots + 1
+        if mode == SHADOW_KEY:  # its map is rendered outside pyrender's flags
+            light._generate_shadow_texture()
         _add(scene, counter, pose, light=light)
-        shadows |= spec.shadow
-    return shadows
+        if mode == SHADOW_MAP:
+            flags |= pyrender.RenderFlags.SHADOWS_SPOT if spec.kind == "spot" else pyrender.RenderFlags.SHADOWS_DIRECTIONAL
+    return flags
 
 
 def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, height: int = 768,
@@ -300,10 +379,13 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
     """
     if width < 1 or height < 1:
         raise ValueError(f"image size must be positive (got {width} x {height})")
-    parts = _as_parts(meshes)
+    items = _items(meshes)
     lights, ambient = lighting_preset(lighting) if isinstance(lighting, str) else lighting
     if camera is None:
-        camera = fit_camera(_points(parts), width / height)
+        camera = fit_camera(_points(items), width / height)
+    baked = shadows and any(s.shadow and s.kind == "spot" for s in lights) and wants_baked_shadows(items)
+    visibility = _baked_visibility(items, lights, camera) if baked else [None] * len(items)
+    parts = [_as_part(m, v) for m, v in zip(items, visibility)]
     scene = pyrender.Scene(bg_color=[*map(float, background), 1.0], ambient_light=[ambient] * 3)
     counter = [0]
     for p in parts:
@@ -312,11 +394,9 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
     cam = pyrender.PerspectiveCamera(yfov=math.radians(camera.yfov_deg), aspectRatio=width / height,
                                      znear=max(dist * 0.05, 1e-4), zfar=dist * 20)
     _add(scene, counter, camera.pose(), camera=cam)
-    want_shadows = _add_lights(scene, lights, camera, counter, _points(parts)) and shadows
-    flags = pyrender.RenderFlags.NONE
-    if want_shadows:
-        flags |= pyrender.RenderFlags.SHADOWS_DIRECTIONAL | pyrender.RenderFlags.SHADOWS_SPOT
-    color, depth = _renderer(width, height).render(scene, flags=flags)
+    flags = _add_lights(scene, lights, camera, counter, _points(parts), shadows=shadows, baked=baked)
+    with scene_defines(key_shadow_defines(scene)):
+        color, depth = _renderer(width, height).render(scene, flags=flags)
     color = np.ascontiguousarray(color[..., :3], dtype=np.uint8)
     if return_depth:
         return color, np.asarray(depth, dtype=np.float32)

@@ -1,0 +1,175 @@
+"""Which lights cast shadows, and how: the key light's map, pyrender's maps, baked, or none.
+
+pyrender turns shadows on per light *type* (``SHADOWS_DIRECTIONAL``, ``SHADOWS_SPOT``): every
+directional light then renders a shadow map and every fragment filters it, rims and fill
+included — four shadow lookups per pixel for ``direct_hard``, nine for ``direct_soft``, where
+the preset asks for one light (or one disc of them) to cast a shadow. On the CPU (Mesa's
+llvmpipe runs both sides of every branch, so a lookup costs every pixel of every part) that
+made ``direct_hard`` 610 ms an image and ``direct_soft`` 1.3 s. Here each light carries
+``appeal_shadow``:
+
+:data:`SHADOW_NONE`
+    No shadow (rims, fill, the dome of ``gi_soft``).
+:data:`SHADOW_KEY`
+    The scene's one hard shadow-casting directional light: its map is rendered by
+    :func:`key_shadow_pass` (with pyrender's flags off), bound outside pyrender's light structs
+    (with a sampler and a matrix in every light struct, as pyrender's shadow defines have it,
+    the shader ran 50 ms slower), looked up once per pixel before the light loops in programs
+    compiled with ``KEY_SHADOW`` (:func:`key_shadow_defines`; in the loop, or without the
+    define, every light of ``gi_soft``'s dome paid for it) and filtered with one bilinear tap
+    of the receiver-plane lookup of :mod:`._pyrender`: the 2048-texel map fitted to the head has texels of about
+    0.15 mm, a third of a pixel of a 1024 × 768 portrait, so a wider filter's penumbra is not
+    visible (16 taps took 117 ms an image, 4 taps 105 ms, one 88 ms; ICT head, ``skin``).
+:data:`SHADOW_BAKED`
+    The samples of a soft (disc) light: its visibility baked per vertex by ray casting
+    (:mod:`.baked_shadows`) and read from the vertex colour's green channel by materials with
+    the ``AO_IN_COLOR0`` switch (the ``skin`` shading).
+:data:`SHADOW_MAP`
+    pyrender's own per-light map and the 16-tap filter (a soft light's samples without a bake:
+    the ``pbr`` and ``phong`` shadings; lights made elsewhere, which keep pyrender's behaviour).
+
+:func:`light_shadow_fragment_shader` patches ``mesh.frag``; :func:`bind_light_shadows` sets the
+field (and the key light's map) of every bound light; :func:`casts_shadow_map` tells the shadow
+pass which lights to skip.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["SHADOW_BAKED", "SHADOW_KEY", "SHADOW_MAP", "SHADOW_NONE", "bind_light_shadows", "casts_shadow_map",
+           "key_shadow_defines", "key_shadow_pass", "light_shadow_fragment_shader"]
+
+#: No shadow.
+SHADOW_NONE = 0.0
+#: pyrender's shadow map (its pass, its light structs) with the 16-tap lookup of :mod:`._pyrender`.
+SHADOW_MAP = 1.0
+#: The light's visibility baked per vertex, read from the vertex colour's green channel.
+SHADOW_BAKED = 2.0
+#: The key light's map, bound on its own and filtered with one bilinear tap.
+SHADOW_KEY = 3.0
+
+_BLOCK = """#ifdef {TYPE}_LIGHT_SHADOWS
+        float nl = clamp(dot(n,l), 0.0, 1.0);
+        float shadow = shadow_calc(
+            {lights}[i].light_matrix,
+            {lights}[i].shadow_map,
+            nl
+        );
+        res = res * (1.0 - shadow);
+#endif
+"""
+_SWITCHED = """        float shadow_kind = {lights}[i].appeal_shadow;
+#ifdef {TYPE}_LIGHT_SHADOWS
+        if (shadow_kind == 1.0) {{
+        float nl = clamp(dot(n,l), 0.0, 1.0);
+        float shadow = shadow_calc(
+            {lights}[i].light_matrix,
+            {lights}[i].shadow_map,
+            nl
+        );
+        res = res * (1.0 - shadow);
+        }}
+#endif
+#ifdef AO_IN_COLOR0
+#ifdef COLOR_0_LOC
+        if (shadow_kind == 2.0) res *= color_multiplier.g;
+#endif
+#endif
+{KEY}"""
+_KEY = """#ifdef KEY_SHADOW
+        if (shadow_kind == 3.0) {
+            // at the terminator the map shadows the surface itself, in a line as sharp as its one
+            // tap: let the shading's own falloff (and the skin's scattering past it) decide there
+            res *= mix(1.0, key_lit, smoothstep(0.0, 0.2, dot(n, l)));
+        }
+#endif
+"""
+# once per pixel, before the light loops (inside them llvmpipe would run it for every light)
+_KEY_LOOKUP = """#ifdef KEY_SHADOW
+    ShadowLookup key = shadow_setup(appeal_key_matrix, appeal_key_map);
+    float key_lit = 1.0 - shadow_bilinear(appeal_key_map, key.size, key.lc.xy, key.lc.z, key.dz_duv, key.bias);
+#endif
+"""
+_LOOPS = "    // Loop over lights\n"
+_UNIFORMS = "uniform sampler2D appeal_key_map;\nuniform mat4 appeal_key_matrix;\n"
+_STRUCTS = {"DIRECTIONAL": ("struct DirectionalLight {\n", "directional_lights"),
+            "SPOT": ("struct SpotLight {\n", "spot_lights")}
+
+
+def light_shadow_fragment_shader(text: str) -> str:
+    """pyrender 0.1.45's ``mesh.frag`` (with or without the Phong branch, whose light loops
+    repeat the shadow blocks; after :func:`~._pyrender.shadow_fragment_shader`) with a
+    per-light ``appeal_shadow`` switch (see the module)."""
+    if text.count("ShadowLookup shadow_setup(") != 1:
+        raise RuntimeError("the light-shadow patch needs the shadow lookup of _pyrender.shadow_fragment_shader")
+    for kind, (struct, lights) in _STRUCTS.items():
+        block = _BLOCK.format(TYPE=kind, lights=lights)
+        if text.count(struct) != 1 or text.count(block) < 1:
+            raise RuntimeError("pyrender's mesh.frag changed: the light-shadow patch was written for pyrender 0.1.45")
+        text = text.replace(struct, struct + "    float appeal_shadow;\n")
+        text = text.replace(block, _SWITCHED.format(TYPE=kind, lights=lights, KEY=_KEY if kind == "DIRECTIONAL" else ""))
+    if text.count(_LOOPS) < 1:
+        raise RuntimeError("pyrender's mesh.frag changed: the light-shadow patch was written for pyrender 0.1.45")
+    text = text.replace(_LOOPS, _KEY_LOOKUP + _LOOPS)
+    i = text.index(_STRUCTS["SPOT"][0])
+    return text[:i] + _UNIFORMS + text[i:]
+
+
+def casts_shadow_map(light: Any) -> bool:
+    """Whether a shadow pass must render this light's map (pyrender's or :func:`key_shadow_pass`)."""
+    return getattr(light, "appeal_shadow", SHADOW_MAP) in (SHADOW_MAP, SHADOW_KEY)
+
+
+def key_shadow_pass(renderer: Any, scene: Any, flags: Any) -> None:
+    """Render the key light's map (call after pyrender's ``_update_context``, before its forward
+    pass: pyrender renders only the maps of the types whose flag is on)."""
+    from stimulus_engine.render._pyrender import pyrender
+
+    if flags & pyrender.RenderFlags.SHADOWS_DIRECTIONAL:
+        return  # pyrender's own loop renders it (with every directional map)
+    for n in scene.light_nodes:
+        if getattr(n.light, "appeal_shadow", None) == SHADOW_KEY and n.light.shadow_texture is not None:
+            renderer._shadow_mapping_pass(scene, n, flags)
+
+
+def bind_light_shadows(renderer: Any, scene: Any, program: Any, node: Any, flags: Any) -> None:
+    """Set ``appeal_shadow`` of every light bound by pyrender's ``_bind_lighting`` (call after it),
+    and bind the key light's map.
+
+    Walks the lights in the order and with the per-type limits pyrender used, so index ``k`` of
+    each type is the same light.
+    """
+    from stimulus_engine.render._pyrender import pyrender
+
+    max_n = renderer._compute_max_n_lights(flags)
+    nodes = scene.light_nodes
+    if (len(scene.directional_light_nodes) > max_n[0] or len(scene.spot_light_nodes) > max_n[1]
+            or len(scene.point_light_nodes) > max_n[2]):
+        nodes = renderer._sorted_nodes_by_distance(scene, scene.light_nodes, node)
+    count = {"directional_lights": 0, "spot_lights": 0}
+    shadow_flags = {"directional_lights": bool(flags & pyrender.RenderFlags.SHADOWS_DIRECTIONAL),
+                    "spot_lights": bool(flags & pyrender.RenderFlags.SHADOWS_SPOT)}
+    for n in nodes:
+        if isinstance(n.light, pyrender.PointLight):
+            continue
+        kind = "spot_lights" if isinstance(n.light, pyrender.SpotLight) else "directional_lights"
+        k = count[kind]
+        if k == max_n[0 if kind == "directional_lights" else 1]:
+            continue
+        count[kind] += 1
+        mode = getattr(n.light, "appeal_shadow", SHADOW_MAP if shadow_flags[kind] else SHADOW_NONE)
+        if mode == SHADOW_MAP and not shadow_flags[kind]:
+            mode = SHADOW_NONE
+        program.set_uniform(f"{kind}[{k}].appeal_shadow", float(mode))
+        if mode == SHADOW_KEY:
+            renderer._bind_texture(n.light.shadow_texture, "appeal_key_map", program)
+            view, proj = renderer._get_light_cam_matrices(scene, n, flags)
+            program.set_uniform("appeal_key_matrix", proj.dot(view))
+
+
+def key_shadow_defines(scene: Any) -> dict | None:
+    """The program defines a scene needs: ``KEY_SHADOW`` when one of its lights is the key."""
+    if any(getattr(n.light, "appeal_shadow", None) == SHADOW_KEY for n in scene.light_nodes):
+        return {"KEY_SHADOW": 1}
+    return None
