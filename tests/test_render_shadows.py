@@ -106,7 +106,7 @@ def test_baked_soft_shadow_lies_where_the_shadow_maps_put_it(monkeypatch):
     parts, cam = _sphere_over_floor("skin")
     baked = _darker(parts, cam, "direct_soft")
     # the same scene through pyrender's six spot shadow maps
-    monkeypatch.setattr("stimulus_engine.render.renderer.wants_baked_shadows", lambda items: False)
+    monkeypatch.setattr("stimulus_engine.render.renderer._wants_baked_shadows", lambda items: False)
     mapped = _darker(parts, cam, "direct_soft")
     a, b = baked > 8, mapped > 8
     assert a.sum() > 300 and b.sum() > 300

@@ -31,6 +31,14 @@ import OpenGL.contextdata  # noqa: E402
 import pyrender  # noqa: E402
 import pyrender.shader_program as _sp  # noqa: E402
 
+from stimulus_engine.render.light_shadows import (  # noqa: E402
+    SHADOW_KEY,
+    SHADOW_MAP,
+    SHADOW_NONE,
+    casts_shadow_map,
+    light_shadow_fragment_shader,
+)
+
 __all__ = ["pyrender", "alpha_test_fragment_shader", "phong_fragment_shader", "platform", "scene_defines",
            "shadow_fragment_shader"]
 
@@ -313,7 +321,6 @@ def _mesh_shader_path(shader_dir: str, glossy: bool) -> str:
     import hashlib
     import tempfile
 
-    from stimulus_engine.render.light_shadows import light_shadow_fragment_shader
     from stimulus_engine.render.skin_shader import skin_fragment_shader
 
     with open(os.path.join(shader_dir, "mesh.frag")) as f:
@@ -365,8 +372,6 @@ def _shadow_pass_without_blended(self, scene, light_node, flags):  # type: ignor
     """pyrender's shadow-map pass without alpha-blended meshes (lashes): the depth pass ignores
     alpha, so a card casts the shadow of its whole rectangle (a dark band over the eyeball));
     lights that cast no shadow map (:mod:`.light_shadows`) are skipped."""
-    from stimulus_engine.render.light_shadows import casts_shadow_map
-
     if not casts_shadow_map(light_node.light):
         return None
     visible = [n.mesh for n in scene.mesh_nodes if n.mesh.is_visible]
@@ -387,11 +392,38 @@ _bind_lighting = pyrender.renderer.Renderer._bind_lighting
 
 
 def _bind_lighting_and_shadows(self, scene, program, node, flags):  # type: ignore[no-untyped-def]
-    """pyrender's light uniforms plus each light's shadow kind (:mod:`.light_shadows`)."""
-    from stimulus_engine.render.light_shadows import bind_light_shadows
+    """pyrender's light uniforms, plus each light's shadow kind (``appeal_shadow``,
+    :mod:`.light_shadows`) and the key light's map.
 
+    Walks the lights in the order and with the per-type limits pyrender used, so index ``k`` of
+    each type is the same light. A light without ``appeal_shadow`` (made elsewhere) keeps
+    pyrender's behaviour: a shadow map when its type's flag is on.
+    """
     _bind_lighting(self, scene, program, node, flags)
-    bind_light_shadows(self, scene, program, node, flags)
+    max_n = self._compute_max_n_lights(flags)
+    nodes = scene.light_nodes
+    if (len(scene.directional_light_nodes) > max_n[0] or len(scene.spot_light_nodes) > max_n[1]
+            or len(scene.point_light_nodes) > max_n[2]):
+        nodes = self._sorted_nodes_by_distance(scene, scene.light_nodes, node)
+    count = {"directional_lights": 0, "spot_lights": 0}
+    flag_on = {"directional_lights": bool(flags & pyrender.RenderFlags.SHADOWS_DIRECTIONAL),
+               "spot_lights": bool(flags & pyrender.RenderFlags.SHADOWS_SPOT)}
+    for n in nodes:
+        if isinstance(n.light, pyrender.PointLight):
+            continue
+        kind = "spot_lights" if isinstance(n.light, pyrender.SpotLight) else "directional_lights"
+        k = count[kind]
+        if k == max_n[0 if kind == "directional_lights" else 1]:
+            continue
+        count[kind] += 1
+        mode = getattr(n.light, "appeal_shadow", SHADOW_MAP if flag_on[kind] else SHADOW_NONE)
+        if mode == SHADOW_MAP and not flag_on[kind]:
+            mode = SHADOW_NONE
+        program.set_uniform(f"{kind}[{k}].appeal_shadow", float(mode))
+        if mode == SHADOW_KEY:
+            self._bind_texture(n.light.shadow_texture, "appeal_key_map", program)
+            view, proj = self._get_light_cam_matrices(scene, n, flags)
+            program.set_uniform("appeal_key_matrix", proj.dot(view))
 
 
 pyrender.renderer.Renderer._bind_lighting = _bind_lighting_and_shadows
@@ -400,12 +432,15 @@ _update_context = pyrender.renderer.Renderer._update_context
 
 def _update_context_and_key_shadow(self, scene, flags):  # type: ignore[no-untyped-def]
     """pyrender's context update, then the key light's shadow map (:mod:`.light_shadows`):
-    ``render`` calls it right before its own shadow passes and the forward pass."""
-    from stimulus_engine.render.light_shadows import key_shadow_pass
-
+    ``render`` calls it right before its own shadow passes (which render only the maps of the
+    light types whose flag is on; with the directional flag on they render the key's too) and
+    the forward pass."""
     _update_context(self, scene, flags)
-    if not flags & (pyrender.RenderFlags.DEPTH_ONLY | pyrender.RenderFlags.SEG):
-        key_shadow_pass(self, scene, flags)
+    if flags & (pyrender.RenderFlags.DEPTH_ONLY | pyrender.RenderFlags.SEG | pyrender.RenderFlags.SHADOWS_DIRECTIONAL):
+        return
+    for n in scene.light_nodes:
+        if getattr(n.light, "appeal_shadow", None) == SHADOW_KEY and n.light.shadow_texture is not None:
+            self._shadow_mapping_pass(scene, n, flags)
 
 
 pyrender.renderer.Renderer._update_context = _update_context_and_key_shadow

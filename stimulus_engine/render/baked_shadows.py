@@ -23,22 +23,12 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["DISC_RAYS", "bake_shadows", "disc_directions", "wants_baked_shadows"]
+__all__ = ["DISC_RAYS", "bake_shadows", "disc_directions"]
 
 #: Rays per vertex spread over a soft (disc) light.
 DISC_RAYS = 16
 
 _CACHE: dict[bytes, list[np.ndarray]] = {}
-
-
-def wants_baked_shadows(items: list[Any]) -> bool:
-    """True when every item is a smooth :class:`RenderPart` whose material reads baked
-    visibility from its vertex colour (the ``AO_IN_COLOR0`` switch of the ``skin`` shading)."""
-    from stimulus_engine.render.renderer import RenderPart
-
-    return bool(items) and all(
-        isinstance(m, RenderPart) and m.smooth and m.material is not None
-        and "AO_IN_COLOR0" in (getattr(m.material, "appeal_defines", None) or {}) for m in items)
 
 
 def disc_directions(world: list[dict]) -> tuple[np.ndarray, np.ndarray]:

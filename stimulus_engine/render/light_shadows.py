@@ -12,7 +12,7 @@ made ``direct_hard`` 610 ms an image and ``direct_soft`` 1.3 s. Here each light 
     No shadow (rims, fill, the dome of ``gi_soft``).
 :data:`SHADOW_KEY`
     The scene's one hard shadow-casting directional light: its map is rendered by
-    :func:`key_shadow_pass` (with pyrender's flags off), bound outside pyrender's light structs
+    ``key_shadow_pass`` (with pyrender's flags off), bound outside pyrender's light structs
     (with a sampler and a matrix in every light struct, as pyrender's shadow defines have it,
     the shader ran 50 ms slower), looked up once per pixel before the light loops in programs
     compiled with ``KEY_SHADOW`` (:func:`key_shadow_defines`; in the loop, or without the
@@ -29,16 +29,17 @@ made ``direct_hard`` 610 ms an image and ``direct_soft`` 1.3 s. Here each light 
     the ``pbr`` and ``phong`` shadings; lights made elsewhere, which keep pyrender's behaviour).
 
 :func:`light_shadow_fragment_shader` patches ``mesh.frag``; :func:`bind_light_shadows` sets the
-field (and the key light's map) of every bound light; :func:`casts_shadow_map` tells the shadow
-pass which lights to skip.
+field (and the key light's map) of every bound light and ``key_shadow_pass`` renders the key
+light's map (both in :mod:`._pyrender`, where pyrender is patched); :func:`casts_shadow_map` tells
+the shadow passes which lights to skip.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["SHADOW_BAKED", "SHADOW_KEY", "SHADOW_MAP", "SHADOW_NONE", "bind_light_shadows", "casts_shadow_map",
-           "key_shadow_defines", "key_shadow_pass", "light_shadow_fragment_shader"]
+__all__ = ["SHADOW_BAKED", "SHADOW_KEY", "SHADOW_MAP", "SHADOW_NONE", "casts_shadow_map", "key_shadow_defines",
+           "light_shadow_fragment_shader"]
 
 #: No shadow.
 SHADOW_NONE = 0.0
@@ -117,55 +118,8 @@ def light_shadow_fragment_shader(text: str) -> str:
 
 
 def casts_shadow_map(light: Any) -> bool:
-    """Whether a shadow pass must render this light's map (pyrender's or :func:`key_shadow_pass`)."""
+    """Whether a shadow pass must render this light's map (pyrender's or the key light's)."""
     return getattr(light, "appeal_shadow", SHADOW_MAP) in (SHADOW_MAP, SHADOW_KEY)
-
-
-def key_shadow_pass(renderer: Any, scene: Any, flags: Any) -> None:
-    """Render the key light's map (call after pyrender's ``_update_context``, before its forward
-    pass: pyrender renders only the maps of the types whose flag is on)."""
-    from stimulus_engine.render._pyrender import pyrender
-
-    if flags & pyrender.RenderFlags.SHADOWS_DIRECTIONAL:
-        return  # pyrender's own loop renders it (with every directional map)
-    for n in scene.light_nodes:
-        if getattr(n.light, "appeal_shadow", None) == SHADOW_KEY and n.light.shadow_texture is not None:
-            renderer._shadow_mapping_pass(scene, n, flags)
-
-
-def bind_light_shadows(renderer: Any, scene: Any, program: Any, node: Any, flags: Any) -> None:
-    """Set ``appeal_shadow`` of every light bound by pyrender's ``_bind_lighting`` (call after it),
-    and bind the key light's map.
-
-    Walks the lights in the order and with the per-type limits pyrender used, so index ``k`` of
-    each type is the same light.
-    """
-    from stimulus_engine.render._pyrender import pyrender
-
-    max_n = renderer._compute_max_n_lights(flags)
-    nodes = scene.light_nodes
-    if (len(scene.directional_light_nodes) > max_n[0] or len(scene.spot_light_nodes) > max_n[1]
-            or len(scene.point_light_nodes) > max_n[2]):
-        nodes = renderer._sorted_nodes_by_distance(scene, scene.light_nodes, node)
-    count = {"directional_lights": 0, "spot_lights": 0}
-    shadow_flags = {"directional_lights": bool(flags & pyrender.RenderFlags.SHADOWS_DIRECTIONAL),
-                    "spot_lights": bool(flags & pyrender.RenderFlags.SHADOWS_SPOT)}
-    for n in nodes:
-        if isinstance(n.light, pyrender.PointLight):
-            continue
-        kind = "spot_lights" if isinstance(n.light, pyrender.SpotLight) else "directional_lights"
-        k = count[kind]
-        if k == max_n[0 if kind == "directional_lights" else 1]:
-            continue
-        count[kind] += 1
-        mode = getattr(n.light, "appeal_shadow", SHADOW_MAP if shadow_flags[kind] else SHADOW_NONE)
-        if mode == SHADOW_MAP and not shadow_flags[kind]:
-            mode = SHADOW_NONE
-        program.set_uniform(f"{kind}[{k}].appeal_shadow", float(mode))
-        if mode == SHADOW_KEY:
-            renderer._bind_texture(n.light.shadow_texture, "appeal_key_map", program)
-            view, proj = renderer._get_light_cam_matrices(scene, n, flags)
-            program.set_uniform("appeal_key_matrix", proj.dot(view))
 
 
 def key_shadow_defines(scene: Any) -> dict | None:

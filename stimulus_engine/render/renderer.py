@@ -18,7 +18,6 @@ import numpy as np
 import trimesh
 
 from stimulus_engine.render._pyrender import pyrender, scene_defines
-from stimulus_engine.render.baked_shadows import wants_baked_shadows
 from stimulus_engine.render.camera import CameraSpec, fit_camera
 from stimulus_engine.render.light_shadows import (
     SHADOW_BAKED,
@@ -176,6 +175,14 @@ def _as_part(m: Any, visibility: np.ndarray | None = None) -> Any:
     if isinstance(m, RenderPart):
         return pyrender.Mesh.from_trimesh(m.mesh, material=m.material, smooth=m.smooth)
     return pyrender.Mesh.from_trimesh(m, smooth=True)
+
+
+def _wants_baked_shadows(items: list[Any]) -> bool:
+    """True when every item is a smooth :class:`RenderPart` whose material reads baked
+    visibility from its vertex colour (the ``AO_IN_COLOR0`` switch of the ``skin`` shading)."""
+    return bool(items) and all(
+        isinstance(m, RenderPart) and m.smooth and m.material is not None
+        and "AO_IN_COLOR0" in (getattr(m.material, "appeal_defines", None) or {}) for m in items)
 
 
 def _baked_visibility(items: list[Any], lights: list[LightSpec], camera: CameraSpec) -> list[np.ndarray]:
@@ -383,7 +390,7 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
     lights, ambient = lighting_preset(lighting) if isinstance(lighting, str) else lighting
     if camera is None:
         camera = fit_camera(_points(items), width / height)
-    baked = shadows and any(s.shadow and s.kind == "spot" for s in lights) and wants_baked_shadows(items)
+    baked = shadows and any(s.shadow and s.kind == "spot" for s in lights) and _wants_baked_shadows(items)
     visibility = _baked_visibility(items, lights, camera) if baked else [None] * len(items)
     parts = [_as_part(m, v) for m, v in zip(items, visibility)]
     scene = pyrender.Scene(bg_color=[*map(float, background), 1.0], ambient_light=[ambient] * 3)
