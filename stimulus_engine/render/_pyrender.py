@@ -277,6 +277,12 @@ float shadow_filter(ShadowLookup s, sampler2D shadow_map)
     return shadow / 16.0;
 }
 
+float shadow_tap(ShadowLookup s, sampler2D shadow_map)
+{
+    // one bilinear tap, for a map whose texels are smaller than a pixel (the key light's)
+    return s.lc.z > 1.0 ? 0.0 : shadow_bilinear(shadow_map, s.size, s.lc.xy, s.lc.z, s.dz_duv, s.bias);
+}
+
 float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)
 {
     return shadow_filter(shadow_setup(light_matrix, shadow_map), shadow_map);

@@ -11,15 +11,17 @@ made ``direct_hard`` 610 ms an image and ``direct_soft`` 1.3 s. Here each light 
 :data:`SHADOW_NONE`
     No shadow (rims, fill, the dome of ``gi_soft``).
 :data:`SHADOW_KEY`
-    The scene's one hard shadow-casting directional light: its map is rendered by
-    ``key_shadow_pass`` (with pyrender's flags off), bound outside pyrender's light structs
-    (with a sampler and a matrix in every light struct, as pyrender's shadow defines have it,
-    the shader ran 50 ms slower), looked up once per pixel before the light loops in programs
-    compiled with ``KEY_SHADOW`` (:func:`key_shadow_defines`; in the loop, or without the
-    define, every light of ``gi_soft``'s dome paid for it) and filtered with one bilinear tap
-    of the receiver-plane lookup of :mod:`._pyrender`: the 2048-texel map fitted to the head has texels of about
-    0.15 mm, a third of a pixel of a 1024 × 768 portrait, so a wider filter's penumbra is not
-    visible (16 taps took 117 ms an image, 4 taps 105 ms, one 88 ms; ICT head, ``skin``).
+    The scene's one hard shadow-casting directional light. Its map is rendered with pyrender's
+    flags off (``_update_context_and_key_shadow`` in :mod:`._pyrender`) and bound outside
+    pyrender's light structs (with a sampler and a matrix in every light struct, as pyrender's
+    shadow defines have it, the shader ran 50 ms slower); it is looked up once per pixel,
+    before the light loops, in programs compiled with ``KEY_SHADOW`` (:func:`key_shadow_defines`:
+    in the loop every light of ``gi_soft``'s dome paid for it), with one bilinear tap of the
+    receiver-plane lookup of :mod:`._pyrender` (``shadow_tap``): the 2048-texel map fitted to
+    the head has texels of about 0.15 mm, a third of a pixel of a 1024 × 768 portrait, so a
+    wider filter's penumbra would not show (inside the loop, 16 taps took 117 ms an image,
+    4 taps 105 ms, one 88 ms; ICT head, ``skin``). At the terminator the shading's own falloff
+    decides: the map would shadow the surface itself in a line as sharp as its one tap.
 :data:`SHADOW_BAKED`
     The samples of a soft (disc) light: its visibility baked per vertex by ray casting
     (:mod:`.baked_shadows`) and read from the vertex colour's green channel by materials with
@@ -28,10 +30,9 @@ made ``direct_hard`` 610 ms an image and ``direct_soft`` 1.3 s. Here each light 
     pyrender's own per-light map and the 16-tap filter (a soft light's samples without a bake:
     the ``pbr`` and ``phong`` shadings; lights made elsewhere, which keep pyrender's behaviour).
 
-:func:`light_shadow_fragment_shader` patches ``mesh.frag``; :func:`bind_light_shadows` sets the
-field (and the key light's map) of every bound light and ``key_shadow_pass`` renders the key
-light's map (both in :mod:`._pyrender`, where pyrender is patched); :func:`casts_shadow_map` tells
-the shadow passes which lights to skip.
+:func:`light_shadow_fragment_shader` patches ``mesh.frag``; :mod:`._pyrender` (where pyrender is
+patched) sets the field of every bound light, binds the key light's map and renders it;
+:func:`casts_shadow_map` tells the shadow passes which lights to skip.
 """
 
 from __future__ import annotations
@@ -89,7 +90,7 @@ _KEY = """#ifdef KEY_SHADOW
 # once per pixel, before the light loops (inside them llvmpipe would run it for every light)
 _KEY_LOOKUP = """#ifdef KEY_SHADOW
     ShadowLookup key = shadow_setup(appeal_key_matrix, appeal_key_map);
-    float key_lit = 1.0 - shadow_bilinear(appeal_key_map, key.size, key.lc.xy, key.lc.z, key.dz_duv, key.bias);
+    float key_lit = 1.0 - shadow_tap(key, appeal_key_map);
 #endif
 """
 _LOOPS = "    // Loop over lights\n"
@@ -102,7 +103,7 @@ def light_shadow_fragment_shader(text: str) -> str:
     """pyrender 0.1.45's ``mesh.frag`` (with or without the Phong branch, whose light loops
     repeat the shadow blocks; after :func:`~._pyrender.shadow_fragment_shader`) with a
     per-light ``appeal_shadow`` switch (see the module)."""
-    if text.count("ShadowLookup shadow_setup(") != 1:
+    if text.count("ShadowLookup shadow_setup(") != 1 or text.count("float shadow_tap(") != 1:
         raise RuntimeError("the light-shadow patch needs the shadow lookup of _pyrender.shadow_fragment_shader")
     for kind, (struct, lights) in _STRUCTS.items():
         block = _BLOCK.format(TYPE=kind, lights=lights)

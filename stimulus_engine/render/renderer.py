@@ -368,7 +368,9 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
     background : tuple of float
         RGB in 0..1; default 50 % grey (pixel value 128).
     shadows : bool
-        Render the shadow maps the preset asks for (False = faster, no shadows).
+        Draw the shadows the preset asks for: the key light's shadow map, and a soft light's
+        (:mod:`.light_shadows`; under the ``skin`` shading a soft light's are baked per vertex,
+        :mod:`.baked_shadows`). False = faster, no shadows.
     return_depth : bool
         Also return the depth buffer (float32, 0 where empty).
 
