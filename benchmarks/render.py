@@ -8,8 +8,8 @@ Both runs include the scene construction per image (each stimulus has its own ge
 Run:  .venv/bin/python benchmarks/render.py [--ict ../shared/data/meshes/ict-facekit] [--n 8]
 Prints medians of repeats (ms per image), the ratio, and images/s for 1 and 2 processes; then
 the ``skin`` shading against ``pbr`` with shadows on (direct_hard: the key light's map;
-direct_soft: under ``skin`` its disc baked per vertex, timed once per geometry and reused by
-every material; ``pbr``: six spot shadow maps).
+direct_soft: its disc baked per vertex, timed once per geometry and reused by every material
+and shading).
 """
 
 from __future__ import annotations

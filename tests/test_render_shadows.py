@@ -50,7 +50,7 @@ def test_only_the_lights_a_preset_names_cast_shadows():
     modes, flags = _modes("direct_hard")
     assert modes.count(SHADOW_KEY) == 1 and set(modes) == {SHADOW_KEY, SHADOW_NONE} and flags == 0
     # direct_soft: its six spot samples; pyrender's spot maps, or baked where the materials read it
-    modes, flags = _modes("direct_soft")
+    modes, flags = _modes("direct_soft")  # on meshes without baked visibility
     assert modes.count(SHADOW_MAP) == 6 and flags == pyrender.RenderFlags.SHADOWS_SPOT
     modes, flags = _modes("direct_soft", baked=True)
     assert modes.count(SHADOW_BAKED) == 6 and SHADOW_MAP not in modes and flags == 0
@@ -114,6 +114,15 @@ def test_baked_soft_shadow_lies_where_the_shadow_maps_put_it(monkeypatch):
     assert abs(baked[a & b].mean() - mapped[a & b].mean()) < 0.35 * mapped[a & b].mean()
     # a penumbra: a band of partial darkening between the umbra and the lit floor
     assert ((baked > 3) & (baked < 0.5 * baked.max())).sum() > 100
+
+
+def test_the_soft_light_is_baked_under_every_shading():
+    # the thesis's pbr/phong contrast gets the same smooth penumbra as skin (not six stacked edges)
+    for shading in ("pbr", "phong"):
+        parts, cam = _sphere_over_floor(shading)
+        darker = _darker(parts, cam, "direct_soft")
+        assert (darker > 8).sum() > 300, shading
+        assert ((darker > 3) & (darker < 0.5 * darker.max())).sum() > 100, shading
 
 
 def test_the_key_lights_map_casts_the_hard_shadow_under_every_shading():

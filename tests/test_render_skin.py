@@ -117,5 +117,6 @@ def test_occlusion_dims_only_the_ambient_light_of_skin_shading():
     # ambient only: half the visibility, darker; direct only: the occlusion changes nothing
     assert render("skin", half, 0.6, 0.0) < render("skin", None, 0.6, 0.0) - 10
     assert abs(render("skin", half, 0.0, 2.0) - render("skin", None, 0.0, 2.0)) < 1
-    # pbr materials ignore it (pyrender would otherwise multiply the whole colour by it)
+    # pbr and phong materials ignore it (pyrender would otherwise multiply the whole colour by it)
     assert abs(render("pbr", half, 0.6, 2.0) - render("pbr", None, 0.6, 2.0)) < 1
+    assert abs(render("phong", half, 0.6, 2.0) - render("phong", None, 0.6, 2.0)) < 1

@@ -1,10 +1,10 @@
-"""Soft shadows of the ``skin`` shading, baked per vertex by ray casting instead of shadow maps.
+"""Soft shadows baked per vertex by ray casting instead of shadow maps (a rig's parts, every shading).
 
 ``direct_soft``'s key is an area light, drawn by pyrender as a disc of six spot lights; with a
 filtered shadow map each (six passes over the scene and six lookups per pixel on the CPU,
-where llvmpipe runs every branch) it took 1 s an image, where the rest of the skin shading
-takes 65 ms. A face under a fixed light is a static scene, so the ``skin`` shading casts the
-rays once instead: per vertex of every part, the fraction of the disc it sees
+where llvmpipe runs every branch) it took 0.9–1.3 s an image, where the rest of the image
+takes 65 ms — and drew six stacked shadow edges. A face under a fixed light is a static scene,
+so the rays are cast once instead: per vertex of every part, the fraction of the disc it sees
 (:func:`~stimulus_engine.render.occlusion.light_visibility`; :data:`DISC_RAYS` rays over the
 angular size the path tracer gives the same light, so both engines draw the same penumbra),
 and the shader multiplies the disc's samples by it (:mod:`.light_shadows`). The result is kept

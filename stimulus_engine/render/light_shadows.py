@@ -25,10 +25,10 @@ made ``direct_hard`` 610 ms an image and ``direct_soft`` 1.3 s. Here each light 
 :data:`SHADOW_BAKED`
     The samples of a soft (disc) light: its visibility baked per vertex by ray casting
     (:mod:`.baked_shadows`) and read from the vertex colour's green channel by materials with
-    the ``AO_IN_COLOR0`` switch (the ``skin`` shading).
+    the ``VISIBILITY_IN_COLOR0`` switch (a rig's parts, in every shading).
 :data:`SHADOW_MAP`
-    pyrender's own per-light map and the 16-tap filter (a soft light's samples without a bake:
-    the ``pbr`` and ``phong`` shadings; lights made elsewhere, which keep pyrender's behaviour).
+    pyrender's own per-light map and the 16-tap filter (a soft light's samples on meshes that
+    carry no baked visibility; lights made elsewhere, which keep pyrender's behaviour).
 
 :func:`light_shadow_fragment_shader` patches ``mesh.frag``; :mod:`._pyrender` (where pyrender is
 patched) sets the field of every bound light, binds the key light's map and renders it;
@@ -73,7 +73,7 @@ _SWITCHED = """        float shadow_kind = {lights}[i].appeal_shadow;
         res = res * (1.0 - shadow);
         }}
 #endif
-#ifdef AO_IN_COLOR0
+#ifdef VISIBILITY_IN_COLOR0
 #ifdef COLOR_0_LOC
         if (shadow_kind == 2.0) res *= color_multiplier.g;
 #endif

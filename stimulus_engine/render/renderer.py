@@ -99,7 +99,7 @@ def _smooth_mesh(mesh: trimesh.Trimesh, material: Any, occlusion: np.ndarray | N
     visibility, and ``visibility`` (of the shadow-casting lights, :mod:`.baked_shadows`) as its green."""
     uv = mesh.visual.uv if getattr(mesh.visual, "kind", None) == "texture" else None
     colour = None
-    wants = "AO_IN_COLOR0" in (getattr(material, "appeal_defines", None) or {})  # else pyrender would tint everything
+    wants = "VISIBILITY_IN_COLOR0" in (getattr(material, "appeal_defines", None) or {})  # else pyrender would tint everything
     n = len(mesh.vertices)
     ao = None if occlusion is None or len(occlusion) != n else np.asarray(occlusion, np.float32)
     vis = None if visibility is None or len(visibility) != n else np.asarray(visibility, np.float32)
@@ -179,10 +179,11 @@ def _as_part(m: Any, visibility: np.ndarray | None = None) -> Any:
 
 def _wants_baked_shadows(items: list[Any]) -> bool:
     """True when every item is a smooth :class:`RenderPart` whose material reads baked
-    visibility from its vertex colour (the ``AO_IN_COLOR0`` switch of the ``skin`` shading)."""
+    visibility from its vertex colour (the ``VISIBILITY_IN_COLOR0`` switch every rig part's
+    material has, :mod:`.skin_shader`)."""
     return bool(items) and all(
         isinstance(m, RenderPart) and m.smooth and m.material is not None
-        and "AO_IN_COLOR0" in (getattr(m.material, "appeal_defines", None) or {}) for m in items)
+        and "VISIBILITY_IN_COLOR0" in (getattr(m.material, "appeal_defines", None) or {}) for m in items)
 
 
 def _baked_visibility(items: list[Any], lights: list[LightSpec], camera: CameraSpec) -> list[np.ndarray]:
@@ -369,8 +370,8 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
         RGB in 0..1; default 50 % grey (pixel value 128).
     shadows : bool
         Draw the shadows the preset asks for: the key light's shadow map, and a soft light's
-        (:mod:`.light_shadows`; under the ``skin`` shading a soft light's are baked per vertex,
-        :mod:`.baked_shadows`). False = faster, no shadows.
+        (:mod:`.light_shadows`; on parts whose materials read baked visibility — a rig's, in
+        every shading — a soft light's are baked per vertex, :mod:`.baked_shadows`). False = faster, no shadows.
     return_depth : bool
         Also return the depth buffer (float32, 0 where empty).
 

@@ -73,10 +73,14 @@ def _cached(key: tuple, arrays: tuple, make) -> object:
     return mat
 
 
-def _skin_defines(material: object, shading: str, scatter: bool) -> object:
-    """Turn on the ``skin`` shading's shader switches (:mod:`.skin_shader`) for this material."""
+def _shader_defines(material: object, shading: str, scatter: bool) -> object:
+    """Turn on this material's shader switches (:mod:`.skin_shader`): baked visibility in the
+    vertex colour for every shading (a soft light's shadow is baked per vertex,
+    :mod:`.baked_shadows`), and the ``skin`` shading's occluded ambient light, scattering and
+    tone curve."""
+    material.appeal_defines = {"VISIBILITY_IN_COLOR0": 1}
     if shading == "skin":
-        material.appeal_defines = {"TONEMAP_FILMIC": 1, "AO_IN_COLOR0": 1, **({"SKIN_SCATTER": 1} if scatter else {})}
+        material.appeal_defines.update({"TONEMAP_FILMIC": 1, "OCCLUDED_AMBIENT": 1, **({"SKIN_SCATTER": 1} if scatter else {})})
     return material
 
 
@@ -89,7 +93,7 @@ def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray |
 
     base = (1.0, 1.0, 1.0, 1.0) if texture is not None else colour
     if texture is not None and texture.shape[-1] == 4:  # cards (lashes): alpha-blended, both sides
-        return _skin_defines(pyrender.MetallicRoughnessMaterial(
+        return _shader_defines(pyrender.MetallicRoughnessMaterial(
             baseColorFactor=base, baseColorTexture=tex(texture, "RGBA"), metallicFactor=0.0, roughnessFactor=roughness,
             alphaMode="BLEND", doubleSided=True), shading, scatter=False)
     s = None if specular is None else np.asarray(specular, np.float64) / 255.0
@@ -98,7 +102,7 @@ def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray |
         if s is not None:  # pyrender reads roughness from R and metallic from G (× the factors)
             r = np.rint(255 * np.clip(roughness * (1.4 - 0.8 * s), 0, 1))
             mr = np.stack([r, np.full_like(r, 255), np.zeros_like(r)], axis=-1).astype(np.uint8)
-        return _skin_defines(pyrender.MetallicRoughnessMaterial(
+        return _shader_defines(pyrender.MetallicRoughnessMaterial(
             baseColorFactor=base, baseColorTexture=tex(texture), metallicFactor=0.0,
             roughnessFactor=1.0 if s is not None else roughness, normalTexture=tex(normal),
             metallicRoughnessTexture=tex(mr)), shading, scatter)
@@ -110,9 +114,9 @@ def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray |
             a = np.clip(gloss + 0.3 * (s - 0.5), 0, 1)
             sg = np.rint(255 * np.stack([s] * 3 + [a], axis=-1)).astype(np.uint8)
             gloss = 1.0
-        return pyrender.material.SpecularGlossinessMaterial(
+        return _shader_defines(pyrender.material.SpecularGlossinessMaterial(
             diffuseFactor=base, diffuseTexture=tex(texture), specularFactor=(level,) * 3, glossinessFactor=gloss,
-            normalTexture=tex(normal), specularGlossinessTexture=tex(sg, "RGBA"))
+            normalTexture=tex(normal), specularGlossinessTexture=tex(sg, "RGBA")), shading, scatter=False)
     raise ValueError(f"unknown shading '{shading}' (expected one of: {', '.join(SHADINGS)})")
 
 
@@ -218,10 +222,10 @@ def _new_hair_material(shading: str, colour: tuple[float, float, float], texture
             diffuseFactor=(*colour, 1.0), diffuseTexture=tex, specularFactor=(_PHONG_SPECULAR,) * 3,
             glossinessFactor=1.17 - HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
     else:
-        mat = _skin_defines(pyrender.MetallicRoughnessMaterial(
+        mat = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=HAIR_ROUGHNESS,
-            alphaMode="MASK", doubleSided=True), shading, scatter=False)
-    return mat
+            alphaMode="MASK", doubleSided=True)
+    return _shader_defines(mat, shading, scatter=False)
 
 
 def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32) -> np.ndarray:

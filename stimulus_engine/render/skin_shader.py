@@ -10,10 +10,13 @@ switches a material turns on through its ``appeal_defines`` (see
     diffuse term uses a per-channel *wrapped* cosine ``clamp((n·l + w) / (1 + w), 0, 1)`` with
     wraps :data:`SCATTER_WRAP` (red reaches furthest past the terminator, blue least); lit
     areas are unchanged, the specular lobe keeps the true cosine.
-``AO_IN_COLOR0`` (parts of a ``skin`` render that carry a baked occlusion)
-    The ambient light is multiplied by the vertex colour's red channel, the visibility baked
-    by :func:`~stimulus_engine.render.occlusion.vertex_occlusion` (instead of pyrender's
-    multiplying the whole colour by the vertex colour); direct light keeps its shadow maps.
+``VISIBILITY_IN_COLOR0`` (every part of a rig render, in any shading)
+    The vertex colour carries baked visibility instead of a tint (pyrender multiplies the whole
+    colour by it): its red channel the ambient visibility baked by
+    :func:`~stimulus_engine.render.occlusion.vertex_occlusion`, its green channel a soft
+    light's baked shadow (:mod:`.light_shadows`, :mod:`.baked_shadows`).
+``OCCLUDED_AMBIENT`` (the ``skin`` shading)
+    The ambient light is multiplied by that red channel; direct light keeps its shadows.
 ``TONEMAP_FILMIC`` (every part of a ``skin`` render)
     The linear colour goes through the ACES filmic curve (Narkowicz 2015 fit, exposure
     :data:`EXPOSURE`) and the exact sRGB encoding instead of pyrender's clipped ``pow(1/2.2)``:
@@ -85,7 +88,7 @@ vec3 linear_to_srgb(vec3 c)
 
 _AMBIENT = "    color.xyz += base_color.xyz * ambient_light;\n"
 # pyrender substitutes each define's value for its name, so ``defined(...)`` cannot be used: nested #ifdefs
-_OCCLUDED_AMBIENT = """#ifdef AO_IN_COLOR0
+_OCCLUDED_AMBIENT = """#ifdef OCCLUDED_AMBIENT
 #ifdef COLOR_0_LOC
     color.xyz += base_color.xyz * ambient_light * color_multiplier.r;
 #else
@@ -93,7 +96,7 @@ _OCCLUDED_AMBIENT = """#ifdef AO_IN_COLOR0
 #else
 """ + _AMBIENT + "#endif\n"
 _MULTIPLY = "#ifdef COLOR_0_LOC\n    color *= color_multiplier;\n#endif\n"
-_MULTIPLY_UNLESS_AO = "#ifdef COLOR_0_LOC\n#ifdef AO_IN_COLOR0\n#else\n    color *= color_multiplier;\n#endif\n#endif\n"
+_MULTIPLY_UNLESS_BAKED = "#ifdef COLOR_0_LOC\n#ifdef VISIBILITY_IN_COLOR0\n#else\n    color *= color_multiplier;\n#endif\n#endif\n"
 _OUTPUT = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
 _TONEMAPPED = """#ifdef TONEMAP_FILMIC
     frag_color = vec4(linear_to_srgb(aces_filmic(color.xyz)), clamp(color.a * base_color.a, 0.0, 1.0));
@@ -118,4 +121,4 @@ def skin_fragment_shader(text: str) -> str:
     i = text.index("float texture2DCompare(")
     text = text[:i] + functions + text[i:]
     return (text.replace(call, "SHADE(n, v, l, roughness, metallic,").replace(_OUTPUT, _TONEMAPPED, 1)
-            .replace(_AMBIENT, _OCCLUDED_AMBIENT, 1).replace(_MULTIPLY, _MULTIPLY_UNLESS_AO, 1))
+            .replace(_AMBIENT, _OCCLUDED_AMBIENT, 1).replace(_MULTIPLY, _MULTIPLY_UNLESS_BAKED))
