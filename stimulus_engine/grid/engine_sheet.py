@@ -23,7 +23,7 @@ __all__ = ["SHEET_LIGHTING", "SHEET_EXPRESSIONS", "VARIANTS", "engine_grid", "en
 SHEET_LIGHTING = ("direct_hard", "direct_soft", "gi_soft")
 SHEET_EXPRESSIONS = ("neutral", "happiness")
 #: (engine, shading, column label) of the sheet, in order.
-VARIANTS = (("pyrender", "pbr", "pyrender, pbr (before)"), ("pyrender", "skin", "pyrender, skin shading"),
+VARIANTS = (("pyrender", "pbr", "pyrender, pbr"), ("pyrender", "skin", "pyrender, skin shading"),
             ("cycles", "pbr", "Cycles (path traced)"))
 
 
