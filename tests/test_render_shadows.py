@@ -32,9 +32,10 @@ def _floor(n: int = 61, size: float = 6.0) -> trimesh.Trimesh:
 
 def _modes(lighting: str, *, shadows: bool = True, baked: bool = False) -> tuple[list[float], int]:
     from stimulus_engine.render._pyrender import pyrender
-    from stimulus_engine.render.renderer import _add_lights
+    from stimulus_engine.render.renderer import _add_lights, _discs_as_suns
 
     lights, _ = lighting_preset(lighting)
+    lights, baked = _discs_as_suns(lights) if baked else (lights, frozenset())
     scene = pyrender.Scene()
     cam = face_camera(np.zeros(3), 20.0)
     flags = _add_lights(scene, lights, cam, [0], np.array([[-1.0, -1, -1], [1, 1, 1]]), shadows=shadows, baked=baked)
@@ -52,8 +53,14 @@ def test_only_the_lights_a_preset_names_cast_shadows():
     # direct_soft: its six spot samples; pyrender's spot maps, or baked where the materials read it
     modes, flags = _modes("direct_soft")  # on meshes without baked visibility
     assert modes.count(SHADOW_MAP) == 6 and flags == pyrender.RenderFlags.SHADOWS_SPOT
+    # baked: the six samples shade as one light at the disc's centre (one highlight, not six)
     modes, flags = _modes("direct_soft", baked=True)
-    assert modes.count(SHADOW_BAKED) == 6 and SHADOW_MAP not in modes and flags == 0
+    assert modes.count(SHADOW_BAKED) == 1 and SHADOW_MAP not in modes and SHADOW_KEY not in modes and flags == 0
+    from stimulus_engine.render.renderer import _discs_as_suns
+
+    suns, which = _discs_as_suns(lighting_preset("direct_soft")[0])
+    (k,) = which
+    assert suns[k].kind == "directional" and suns[k].intensity == pytest.approx(3.2) and len(suns) == 4
     assert set(_modes("direct_hard", shadows=False)[0]) == {SHADOW_NONE}
     assert set(_modes("gi_soft")[0]) == {SHADOW_NONE}
 

@@ -294,14 +294,37 @@ class _FittedSpotLight(_PooledShadowTexture, pyrender.SpotLight):
         return pyrender.PerspectiveCamera(yfov=yfov, znear=znear, zfar=zfar, aspectRatio=1.0)
 
 
+def _discs_as_suns(lights: list[LightSpec]) -> tuple[list[LightSpec], frozenset[int]]:
+    """The lights to shade with once a soft light's shadow is baked, and which of them it is.
+
+    A preset's area light is a disc of shadow-casting spot samples (``direct_soft``); with its
+    shadow baked per vertex the samples only shade, and one directional light at the disc's
+    centre with their summed intensity shades the same diffuse light — and one highlight, where
+    six points made six on glossy (``phong``) skin.
+    """
+    out, baked, discs = [], set(), {}
+    for spec in lights:
+        if spec.kind == "spot" and spec.shadow:
+            key = tuple(np.round(spec.direction, 6))
+            if key in discs:
+                k = discs[key]
+                out[k] = LightSpec("directional", out[k].direction, out[k].intensity + spec.intensity, out[k].color, True)
+                continue
+            discs[key] = len(out)
+            baked.add(len(out))
+            spec = LightSpec("directional", spec.direction, spec.intensity, spec.color, True)
+        out.append(spec)
+    return out, frozenset(baked)
+
+
 def _add_lights(scene: Any, lights: list[LightSpec], camera: CameraSpec, counter: list[int],
-                bounds: np.ndarray, *, shadows: bool = True, baked: bool = False) -> int:
+                bounds: np.ndarray, *, shadows: bool = True, baked: frozenset[int] = frozenset()) -> int:
     """Add camera-relative lights to ``scene``; return the pyrender shadow flags they need.
 
     ``bounds`` (points of the meshes' bounding boxes) fit the shadow maps to the scene;
-    ``shadows``: False = no light casts one; ``baked``: shadow-casting spot lights (the samples
-    of a soft light) use the visibility baked per vertex (:mod:`.baked_shadows`). Shadow kinds:
-    :mod:`.light_shadows`.
+    ``shadows``: False = no light casts one; ``baked``: the indices of the lights whose shadow
+    is the visibility baked per vertex (:mod:`.baked_shadows`, :func:`_discs_as_suns`). Shadow
+    kinds: :mod:`.light_shadows`.
     """
     rot = camera.rotation()
     target = np.asarray(camera.target, float)
@@ -309,7 +332,7 @@ def _add_lights(scene: Any, lights: list[LightSpec], camera: CameraSpec, counter
     lo, hi = bounds.min(axis=0), bounds.max(axis=0)
     centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
     flags, slots, any_key = pyrender.RenderFlags.NONE, 0, False
-    for spec in lights:
+    for index, spec in enumerate(lights):
         d = rot @ np.asarray(spec.direction, float)
         d /= np.linalg.norm(d)
         # light pose: its -z axis points along d
@@ -329,14 +352,17 @@ def _add_lights(scene: Any, lights: list[LightSpec], camera: CameraSpec, counter
                                      outerConeAngle=0.5, centre=centre, radius=radius, pose=pose)
         else:
             raise ValueError(f"unknown light kind '{spec.kind}' (expected directional or spot)")
-        # the first directional caster is the key (its own map); a soft light's spot samples are
-        # baked per vertex where the materials read it, else pyrender's maps
+        # a baked light reads its shadow from the vertex colour; the first other directional
+        # caster is the key (its own map); the rest (a soft light's spot samples on meshes
+        # without baked visibility) get pyrender's maps
         if not (spec.shadow and shadows):
             mode = SHADOW_NONE
+        elif index in baked:
+            mode = SHADOW_BAKED
         elif spec.kind == "directional" and not any_key:
             mode = SHADOW_KEY
         else:
-            mode = SHADOW_BAKED if baked and spec.kind == "spot" else SHADOW_MAP
+            mode = SHADOW_MAP
         any_key |= mode == SHADOW_KEY
         light.appeal_shadow = mode
         if mode in (SHADOW_MAP, SHADOW_KEY):
@@ -393,8 +419,10 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
     lights, ambient = lighting_preset(lighting) if isinstance(lighting, str) else lighting
     if camera is None:
         camera = fit_camera(_points(items), width / height)
-    baked = shadows and any(s.shadow and s.kind == "spot" for s in lights) and _wants_baked_shadows(items)
-    visibility = _baked_visibility(items, lights, camera) if baked else [None] * len(items)
+    visibility, baked = [None] * len(items), frozenset()
+    if shadows and any(s.shadow and s.kind == "spot" for s in lights) and _wants_baked_shadows(items):
+        visibility = _baked_visibility(items, lights, camera)
+        lights, baked = _discs_as_suns(lights)
     parts = [_as_part(m, v) for m, v in zip(items, visibility)]
     scene = pyrender.Scene(bg_color=[*map(float, background), 1.0], ambient_light=[ambient] * 3)
     counter = [0]
