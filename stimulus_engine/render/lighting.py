@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LIGHTING_PRESETS", "LightSpec", "lighting_preset"]
+__all__ = ["LIGHTING_PRESETS", "Disc", "LightSpec", "group_discs", "lighting_preset"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +57,50 @@ class LightSpec:
     color: tuple[float, float, float] = (1.0, 1.0, 1.0)
     shadow: bool = False
     offset: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Disc:
+    """An area light: the spot samples of one disc (same direction, different offsets) taken together.
+
+    Attributes
+    ----------
+    direction : tuple of float
+        Direction the light travels, camera frame.
+    intensity : float
+        The samples' summed intensity.
+    color : tuple of float
+    shadow : bool
+    radius : float
+        Angular radius: the largest offset, as a fraction of the distance.
+    """
+
+    direction: tuple[float, float, float]
+    intensity: float
+    color: tuple[float, float, float]
+    shadow: bool
+    radius: float
+
+
+def group_discs(lights: list[LightSpec]) -> list[LightSpec | Disc]:
+    """``lights`` with the spot samples of each disc (``direct_soft``'s area light) as one
+    :class:`Disc`, placed where its first sample was; other lights as they are."""
+    out: list[LightSpec | Disc] = []
+    where: dict[tuple, int] = {}
+    for spec in lights:
+        if spec.kind != "spot":
+            out.append(spec)
+            continue
+        key = tuple(np.round(spec.direction, 6))
+        radius = float(np.hypot(*spec.offset))
+        if key not in where:
+            where[key] = len(out)
+            out.append(Disc(spec.direction, spec.intensity, spec.color, spec.shadow, radius))
+        else:
+            d = out[where[key]]
+            out[where[key]] = Disc(d.direction, d.intensity + spec.intensity, d.color, d.shadow or spec.shadow,
+                                   max(d.radius, radius))
+    return out
 
 
 _KEY = (0.55, -0.45, -0.7)  # from upper left-front (viewer's left), pointing at the face

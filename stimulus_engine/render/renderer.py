@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Union
 
 import numpy as np
@@ -26,7 +26,7 @@ from stimulus_engine.render.light_shadows import (
     SHADOW_NONE,
     key_shadow_defines,
 )
-from stimulus_engine.render.lighting import LightSpec, lighting_preset
+from stimulus_engine.render.lighting import Disc, LightSpec, group_discs, lighting_preset
 
 __all__ = ["RenderPart", "render_mesh", "release_renderers", "split_uv_seams"]
 
@@ -155,7 +155,7 @@ def _items(meshes: MeshLike | Sequence[MeshLike]) -> list[Any]:
     for i, m in enumerate(flat):
         if isinstance(m, RenderPart):
             split = split_uv_seams(m.mesh)
-            out.append(m if split is m.mesh else RenderPart(split, m.material, m.smooth, m.name, m.occlusion))
+            out.append(m if split is m.mesh else replace(m, mesh=split))
         elif isinstance(m, trimesh.Trimesh):
             out.append(split_uv_seams(m))
         elif isinstance(m, pyrender.Mesh):
@@ -299,21 +299,16 @@ def _discs_as_suns(lights: list[LightSpec]) -> tuple[list[LightSpec], frozenset[
 
     A preset's area light is a disc of shadow-casting spot samples (``direct_soft``); with its
     shadow baked per vertex the samples only shade, and one directional light at the disc's
-    centre with their summed intensity shades the same diffuse light — and one highlight, where
-    six points made six on glossy (``phong``) skin.
+    centre with their summed intensity shades the same light, one light instead of six in
+    every pixel's loop.
     """
-    out, baked, discs = [], set(), {}
-    for spec in lights:
-        if spec.kind == "spot" and spec.shadow:
-            key = tuple(np.round(spec.direction, 6))
-            if key in discs:
-                k = discs[key]
-                out[k] = LightSpec("directional", out[k].direction, out[k].intensity + spec.intensity, out[k].color, True)
-                continue
-            discs[key] = len(out)
-            baked.add(len(out))
-            spec = LightSpec("directional", spec.direction, spec.intensity, spec.color, True)
-        out.append(spec)
+    out, baked = [], set()
+    for light in group_discs(lights):
+        if isinstance(light, Disc):
+            if light.shadow:
+                baked.add(len(out))
+            light = LightSpec("directional", light.direction, light.intensity, light.color, light.shadow)
+        out.append(light)
     return out, frozenset(baked)
 
 

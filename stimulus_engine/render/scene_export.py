@@ -18,7 +18,7 @@ import numpy as np
 from PIL import Image
 
 from stimulus_engine.render.camera import CameraSpec
-from stimulus_engine.render.lighting import LightSpec
+from stimulus_engine.render.lighting import Disc, LightSpec, group_discs
 
 __all__ = ["SCENE_FORMAT", "export_scene", "world_lights"]
 
@@ -34,24 +34,16 @@ def world_lights(lights: list[LightSpec], camera: CameraSpec) -> list[dict]:
     """
     rot = camera.rotation()
     out: list[dict] = []
-    discs: dict[tuple, dict] = {}
-    for spec in lights:
-        d = rot @ np.asarray(spec.direction, float)
-        d = (d / np.linalg.norm(d)).tolist()
-        if spec.kind == "spot":
-            key = tuple(np.round(spec.direction, 6))
-            disc = discs.get(key)
-            if disc is None:
-                disc = discs[key] = {"kind": "disc", "direction": d, "intensity": 0.0, "color": list(spec.color),
-                                     "shadow": spec.shadow, "radius": 0.0}
-                out.append(disc)
-            disc["intensity"] += spec.intensity
-            disc["radius"] = max(disc["radius"], float(np.hypot(*spec.offset)))
-        elif spec.kind == "directional":
-            out.append({"kind": "directional", "direction": d, "intensity": spec.intensity, "color": list(spec.color),
-                        "shadow": spec.shadow})
+    for light in group_discs(lights):
+        d = rot @ np.asarray(light.direction, float)
+        rec = {"direction": (d / np.linalg.norm(d)).tolist(), "intensity": light.intensity, "color": list(light.color),
+               "shadow": light.shadow}
+        if isinstance(light, Disc):
+            out.append({"kind": "disc", **rec, "radius": light.radius})
+        elif light.kind == "directional":
+            out.append({"kind": "directional", **rec})
         else:
-            raise ValueError(f"unknown light kind '{spec.kind}' (expected directional or spot)")
+            raise ValueError(f"unknown light kind '{light.kind}' (expected directional or spot)")
     return out
 
 
