@@ -18,7 +18,7 @@ from stimulus_engine.correspondence import (
     reorder_landmarks,
     umeyama,
 )
-from stimulus_engine.correspondence.closest import SurfaceIndex, closest_point_on_triangles
+from stimulus_engine.correspondence.closest import SurfaceIndex, closest_point_on_triangles, project_to_triangles
 from stimulus_engine.correspondence.landmark_sets import landmark_orderings
 from stimulus_engine.correspondence.laplacian import (
     bilaplacian,
@@ -122,6 +122,37 @@ def test_surface_index_matches_trimesh():
     np.testing.assert_allclose(res.distance, d, atol=1e-9)
 
 
+def test_compiled_closest_kernel_agrees_with_numpy():
+    """The Numba kernel (when installed) and the NumPy path pick equally near points, with the
+    same region rules on random triangles (degenerate ones too) and on a mesh."""
+    from stimulus_engine.correspondence import closest_kernel
+
+    if not closest_kernel.numba_available():
+        pytest.skip("numba is not installed (the 'fast' extra)")
+    rng = np.random.default_rng(5)
+    tri = rng.normal(size=(3000, 3, 3))
+    tri[:40, 2] = tri[:40, 1]  # collinear
+    tri[40:60, 1:] = tri[40:60, :1]  # a point
+    p = rng.normal(size=(3000, 3)) * 2
+    ab, ac = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    dots = [np.einsum("ij,ij->i", x, y) for x, y in ((ab, ab), (ab, ac), (ac, ac))]
+    fdata = np.concatenate([tri[:, 0], ab, ac] + [d[:, None] for d in dots], axis=1)
+    own = np.arange(len(tri))[:, None]  # each point's own triangle as its only candidate
+    face, v, w = closest_kernel.best_candidates(p, np.zeros((len(p), 0), dtype=np.int64),
+                                                np.zeros((1, 1), dtype=np.int64), own, fdata)
+    v_np, w_np, _ = project_to_triangles(p - tri[:, 0], ab, ac, *dots)
+    np.testing.assert_array_equal(face, np.arange(len(tri)))
+    np.testing.assert_allclose(v, v_np, atol=1e-12)
+    np.testing.assert_allclose(w, w_np, atol=1e-12)
+    # on a mesh, with many candidates each: the same distances (ties may pick another face)
+    m = trimesh.creation.icosphere(4)
+    q = rng.normal(size=(20000, 3)) * 1.2
+    a = SurfaceIndex(m.vertices, m.faces).query(q)
+    b = SurfaceIndex(m.vertices, m.faces, compiled=False).query(q)
+    np.testing.assert_allclose(a.distance, b.distance, atol=1e-12)
+    np.testing.assert_allclose(a.points, b.points, atol=1e-9)  # where the faces differ, they meet there
+
+
 def test_boundary_flag():
     v, f = grid(5)
     res = SurfaceIndex(v, f).query(np.array([[-0.5, 0.5, 0.0], [0.5, 0.5, 0.3]]))
@@ -216,6 +247,29 @@ def test_nested_dissection_is_a_permutation_and_solves_the_same():
     # a factor's ordering can be handed to the next factorisation of the same pattern
     f1 = factorize(h)
     np.testing.assert_allclose(factorize(2 * h, f1.ordering).solve(b), x_mmd / 2, atol=1e-9)
+
+
+def test_coupled_ordering_puts_the_coupling_last_and_solves_the_same():
+    """Two grids tied at a few vertices (the joint fairing's structure): each grid by nested
+    dissection, the tied unknowns last; the solution is the same as with the default order."""
+    from stimulus_engine.correspondence.ordering import coupled_ordering
+    from stimulus_engine.correspondence.solve import factorize
+
+    v, _, h = _spd_grid_system()
+    n = len(v)
+    tie = np.arange(0, n, 7)  # vertex i of the first grid tied to vertex i of the second
+    c = sp.csr_matrix((np.ones(len(tie)), (np.arange(len(tie)), tie)), shape=(len(tie), n))
+    d = sp.hstack([c, -c]).tocsr()
+    big = (sp.block_diag([h, h]) + 10.0 * (d.T @ d)).tocsr()
+    coords = np.vstack([v, v + [0.0, 0.0, 0.01]])
+    order = coupled_ordering(big, coords, n, n + tie, leaf=8)
+    np.testing.assert_array_equal(np.sort(order), np.arange(2 * n))
+    np.testing.assert_array_equal(np.sort(order[-len(tie):]), n + tie)
+    np.testing.assert_array_equal(np.sort(order[:n]), np.arange(n))  # the first block first, whole
+    b = np.random.default_rng(1).normal(size=(2 * n, 3))
+    for backend in available_backends():
+        x = factorize(big, order, backend=backend).solve(b)
+        np.testing.assert_allclose(x, factorize(big, backend=backend).solve(b), atol=1e-9)
 
 
 def test_pcg_on_a_nearby_factorisation():

@@ -16,6 +16,12 @@ computes its values (a sparse map of the inverse areas plus the constant constra
 :func:`~.laplacian.bilaplacian_map`); with SuperLU the first two iterations are factorised (the
 second reuses the first's fill-reducing ordering) and from the third on, when the areas change
 little, the solve is preconditioned conjugate gradients on the last factorisation.
+
+The elimination order puts the target's reference unknowns last and each mesh's other
+unknowns before them in nested-dissection order (:func:`~.ordering.coupled_ordering`): the
+meshes are then eliminated independently, and the numeric factorisation of the 19k + 10k
+system takes 48 ms instead of 74 with CHOLMOD's AMD. The source's part of that order serves
+the registration's matrices on the same mesh (:attr:`FairingResult.source_ordering`).
 """
 
 from __future__ import annotations
@@ -27,12 +33,17 @@ import scipy.sparse as sp
 
 from stimulus_engine.correspondence.points import Correspondences
 from stimulus_engine.correspondence.laplacian import bilaplacian_map, fairing_operator, voronoi_areas
+from stimulus_engine.correspondence.ordering import coupled_ordering
 from stimulus_engine.correspondence.solve import ReusableSolver
 
 __all__ = ["FairingResult", "joint_fairing"]
 
 #: Tiny pull towards the input positions so components without reference points stay defined.
 _TIKHONOV = 1e-9
+
+#: :func:`~.ordering.coupled_ordering` (the target's reference unknowns eliminated last, as one
+#: dense block) while they are at most this fraction of all unknowns; else the solver's own
+_MAX_COUPLED = 0.05
 
 
 @dataclass
@@ -45,6 +56,9 @@ class FairingResult:
     factorizations: int = 0
     pcg_solves: int = 0
     pcg_iterations: int = 0
+    #: a fill-reducing ordering of the source's unknowns (nested dissection), for the
+    #: registration's matrices on the same mesh; None if the solver chose its own
+    source_ordering: np.ndarray | None = None
 
 
 def joint_fairing(
@@ -110,7 +124,14 @@ def joint_fairing(
     diag = pattern.diagonal
     x = x_hat.copy()
     res = FairingResult(xs, xt)
-    solver = ReusableSolver()
+    # the target's reference unknowns last, each mesh by nested dissection before them
+    coupled = ns + np.unique(corr.target.vertices[corr.target.weights != 0])
+    if len(coupled) <= _MAX_COUPLED * (ns + nt):
+        order = coupled_ordering(pattern.matrix(np.ones(pattern.nnz)).lower(), x_hat, ns, coupled)
+        res.source_ordering = order[:ns]
+    else:
+        order = None
+    solver = ReusableSolver(order)
     for it in range(max(1, iterations)):
         a_s = voronoi_areas(x[:ns], source_faces)
         a_t = voronoi_areas(x[ns:], target_faces)

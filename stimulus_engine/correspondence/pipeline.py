@@ -253,7 +253,7 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
         fair.source, fs, ls, voronoi_areas(fair.source, fs), bt_index,
         corr.source, corr_c.target.positions(fair.target), params.schedule, params.mu2, params.mu3,
         Pruning(params.prune_distance_base * NORMALISED_DIAGONAL, params.prune_angle, True),
-        tolerance=params.converge_tolerance * NORMALISED_DIAGONAL,
+        tolerance=params.converge_tolerance * NORMALISED_DIAGONAL, ordering=fair.source_ordering,
     )
     seconds["register_base"] = time.perf_counter() - t
     logger.info(
