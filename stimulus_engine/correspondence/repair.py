@@ -92,11 +92,21 @@ def weld(vertices: np.ndarray, rtol: float = 1e-9) -> tuple[np.ndarray, np.ndarr
     v = np.asarray(vertices, dtype=np.float64)
     step = max(float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) * rtol, np.finfo(float).tiny)
     keys = np.round((v - v.min(axis=0)) / step).astype(np.int64)
-    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    order = np.argsort(first)  # keep the original order of first appearance
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    return v[first[order]], rank[inverse.ravel()]
+    # equal keys are neighbours in lexicographic order (a third of np.unique(axis=0)'s time)
+    order = np.lexsort(keys.T[::-1])
+    ks = keys[order]
+    new = np.ones(len(v), dtype=bool)
+    new[1:] = (ks[1:] != ks[:-1]).any(axis=1)
+    if new.all():
+        return v.copy(), np.arange(len(v))
+    starts = np.flatnonzero(new)
+    first = np.minimum.reduceat(order, starts)  # each group's first original vertex
+    inverse = np.empty(len(v), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    by_appearance = np.argsort(first)  # keep the original order of first appearance
+    rank = np.empty_like(by_appearance)
+    rank[by_appearance] = np.arange(len(by_appearance))
+    return v[first[by_appearance]], rank[inverse]
 
 
 def _face_components(faces: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -110,16 +120,16 @@ def _face_components(faces: np.ndarray, n_vertices: int) -> np.ndarray:
 def _wound_consistently(faces: np.ndarray) -> bool:
     """True when no directed edge occurs twice (neighbours traverse their shared edge oppositely)."""
     a, b = faces.ravel(), faces[:, [1, 2, 0]].ravel()
-    key = a * (int(faces.max()) + 1) + b
-    return len(np.unique(key)) == len(key)
+    key = np.sort(a * (int(faces.max()) + 1) + b)
+    return not (key[1:] == key[:-1]).any()
 
 
-def consistent_winding(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def consistent_winding(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray | None = None) -> np.ndarray:
     """Faces wound consistently within each connected piece (trimesh's ``fix_winding``, run
     only when some neighbours disagree), each piece facing outwards:
     ``Σ area · n · (centroid_f − centroid)`` > 0, the sign of the volume for a closed piece
     and of the bulge for an open face mask (``fix_winding`` follows whichever face it starts
-    from, which may be a flipped one)."""
+    from, which may be a flipped one). ``labels``: the connected piece of each face, if known."""
     faces = np.asarray(faces, dtype=np.int64)
     if len(faces) == 0:
         return faces.copy()
@@ -133,7 +143,7 @@ def consistent_winding(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     centre = v[wound].mean(axis=1)
     normal, area = face_normals(v, wound)
     normal_area = normal * area[:, None]
-    labels = _face_components(wound, len(vertices))
+    labels = _face_components(wound, len(vertices)) if labels is None else labels
     n = np.bincount(labels)
     mid = np.stack([np.bincount(labels, weights=centre[:, k]) / np.maximum(n, 1) for k in range(3)], axis=1)
     bulge = np.bincount(labels, weights=np.einsum("ij,ij->i", normal_area, centre - mid[labels]))
@@ -142,10 +152,12 @@ def consistent_winding(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return wound
 
 
-def landmark_pieces(vertices: np.ndarray, faces: np.ndarray, keep_vertices: np.ndarray) -> np.ndarray:
-    """Mask of faces in connected pieces that hold one of ``keep_vertices`` (landmarks)."""
+def landmark_pieces(vertices: np.ndarray, faces: np.ndarray, keep_vertices: np.ndarray,
+                    labels: np.ndarray | None = None) -> np.ndarray:
+    """Mask of faces in connected pieces that hold one of ``keep_vertices`` (landmarks);
+    ``labels``: the connected piece of each face, if known."""
     faces = np.asarray(faces, dtype=np.int64)
-    labels = _face_components(faces, len(vertices))
+    labels = _face_components(faces, len(vertices)) if labels is None else labels
     held = np.isin(faces, np.asarray(keep_vertices, dtype=np.int64)).any(axis=1)
     keep = np.zeros(labels.max() + 1 if len(labels) else 0, dtype=bool)
     keep[np.unique(labels[held])] = True
@@ -164,15 +176,18 @@ def repair_mesh(vertices: np.ndarray, faces: np.ndarray, keep_vertices: np.ndarr
     """
     welded, vmap = weld(vertices)
     f = vmap[np.asarray(faces, dtype=np.int64)]
-    ok = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
+    proper = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
+    ok = proper.copy()
+    # the pieces, once for both steps (dropping a collapsed face could split one: then again)
+    labels = _face_components(f, len(welded))
     if keep_vertices is not None:
-        ok &= landmark_pieces(welded, f, vmap[np.asarray(keep_vertices, dtype=np.int64)])
+        ok &= landmark_pieces(welded, f, vmap[np.asarray(keep_vertices, dtype=np.int64)], labels)
     face_ids = np.flatnonzero(ok)
     used = np.unique(f[face_ids])
     compact = np.full(len(welded), -1, dtype=np.int64)
     compact[used] = np.arange(len(used))
     kept = compact[f[face_ids]]
-    wound = consistent_winding(welded[used], kept)
+    wound = consistent_winding(welded[used], kept, labels[face_ids] if proper.all() else None)
     # fix_winding reverses a face's corners or leaves them; anything else would be a bug
     flipped = ~(wound == kept).all(axis=1)
     assert np.array_equal(wound[flipped], kept[flipped][:, ::-1])
