@@ -33,19 +33,27 @@ def nested_dissection(matrix: sp.spmatrix, coords: np.ndarray, leaf: int = 64) -
     (N,) int array
         ``ordering[k]`` is the unknown eliminated ``k``-th (a permutation of ``range(N)``).
     """
+    ei, ej, coords = _couplings(matrix, coords)
+    return _dissect([(np.arange(len(coords)), ei, ej)], coords, leaf)
+
+
+def _couplings(matrix: sp.spmatrix, coords: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each coupling of a symmetric pattern once (its strict lower triangle, or the upper one
+    if that is all that was given), and the coordinates as (N, D) floats."""
     a = sp.coo_matrix(matrix)
-    n = a.shape[0]
-    coords = np.asarray(coords, dtype=np.float64).reshape(n, -1)
-    # each coupling once: the strict lower triangle of a symmetric pattern (or the upper one,
-    # if that is all that was given)
     lower = a.row > a.col
     if not lower.any():
         lower = a.row < a.col
-    ei, ej = a.row[lower].astype(np.int64), a.col[lower].astype(np.int64)
-    side = np.zeros(n, dtype=np.int8)
+    coords = np.asarray(coords, dtype=np.float64).reshape(a.shape[0], -1)
+    return a.row[lower].astype(np.int64), a.col[lower].astype(np.int64), coords
+
+
+def _dissect(stack: list, coords: np.ndarray, leaf: int) -> np.ndarray:
+    """Nested dissection of the parts on ``stack``: ``(unknowns, couplings i, couplings j)``
+    tuples to split, or arrays already ordered (a separator, placed after the parts pushed
+    after it). The last pushed is ordered first."""
+    side = np.zeros(len(coords), dtype=np.int8)
     out: list[np.ndarray] = []
-    # (unknowns, their couplings) still to split; a part's separator is placed after both halves
-    stack: list = [(np.arange(n), ei, ej)]
     while stack:
         item = stack.pop()
         if not isinstance(item, tuple):  # a separator whose halves are done
@@ -110,13 +118,14 @@ def coupled_ordering(matrix: sp.spmatrix, coords: np.ndarray, split: int, couple
     (N,) int array
         A permutation of ``range(N)``.
     """
-    a = sp.csr_matrix(matrix)
-    n = a.shape[0]
-    last = np.zeros(n, dtype=bool)
-    last[np.asarray(coupled, dtype=np.int64)] = True
-    coords = np.asarray(coords, dtype=np.float64).reshape(n, -1)
-    parts = []
-    for lo, hi in ((0, split), (split, n)):
-        ids = lo + np.flatnonzero(~last[lo:hi])
-        parts.append(ids[nested_dissection(a[ids][:, ids], coords[ids], leaf)])
-    return np.concatenate(parts + [np.flatnonzero(last)]).astype(np.int64)
+    ei, ej, coords = _couplings(matrix, coords)
+    n = len(coords)
+    block = (np.arange(n) >= split).astype(np.int8)
+    block[np.asarray(coupled, dtype=np.int64)] = 2
+    bi, bj = block[ei], block[ej]
+    # the coupled unknowns are the top separator: the blocks are dissected apart, before them
+    stack: list = [np.flatnonzero(block == 2)]
+    for b in (1, 0):
+        inside = (bi == b) & (bj == b)
+        stack.append((np.flatnonzero(block == b), ei[inside], ej[inside]))
+    return _dissect(stack, coords, leaf)
