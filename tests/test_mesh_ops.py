@@ -39,6 +39,25 @@ def test_edge_face_counts():
     assert (mesh_ops.boundary_edge_mask(f) == (c == 1)).all()
 
 
+def test_boundary_half_edges_on_messy_faces():
+    """Flipped faces, a duplicated face and a non-manifold fan: a half-edge is on the boundary
+    exactly when no face runs its reverse (the definition, by set membership)."""
+    rng = np.random.default_rng(2)
+    _, f = grid(6)
+    f = f.copy()
+    flip = rng.random(len(f)) < 0.2
+    f[flip] = f[flip][:, ::-1]
+    f = np.concatenate([f, f[:3], [[0, 1, 40], [1, 0, 41]]])
+    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    have = {(int(a), int(b)) for a, b in he}
+    want = np.array([(a, b) not in have for b, a in he])  # reverse (b, a) missing
+    np.testing.assert_array_equal(mesh_ops.boundary_half_edges(f), he[want])
+    keys = rng.integers(0, 1 << 40, 1000)  # beyond 32 bits: the comparison sort
+    np.testing.assert_array_equal(mesh_ops.argsort_keys(keys), np.argsort(keys, kind="stable"))
+    small = rng.integers(0, 1 << 31, 5000)
+    np.testing.assert_array_equal(mesh_ops.argsort_keys(small), np.argsort(small, kind="stable"))
+
+
 def test_boundary_loop_follows_the_faces():
     v, f = grid(4)  # faces face +z: the outline runs counter-clockwise seen from +z
     (loop,) = mesh_ops.boundary_loops(f)

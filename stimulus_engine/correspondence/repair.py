@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from stimulus_engine.mesh_ops import face_normals, vertex_adjacency
+from stimulus_engine.mesh_ops import argsort_keys, face_normals, vertex_adjacency
 
 __all__ = ["RepairedMesh", "repair_mesh", "weld", "consistent_winding", "landmark_pieces"]
 
@@ -120,7 +120,8 @@ def _face_components(faces: np.ndarray, n_vertices: int) -> np.ndarray:
 def _wound_consistently(faces: np.ndarray) -> bool:
     """True when no directed edge occurs twice (neighbours traverse their shared edge oppositely)."""
     a, b = faces.ravel(), faces[:, [1, 2, 0]].ravel()
-    key = np.sort(a * (int(faces.max()) + 1) + b)
+    key = a * (int(faces.max()) + 1) + b
+    key = key[argsort_keys(key)]
     return not (key[1:] == key[:-1]).any()
 
 
