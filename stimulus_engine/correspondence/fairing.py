@@ -42,8 +42,10 @@ __all__ = ["FairingResult", "joint_fairing"]
 _TIKHONOV = 1e-9
 
 #: :func:`~.ordering.coupled_ordering` (the target's reference unknowns eliminated last, as one
-#: dense block) while they are at most this fraction of all unknowns; else the solver's own
-_MAX_COUPLED = 0.05
+#: dense block) while they are at most this many times the square root of all unknowns (about
+#: the size of a mesh's top separator; 481 of 29k unknowns in ``benchmarks/correspond.py``);
+#: else the solver's own ordering
+_MAX_COUPLED = 4.0
 
 
 @dataclass
@@ -126,7 +128,7 @@ def joint_fairing(
     res = FairingResult(xs, xt)
     # the target's reference unknowns last, each mesh by nested dissection before them
     coupled = ns + np.unique(corr.target.vertices[corr.target.weights != 0])
-    if len(coupled) <= _MAX_COUPLED * (ns + nt):
+    if len(coupled) <= _MAX_COUPLED * np.sqrt(ns + nt):
         order = coupled_ordering(pattern.matrix(np.ones(pattern.nnz)).lower(), x_hat, ns, coupled)
         res.source_ordering = order[:ns]
     else:

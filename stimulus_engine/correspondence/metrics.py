@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from stimulus_engine.correspondence.closest import SurfaceIndex
-from stimulus_engine.mesh_ops import face_normals, vertex_normals
+from stimulus_engine.mesh_ops import face_normals
 
-__all__ = ["surface_distances", "flipped_triangles", "against_target_triangles", "degenerate_triangles", "fit_metrics"]
+__all__ = ["FoldCheck", "surface_distances", "flipped_triangles", "against_target_triangles", "degenerate_triangles", "fit_metrics"]
 
 
 def surface_distances(
@@ -46,6 +46,42 @@ def flipped_triangles(vertices: np.ndarray, faces: np.ndarray, reference_vertice
     return _local_folds(vertices, faces) & ~_local_folds(reference_vertices, faces)
 
 
+class FoldCheck:
+    """Fold-overs and collapsed triangles of deformations of one mesh, with the undeformed
+    mesh's own folds and areas computed once (a deformation is checked many times while it
+    is repaired, and again when it is measured).
+
+    Parameters
+    ----------
+    faces : (F, 3) int array
+    reference : (N, 3) array
+        The undeformed vertices.
+    rel : float
+        See :func:`degenerate_triangles`.
+    """
+
+    def __init__(self, faces: np.ndarray, reference: np.ndarray, rel: float = 1e-4) -> None:
+        self.faces = np.asarray(faces, dtype=np.int64)
+        self.reference = np.asarray(reference, dtype=np.float64)
+        self.rel = rel
+        self._folds = _local_folds(self.reference, self.faces)
+        self._area = face_normals(self.reference, self.faces)[1]
+        self._collapsed = self._area <= 1e-300  # already degenerate in the reference
+
+    def flipped(self, vertices: np.ndarray) -> np.ndarray:
+        """:func:`flipped_triangles` against the reference."""
+        return _local_folds(vertices, self.faces) & ~self._folds
+
+    def degenerate(self, vertices: np.ndarray) -> np.ndarray:
+        """:func:`degenerate_triangles` against the reference."""
+        _, a = face_normals(vertices, self.faces)
+        return (a <= self.rel * np.maximum(self._area, 1e-300)) | (a <= 1e-300)
+
+    def bad(self, vertices: np.ndarray) -> np.ndarray:
+        """Folded, or collapsed where the reference was not."""
+        return self.flipped(vertices) | (self.degenerate(vertices) & ~self._collapsed)
+
+
 def against_target_triangles(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -76,6 +112,7 @@ def fit_metrics(
     target_faces: np.ndarray,
     reference_vertices: np.ndarray,
     target_index: SurfaceIndex | None = None,
+    folds: FoldCheck | None = None,
 ) -> dict:
     """Distances relative to the target's bounding-box diagonal, both ways, and fold-overs.
 
@@ -83,15 +120,17 @@ def fit_metrics(
     against the target surface (how well the source was fitted, as in thesis Table 3.1);
     ``hausdorff_sym_rel`` also includes target vertices against the deformed source (it is
     large when the target covers more than the source, e.g. a scan's neck).
-    ``target_index``: a :class:`SurfaceIndex` of the target already built (saves building it).
+    ``target_index``: a :class:`SurfaceIndex` of the target already built (saves building it);
+    ``folds``: a :class:`FoldCheck` of ``faces`` and ``reference_vertices`` already made.
     """
     diag = float(np.linalg.norm(np.ptp(target_vertices, axis=0)))
     index = target_index if target_index is not None else SurfaceIndex(target_vertices, target_faces)
     d_st = surface_distances(vertices, target_vertices, target_faces, index)
     d_ts = surface_distances(target_vertices, vertices, faces)
-    flipped = flipped_triangles(vertices, faces, reference_vertices)
+    folds = folds if folds is not None else FoldCheck(faces, reference_vertices)
+    flipped = folds.flipped(vertices)
     against = against_target_triangles(vertices, faces, target_vertices, target_faces, index)
-    degenerate = degenerate_triangles(vertices, faces, reference_vertices)
+    degenerate = folds.degenerate(vertices)
     return {
         "hausdorff_rel": float(d_st.max() / diag),
         "mean_dist_rel": float(d_st.mean() / diag),

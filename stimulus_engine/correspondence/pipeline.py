@@ -16,7 +16,7 @@ from stimulus_engine.correspondence.closest import SurfaceIndex
 from stimulus_engine.correspondence.fairing import joint_fairing
 from stimulus_engine.correspondence.points import Correspondences, SurfacePoints
 from stimulus_engine.correspondence.laplacian import fairing_operator, voronoi_areas
-from stimulus_engine.correspondence.metrics import fit_metrics
+from stimulus_engine.correspondence.metrics import FoldCheck, fit_metrics
 from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
 from stimulus_engine.correspondence.repair import repair_mesh
 from stimulus_engine.correspondence.untangle import untangle
@@ -278,11 +278,12 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
     t = time.perf_counter()
     v_final = final.vertices
     untangled, off_surface = 0, np.zeros(0, dtype=np.int64)
+    folds = FoldCheck(fs, vs)  # the source's own folds and areas, for the repair and the metrics
     if params.untangle:
         # matched vertices and landmarks are held where a fold lies off the target (an overhang)
         fitted = final.valid.copy()
         fitted[corr.source.vertices[corr.source.weights > 0]] = True
-        ut = untangle(v_final, fs, vs, lambda p: t_index.query(p).points, rings=params.untangle_rings,
+        ut = untangle(v_final, fs, folds, lambda p: t_index.query(p).points, rings=params.untangle_rings,
                       fitted=fitted, overhang_distance=params.prune_distance_final * NORMALISED_DIAGONAL)
         v_final, untangled, off_surface = ut.vertices, int(ut.moved.sum()), ut.off_surface
         if ut.rounds:
@@ -309,7 +310,7 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
     t = time.perf_counter()
     # measured in the normalised frame (relative distances and fold-overs do not depend on it)
     # with the target index already built
-    metrics = fit_metrics(v_final, fs, vt, ft, vs, target_index=t_index)
+    metrics = fit_metrics(v_final, fs, vt, ft, vs, target_index=t_index, folds=folds)
     metrics["target_bbox_diagonal"] = float(np.linalg.norm(hi - lo))
     seconds["metrics"] = time.perf_counter() - t
     metrics["seconds"] = seconds["total"]

@@ -35,7 +35,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from stimulus_engine.correspondence.laplacian import cotangent_laplacian
-from stimulus_engine.correspondence.metrics import degenerate_triangles, flipped_triangles
+from stimulus_engine.correspondence.metrics import FoldCheck
 from stimulus_engine.mesh_ops import boundary_neighbours, grow_rings, vertex_adjacency
 
 __all__ = ["UntangleResult", "untangle"]
@@ -54,16 +54,10 @@ class UntangleResult:
     off_surface: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
-def _bad_triangles(v: np.ndarray, faces: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    return flipped_triangles(v, faces, reference) | (
-        degenerate_triangles(v, faces, reference) & ~degenerate_triangles(reference, faces, reference)
-    )
-
-
 def untangle(
     vertices: np.ndarray,
     faces: np.ndarray,
-    reference: np.ndarray,
+    reference: np.ndarray | FoldCheck,
     project: Callable[[np.ndarray], np.ndarray],
     rings: int = 2,
     max_rounds: int = 6,
@@ -81,9 +75,10 @@ def untangle(
     vertices : (N, 3) array
         The registered source.
     faces : (F, 3) int array
-    reference : (N, 3) array
+    reference : (N, 3) array or FoldCheck
         The undeformed source (what counts as a fold is decided against it, see
-        :func:`~stimulus_engine.correspondence.metrics.flipped_triangles`).
+        :func:`~stimulus_engine.correspondence.metrics.flipped_triangles`), or a
+        :class:`~stimulus_engine.correspondence.metrics.FoldCheck` of it already made.
     project : callable
         Maps (K, 3) points onto the target surface (closest points).
     rings : int
@@ -114,7 +109,8 @@ def untangle(
     v = np.array(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     n = len(v)
-    if not _bad_triangles(v, faces, reference).any():
+    check = reference if isinstance(reference, FoldCheck) else FoldCheck(faces, reference)
+    if not check.bad(v).any():
         # nothing folded or collapsed: nothing to repair (and no operators to build)
         return UntangleResult(v, np.zeros(n, dtype=bool), 0, 0, 0)
     adjacency = vertex_adjacency(faces, n)
@@ -136,40 +132,40 @@ def untangle(
     # ``v + smooth @ v`` with ``smooth = -D⁻¹ lap``
     deg = lap.diagonal()
     smooth = -(sp.diags(1.0 / np.maximum(deg, 1e-300)) @ lap)
-    before = int(flipped_triangles(v, faces, reference).sum())
+    before = int(check.flipped(v).sum())
     moved = np.zeros(n, dtype=bool)
     overhang = np.zeros(n, dtype=bool)
     rounds = 0
     if fitted is not None:
         # the overhang: re-placed off the target through unfitted vertices only
         v, rounds = _extend_displacement(
-            v, faces, reference, adjacency, np.asarray(fitted, dtype=bool), project, overhang_distance, rings,
+            v, faces, check, adjacency, np.asarray(fitted, dtype=bool), project, overhang_distance, rings,
             membrane_rounds, overhang,
         )
         moved |= overhang
-    v, r = _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_rounds, steps, step, moved)
+    v, r = _relax_rounds(v, faces, check, adjacency, smooth, project, rings, max_rounds, steps, step, moved)
     rounds += r
     membrane = np.zeros(n, dtype=bool)
-    if _bad_triangles(v, faces, reference).any() and membrane_rounds:
+    if check.bad(v).any() and membrane_rounds:
         # the patch cannot lie on the target without folding (a hole rim squeezed onto a
         # closed surface): relax it as a membrane, off the surface ...
         v_m, r_m = _relax_rounds(
-            v, faces, reference, adjacency, smooth, None, rings, membrane_rounds, membrane_steps, step, membrane
+            v, faces, check, adjacency, smooth, None, rings, membrane_rounds, membrane_steps, step, membrane
         )
         rounds += r_m
         # ... then put back onto the target every vertex whose projection folds nothing
         moved |= membrane
-        v, membrane = _reproject_where_flat(v_m, faces, reference, adjacency, membrane, project)
-    after = int(flipped_triangles(v, faces, reference).sum())
+        v, membrane = _reproject_where_flat(v_m, faces, check, adjacency, membrane, project)
+    after = int(check.flipped(v).sum())
     return UntangleResult(v, moved, rounds, before, after, np.flatnonzero(membrane | overhang))
 
 
-def _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_rounds, steps, step, moved):
+def _relax_rounds(v, faces, check, adjacency, smooth, project, rings, max_rounds, steps, step, moved):
     """Rounds of relaxation of the bad triangles' vertices grown by ``rings`` (+1 per round);
     each step projected onto the target by ``project`` (None: left where it lands). Marks the
     relaxed vertices in ``moved``; returns the new vertices and the rounds run."""
     v = v.copy()
-    bad = _bad_triangles(v, faces, reference)
+    bad = check.bad(v)
     rounds = 0
     while bad.any() and rounds < max_rounds:
         seed = np.zeros(len(v), dtype=bool)
@@ -182,11 +178,11 @@ def _relax_rounds(v, faces, reference, adjacency, smooth, project, rings, max_ro
             v[ids] = p if project is None else project(p)
         moved[ids] = True
         rounds += 1
-        bad = _bad_triangles(v, faces, reference)
+        bad = check.bad(v)
     return v, rounds
 
 
-def _extend_displacement(v, faces, reference, adjacency, fitted, project, distance, rings, max_rounds, moved,
+def _extend_displacement(v, faces, check, adjacency, fitted, project, distance, rings, max_rounds, moved,
                          eps=1e-8):
     """Re-place the overhang (see the module docstring): seeds are the bad triangles with no
     ``fitted`` vertex and a vertex more than ``distance`` from the target; the patch, their
@@ -196,8 +192,9 @@ def _extend_displacement(v, faces, reference, adjacency, fitted, project, distan
     with an unfitted vertex is bad, except the bad triangles that were no seeds to begin with
     (they are on the target: the on-surface repair's). Marks the re-placed vertices in
     ``moved``; returns the new vertices and the rounds run."""
+    reference = check.reference
     free = ~fitted
-    bad0 = _bad_triangles(v, faces, reference)
+    bad0 = check.bad(v)
     bad = bad0 & free[faces].all(axis=1)
     if not bad.any():
         return v, 0
@@ -222,15 +219,15 @@ def _extend_displacement(v, faces, reference, adjacency, fitted, project, distan
         v[ids] = reference[ids] + d[ids]
         moved[ids] = True
         rounds += 1
-        bad = _bad_triangles(v, faces, reference) & counted
+        bad = check.bad(v) & counted
     return v, rounds
 
 
-def _reproject_where_flat(v, faces, reference, adjacency, candidates, project, max_iter=20):
+def _reproject_where_flat(v, faces, check, adjacency, candidates, project, max_iter=20):
     """Project the ``candidates`` onto the target, except where that makes a new bad triangle:
     the vertices of such triangles (grown by one ring) stay where they are. Returns the new
     vertices and the mask of the vertices left off the surface."""
-    base_bad = _bad_triangles(v, faces, reference)
+    base_bad = check.bad(v)
     on = v.copy()
     ids = np.flatnonzero(candidates)
     on[ids] = project(v[ids])
@@ -238,7 +235,7 @@ def _reproject_where_flat(v, faces, reference, adjacency, candidates, project, m
     trial = on
     for _ in range(max_iter):
         trial = np.where(off[:, None], v, on)
-        new_bad = _bad_triangles(trial, faces, reference) & ~base_bad
+        new_bad = check.bad(trial) & ~base_bad
         if not new_bad.any():
             break
         seed = np.zeros(len(v), dtype=bool)
