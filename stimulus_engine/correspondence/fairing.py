@@ -76,6 +76,7 @@ def joint_fairing(
     source_laplacian: sp.spmatrix | None = None,
     target_laplacian: sp.spmatrix | None = None,
     tolerance: float = 0.0,
+    areas: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> FairingResult:
     """Fair source and target jointly (eq. 3.7-3.10).
 
@@ -97,6 +98,8 @@ def joint_fairing(
     tolerance : float
         Stop before ``iterations`` once an area update moved no vertex more than this (same
         units as the meshes): the thesis's "no noticeable changes". 0 always runs them all.
+    areas : (source areas, target areas), optional
+        The inputs' Voronoi areas, if already computed (the first solve's weights).
 
     Returns
     -------
@@ -135,8 +138,11 @@ def joint_fairing(
         order = None
     solver = ReusableSolver(order)
     for it in range(max(1, iterations)):
-        a_s = voronoi_areas(x[:ns], source_faces)
-        a_t = voronoi_areas(x[ns:], target_faces)
+        if it == 0 and areas is not None:
+            a_s, a_t = areas
+        else:
+            a_s = voronoi_areas(x[:ns], source_faces)
+            a_t = voronoi_areas(x[ns:], target_faces)
         w1 = lambda1 / (a_s.sum() + a_t.sum())
         inv_a = 1.0 / np.concatenate([a_s, a_t])
         q = bilap @ inv_a  # lower triangle of blockdiag(Lsᵀ As⁻¹ Ls, Ltᵀ At⁻¹ Lt)

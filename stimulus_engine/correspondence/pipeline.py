@@ -110,14 +110,31 @@ def _check_mesh(mesh: trimesh.Trimesh, role: str) -> None:
         )
 
 
+def _near_surface(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, radius: float) -> np.ndarray:
+    """Which points lie within ``radius`` of the surface (not merely of its vertices: a coarse
+    source's vertices are too far apart, and a MediaPipe-sized mesh lost its border).
+
+    The distance to the nearest vertex bounds the surface distance from above, and from below
+    once the longest edge is taken off: only points between the bounds need the exact
+    closest-point search (none, when the target lies on the source)."""
+    from scipy.spatial import cKDTree
+
+    used = np.unique(faces)
+    d_vertex = cKDTree(vertices[used], balanced_tree=False).query(points, workers=-1)[0]
+    edges = vertices[faces] - vertices[np.roll(faces, 1, axis=1)]
+    longest = float(np.sqrt(np.einsum("fkc,fkc->fk", edges, edges).max())) if len(faces) else 0.0
+    near = d_vertex <= radius
+    unsure = ~near & (d_vertex - longest <= radius)
+    if unsure.any():
+        near[unsure] = SurfaceIndex(vertices, faces).query(points[unsure]).distance <= radius
+    return near
+
+
 def _crop(vt: np.ndarray, ft: np.ndarray, vs: np.ndarray, fs: np.ndarray, radius: float, keep_vertices: np.ndarray):
     """Target faces near the source surface (plus those around ``keep_vertices``).
 
     Returns ``(face_ids, vertex_ids)`` of the kept part (vertex ids sorted)."""
-    # the distance to the source's *surface*: a coarse source's vertices are too far apart
-    # for the distance to the nearest vertex (a MediaPipe-sized mesh lost its border)
-    d = SurfaceIndex(vs, fs).query(vt).distance
-    near = d <= radius
+    near = _near_surface(vt, vs, fs, radius)
     # a kept vertex keeps all its triangles (a landmark or tied vertex must not lose its surface)
     keep = np.zeros(len(vt), dtype=bool)
     keep[keep_vertices] = True
@@ -231,14 +248,18 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
     remap[crop_verts] = np.arange(len(crop_verts))
     vt_c, ft_c = vt[crop_verts], remap[ft[crop_faces]]
     corr_c = Correspondences(corr.source, SurfacePoints(remap[corr.target.vertices], corr.target.weights))
-    ls = fairing_operator(vs, fs)
-    lt = fairing_operator(vt_c, ft_c)
+    # the inputs' Voronoi areas serve the operators, the first fairing solve and the final
+    # registration
+    a_vs, a_vt = voronoi_areas(vs, fs), voronoi_areas(vt_c, ft_c)
+    ls = fairing_operator(vs, fs, a_vs)
+    lt = fairing_operator(vt_c, ft_c, a_vt)
     seconds["align"] = time.perf_counter() - t
 
     t = time.perf_counter()
     fair = joint_fairing(
         vs, fs, vt_c, ft_c, corr_c, params.lambda1, params.lambda2, params.lambda3,
         params.fairing_iterations, ls, lt, tolerance=params.converge_tolerance * NORMALISED_DIAGONAL,
+        areas=(a_vs, a_vt),
     )
     seconds["fairing"] = time.perf_counter() - t
     logger.info(
@@ -268,7 +289,7 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
     w = params.final_other_weight
     t_index = SurfaceIndex(vt, ft)
     final = nonrigid_register(
-        vs, fs, ls, voronoi_areas(vs, fs), t_index, corr.source, corr.target.positions(vt),
+        vs, fs, ls, a_vs, t_index, corr.source, corr.target.positions(vt),
         ((w, max(1, params.final_iterations)),), params.final_fit_weight, w,
         Pruning(params.prune_distance_final * NORMALISED_DIAGONAL, params.prune_angle, True),
         fixed_targets=(c_orig, base.valid), ordering=base.ordering, solver=base.solver,
