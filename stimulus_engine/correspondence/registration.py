@@ -166,7 +166,8 @@ def nonrigid_register(
                 c = np.array(c, dtype=np.float64)
                 cp = None
             else:
-                cp = target.query(v)
+                # last iteration's triangles start the search (the vertices moved a little)
+                cp = target.query(v, hint=None if res.closest is None else res.closest.face)
                 ok = prune_mask(v, vertex_normals(v, faces), cp, pruning)
                 if k == 0 or not reuse_mask:
                     valid = ok

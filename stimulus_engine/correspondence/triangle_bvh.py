@@ -57,13 +57,15 @@ class TriangleBVH:
     box_max: np.ndarray
     leaf: int
 
-    def closest(self, points: np.ndarray, fdata: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def closest(self, points: np.ndarray, fdata: np.ndarray, hint: np.ndarray | None = None):
         """The exact closest triangle of each point and its barycentric ``(v, w)``.
 
         ``fdata``: the per-triangle rows of :class:`~.closest.SurfaceIndex` (corner a, ab, ac,
-        ab·ab, ab·ac, ac·ac)."""
+        ab·ab, ab·ac, ac·ac). ``hint`` (Q,): a triangle tried first for each point (-1: none);
+        its distance prunes the walk from the start, so a good guess saves box visits."""
         p = np.ascontiguousarray(points, dtype=np.float64)
-        return _query(p, self.order, self.box_min, self.box_max, self.leaf, fdata)
+        hint = np.full(len(p), -1, dtype=np.int64) if hint is None else np.ascontiguousarray(hint, dtype=np.int64)
+        return _query(p, self.order, self.box_min, self.box_max, self.leaf, fdata, hint)
 
 
 def build_bvh(triangles: np.ndarray, leaf: int = 4) -> TriangleBVH:
@@ -196,9 +198,10 @@ def _box_distance2(box_min: np.ndarray, box_max: np.ndarray, node: int, px: floa
     return d
 
 
-def _query(points, order, box_min, box_max, leaf, fdata):
-    """Nearest box first, pruning boxes farther than the best triangle; ties go to the lower
-    triangle index. Returns ``(face, v, w)``."""
+def _query(points, order, box_min, box_max, leaf, fdata, hint):
+    """Nearest box first, pruning boxes farther than the best triangle (starting from the
+    ``hint`` triangle, where given); ties go to the lower triangle index. Returns
+    ``(face, v, w)``."""
     n = points.shape[0]
     n_nodes = box_min.shape[0]
     first_leaf = n_nodes // 2  # (2P - 1) nodes, P - 1 of them inner
@@ -210,6 +213,9 @@ def _query(points, order, box_min, box_max, leaf, fdata):
     for q in range(n):
         px, py, pz = points[q, 0], points[q, 1], points[q, 2]
         best_f, best_d, best_v, best_w = -1, np.inf, 0.0, 0.0
+        if hint[q] >= 0:
+            best_f = hint[q]
+            best_v, best_w, best_d = _project_one(fdata[best_f], px, py, pz)
         stack[0] = 0
         top = 1
         while top > 0:
