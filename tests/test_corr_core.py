@@ -140,6 +140,9 @@ def test_compiled_hierarchy_is_exact():
     # trimesh's own answer misses the closest triangle by up to 5e-7 on some points
     np.testing.assert_allclose(got.distance, d, atol=1e-6)
     assert (got.distance <= d + 1e-12).all()
+    # a hint (any triangle, near or not) changes where the search starts, not what it finds
+    hinted = SurfaceIndex(m.vertices, m.faces).query(q, hint=rng.integers(-1, len(m.faces), len(q)))
+    np.testing.assert_array_equal(hinted.face, got.face)
     pick = rng.choice(len(q), 400, replace=False)
     np.testing.assert_allclose(got.distance[pick], _brute_distance(m.vertices[m.faces], q[pick]), atol=1e-12)
     near = slice(0, len(m.vertices))
