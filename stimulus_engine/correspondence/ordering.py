@@ -53,6 +53,7 @@ def _dissect(stack: list, coords: np.ndarray, leaf: int) -> np.ndarray:
     tuples to split, or arrays already ordered (a separator, placed after the parts pushed
     after it). The last pushed is ordered first."""
     side = np.zeros(len(coords), dtype=np.int8)
+    by_axis = [np.ascontiguousarray(col) for col in np.asarray(coords).T]  # contiguous per axis
     out: list[np.ndarray] = []
     while stack:
         item = stack.pop()
@@ -63,9 +64,8 @@ def _dissect(stack: list, coords: np.ndarray, leaf: int) -> np.ndarray:
         if len(ids) <= leaf:
             out.append(ids)
             continue
-        c = coords[ids]
-        axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
-        x = c[:, axis]
+        extent = [np.ptp(axis_coords[ids]) for axis_coords in by_axis]
+        x = by_axis[int(np.argmax(extent))][ids]
         left = x <= np.partition(x, len(x) // 2)[len(x) // 2]
         if left.all() or not left.any():
             out.append(ids)
@@ -74,8 +74,9 @@ def _dissect(stack: list, coords: np.ndarray, leaf: int) -> np.ndarray:
         side[ids[~left]] = 2
         si, sj = side[ei], side[ej]
         # the left ends of the couplings across: removing them separates the halves
-        sep = np.unique(np.concatenate([ei[(si == 1) & (sj == 2)], ej[(sj == 1) & (si == 2)]]))
-        side[sep] = 3
+        side[ei[(si == 1) & (sj == 2)]] = 3
+        side[ej[(sj == 1) & (si == 2)]] = 3
+        sep = ids[side[ids] == 3]  # ascending, as ids are
         si, sj = side[ei], side[ej]
         inner = (si != 3) & (sj != 3)
         ei, ej, on_left = ei[inner], ej[inner], si[inner] == 1
