@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -153,14 +153,27 @@ class SurfaceIndex:
         # NumPy path: vertex -> incident faces, padded with -1 (candidates: faces around the 2
         # nearest vertices and the k nearest centroids)
         self._vf = None if self.compiled else vertex_faces(self.faces, len(self.vertices))
-        self.boundary = boundary_edge_mask(self.faces)
-        # the ends of the boundary edges (mesh_ops.boundary_vertex_mask, without counting the
-        # edges again)
-        self.boundary_vertices = np.zeros(len(self.vertices), dtype=bool)
-        for k in range(3):
-            self.boundary_vertices[self.faces[self.boundary[:, k]][:, [(k + 1) % 3, (k + 2) % 3]]] = True
         self._n_faces = len(self.faces)
         self._build()
+
+    @cached_property
+    def boundary(self) -> np.ndarray:
+        """(F, 3) bool: the edge opposite each corner has no neighbouring face."""
+        return boundary_edge_mask(self.faces)
+
+    @cached_property
+    def boundary_vertices(self) -> np.ndarray:
+        """(N,) bool: the ends of the boundary edges (mesh_ops.boundary_vertex_mask, without
+        counting the edges again)."""
+        out = np.zeros(len(self.vertices), dtype=bool)
+        for k in range(3):
+            out[self.faces[self.boundary[:, k]][:, [(k + 1) % 3, (k + 2) % 3]]] = True
+        return out
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) unit normals at the current vertex positions."""
+        return face_normals(self.vertices, self.faces)[0]
 
     def _build(self) -> None:
         tri = self.vertices[self.faces]
@@ -177,7 +190,7 @@ class SurfaceIndex:
         self._fdata = np.concatenate(
             [tri[:, 0], ab, ac, np.einsum("ij,ij->i", ab, ab)[:, None], np.einsum("ij,ij->i", ab, ac)[:, None],
              np.einsum("ij,ij->i", ac, ac)[:, None]], axis=1)
-        self.face_normals = face_normals(self.vertices, self.faces)[0]
+        self.__dict__.pop("face_normals", None)  # computed again when asked for
 
     def update(self, vertices: np.ndarray) -> None:
         """New vertex positions, same triangulation."""
@@ -200,6 +213,15 @@ class SurfaceIndex:
         else:
             parts = [self._query(p[a : a + chunk], hint[a : a + chunk]) for a in range(0, len(p), chunk)]
         return tuple(np.concatenate(x) for x in zip(*parts))
+
+    def distance(self, points: np.ndarray, chunk: int = 65536) -> np.ndarray:
+        """Distance of each of ``points`` (Q, 3) to the surface (what :meth:`query` gives, without
+        its points, flags and normals)."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        face, v, w = self._closest(p, chunk)
+        fd = self._fdata[face]
+        d = fd[:, 0:3] + v[:, None] * fd[:, 3:6] + w[:, None] * fd[:, 6:9] - p
+        return np.sqrt(np.einsum("ij,ij->i", d, d))
 
     def query(self, points: np.ndarray, chunk: int = 65536, hint: np.ndarray | None = None) -> ClosestPoints:
         """Closest surface point for each of ``points`` (Q, 3), with distances, boundary flags

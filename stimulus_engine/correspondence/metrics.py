@@ -15,7 +15,7 @@ def surface_distances(
 ) -> np.ndarray:
     """Distance of each point to the target surface (exact point-triangle distance)."""
     index = index if index is not None else SurfaceIndex(target_vertices, target_faces)
-    return index.query(points).distance
+    return index.distance(points)
 
 
 def _local_folds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
