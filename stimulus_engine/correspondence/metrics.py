@@ -88,12 +88,16 @@ def against_target_triangles(
     target_vertices: np.ndarray,
     target_faces: np.ndarray,
     index: SurfaceIndex | None = None,
+    vertex_faces_hint: np.ndarray | None = None,
 ) -> np.ndarray:
     """Triangles whose normal points against the target's normal at the closest point of their
-    centroid (sensitive to scan noise; reported beside :func:`flipped_triangles`)."""
+    centroid (sensitive to scan noise; reported beside :func:`flipped_triangles`).
+    ``vertex_faces_hint``: each vertex's closest target triangle, if known (the search for a
+    centroid starts at its first corner's)."""
     n, _ = face_normals(vertices, faces)
     index = index if index is not None else SurfaceIndex(target_vertices, target_faces)
-    cp = index.query(vertices[faces].mean(axis=1))
+    hint = None if vertex_faces_hint is None else vertex_faces_hint[np.asarray(faces)[:, 0]]
+    cp = index.query(vertices[faces].mean(axis=1), hint=hint)
     return np.einsum("ij,ij->i", n, cp.normals) < 0
 
 
@@ -125,11 +129,12 @@ def fit_metrics(
     """
     diag = float(np.linalg.norm(np.ptp(target_vertices, axis=0)))
     index = target_index if target_index is not None else SurfaceIndex(target_vertices, target_faces)
-    d_st = surface_distances(vertices, target_vertices, target_faces, index)
+    closest = index.query(vertices)
+    d_st = closest.distance
     d_ts = surface_distances(target_vertices, vertices, faces)
     folds = folds if folds is not None else FoldCheck(faces, reference_vertices)
     flipped = folds.flipped(vertices)
-    against = against_target_triangles(vertices, faces, target_vertices, target_faces, index)
+    against = against_target_triangles(vertices, faces, target_vertices, target_faces, index, closest.face)
     degenerate = folds.degenerate(vertices)
     return {
         "hausdorff_rel": float(d_st.max() / diag),

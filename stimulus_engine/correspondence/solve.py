@@ -251,7 +251,9 @@ class CholmodFactor:
         # cvxopt keeps the values in the same (column-major, sorted) order as a sorted CSC
         # matrix: a refactorisation only replaces them
         self._a = _to_cvxopt(lower)
-        _cholmod_options()
+        # a given ordering is used as it is (callers give nested dissections of meshes): by
+        # default CHOLMOD would also compute AMD to compare, half the symbolic analysis's time
+        _cholmod_options(given=ordering is not None)
         p = None if ordering is None else cmatrix(np.asarray(ordering, dtype=np.int64).tolist(), tc="i")
         self._f = cholmod.symbolic(self._a, p=p) if p is not None else cholmod.symbolic(self._a)
         self.ordering = ordering
@@ -302,11 +304,12 @@ class CholmodFactor:
 Factor = SuperLUFactor | CholmodFactor
 
 
-def _cholmod_options() -> None:
+def _cholmod_options(given: bool = False) -> None:
     from cvxopt import cholmod
 
     cholmod.options["supernodal"] = 2  # always supernodal (BLAS-3 blocks)
     cholmod.options["postorder"] = True
+    cholmod.options["nmethods"] = 1 if given else 0  # the given ordering alone, or CHOLMOD's choice
 
 
 def _lower_csc(matrix: sp.spmatrix) -> sp.csc_matrix:
