@@ -158,11 +158,11 @@ def joint_fairing(
         x_prev = x
         x = solver.solve(solver.make_key(it), lambda h=h: pattern.matrix(h), rhs, near=it >= 2, x0=x,
                          rtol=1e-10 if last else 1e-7)
-        lx = lap @ x
-        res.energies.append(
-            float(w1 * np.einsum("i,ij,ij->", inv_a, lx, lx) + np.einsum("ij,ij->", x, constraint @ x)
-                  - 2 * np.einsum("ij,ij->", x, rhs_c))
-        )
+        # the energy (3.7, without its constant and the Tikhonov pull) at the solution of
+        # H x = b: xᵀ(w1 Q + C)x = xᵀ(b - τx), so E = -xᵀ rhs_c + τ(xᵀx̂ - xᵀx), three dot
+        # products instead of the operator products
+        tau = _TIKHONOV * scale
+        res.energies.append(float(-np.vdot(x, rhs_c) + tau * (np.vdot(x, x_hat) - np.vdot(x, x))))
         if it >= 1 and np.sqrt(np.einsum("ij,ij->i", x - x_prev, x - x_prev).max()) < tolerance:
             break
     res.factorizations = solver.factorizations
