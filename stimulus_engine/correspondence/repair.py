@@ -28,9 +28,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 import trimesh
 
-from stimulus_engine.mesh_ops import argsort_keys, face_normals, vertex_adjacency
+from stimulus_engine.mesh_ops import argsort_keys, face_normals
 
 __all__ = ["RepairedMesh", "repair_mesh", "weld", "consistent_winding", "landmark_pieces"]
 
@@ -113,8 +114,13 @@ def _face_components(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """Connected piece of each face (pieces joined by a shared vertex count as one)."""
     from scipy.sparse.csgraph import connected_components
 
-    _, labels = connected_components(vertex_adjacency(faces, n_vertices), directed=False)
-    return labels[faces[:, 0]]
+    # each triangle's edges once, one way: connected_components(directed=False) reads the
+    # graph as undirected (no symmetrised adjacency to build)
+    f = np.asarray(faces, dtype=np.int64)
+    rows, cols = f.ravel(), f[:, [1, 2, 0]].ravel()
+    graph = sp.csr_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n_vertices, n_vertices))
+    _, labels = connected_components(graph, directed=False)
+    return labels[f[:, 0]]
 
 
 def _wound_consistently(faces: np.ndarray) -> bool:
@@ -141,7 +147,7 @@ def consistent_winding(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarr
         trimesh.repair.fix_winding(mesh)
         wound = np.asarray(mesh.faces, dtype=np.int64)
     v = np.asarray(vertices, dtype=np.float64)
-    centre = v[wound].mean(axis=1)
+    centre = (v[wound[:, 0]] + v[wound[:, 1]] + v[wound[:, 2]]) / 3.0
     normal, area = face_normals(v, wound)
     normal_area = normal * area[:, None]
     labels = _face_components(wound, len(vertices)) if labels is None else labels
@@ -184,7 +190,7 @@ def repair_mesh(vertices: np.ndarray, faces: np.ndarray, keep_vertices: np.ndarr
     if keep_vertices is not None:
         ok &= landmark_pieces(welded, f, vmap[np.asarray(keep_vertices, dtype=np.int64)], labels)
     face_ids = np.flatnonzero(ok)
-    used = np.unique(f[face_ids])
+    used = np.flatnonzero(np.bincount(f[face_ids].ravel(), minlength=len(welded)))
     compact = np.full(len(welded), -1, dtype=np.int64)
     compact[used] = np.arange(len(used))
     kept = compact[f[face_ids]]
