@@ -415,6 +415,9 @@ def test_bilaplacian_map_on_a_fixed_pattern(backend):
     pattern, m = bilaplacian_map(op, extra)
     areas = voronoi_areas(v, f)
     pos, val = pattern.positions(extra)
+    # the positions recorded while the pattern was built are those a lookup finds
+    np.testing.assert_array_equal(pattern.matrix_positions[0][0], pos)
+    np.testing.assert_array_equal(pattern.matrix_positions[0][1], val)
     values = m @ (1.0 / areas)
     values[pos] += val
     values[pattern.diagonal] += 1e-3

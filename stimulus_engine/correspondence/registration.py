@@ -150,8 +150,7 @@ def nonrigid_register(
         r_pos, r_val = pattern.positions(ref_h)
     except ValueError:
         pattern = solver.pattern = LowerPattern(n, q, ref_h)
-        q_pos, q_val = pattern.positions(q)
-        r_pos, r_val = pattern.positions(ref_h)
+        (q_pos, q_val), (r_pos, r_val) = pattern.matrix_positions
     call = next(_CALLS)  # a solver handed on must not take this call's matrices for its last
     v = v_hat.copy()
     res = RegistrationResult(v, None, np.zeros(n, dtype=bool))

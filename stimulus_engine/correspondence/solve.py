@@ -108,8 +108,10 @@ class LowerPattern:
         self.n = int(n)
         rows = [np.arange(self.n, dtype=np.int64)]  # the diagonal
         cols = [rows[0]]
+        lowers = []
         for m in matrices:
             lower = _lower_csc(m)
+            lowers.append(lower)
             rows.append(lower.indices.astype(np.int64))
             cols.append(np.repeat(np.arange(self.n, dtype=np.int64), np.diff(lower.indptr)))
         n_given = sum(len(r) for r in rows)
@@ -125,6 +127,12 @@ class LowerPattern:
         inverse[order] = np.cumsum(first) - 1
         #: positions of ``entries`` in the pattern
         self.entry_positions = inverse[n_given:]
+        #: ``(positions, values)`` of each of ``matrices``' lower entries (as :meth:`positions`)
+        self.matrix_positions = []
+        at = self.n
+        for lower in lowers:
+            self.matrix_positions.append((inverse[at : at + lower.nnz], lower.data.copy()))
+            at += lower.nnz
         col = self._key // self.n
         self.indices = (self._key - col * self.n).astype(np.int64)
         self.indptr = np.searchsorted(col, np.arange(self.n + 1)).astype(np.int64)
