@@ -77,16 +77,26 @@ def build_bvh(triangles: np.ndarray, leaf: int = 4) -> TriangleBVH:
     n_leaves = max(1, -(-n // leaf))
     size = 1 << int(np.ceil(np.log2(n_leaves)))  # leaves of the complete tree
     order = _median_order((a + b + c) / 3.0, size, leaf)
-    pad = size * leaf - n
-    # leaf boxes: the union of their triangles' boxes (padding is an inverted, empty box)
-    lo_s = np.concatenate([lo[order], np.full((pad, 3), np.inf)]).reshape(size, leaf, 3).min(axis=1)
-    hi_s = np.concatenate([hi[order], np.full((pad, 3), -np.inf)]).reshape(size, leaf, 3).max(axis=1)
+    # leaf boxes: the union of their triangles' boxes, slot by slot (padding is an inverted,
+    # empty box)
+    lo_s, hi_s = _leaf_union(lo[order], size, leaf, np.inf, np.minimum), _leaf_union(hi[order], size, leaf, -np.inf, np.maximum)
     levels_min, levels_max = [lo_s], [hi_s]
     while len(levels_min[-1]) > 1:  # parents: unions of consecutive pairs
         levels_min.append(np.minimum(levels_min[-1][0::2], levels_min[-1][1::2]))
         levels_max.append(np.maximum(levels_max[-1][0::2], levels_max[-1][1::2]))
     # heap order: the root first, each level after its parents
     return TriangleBVH(order, np.concatenate(levels_min[::-1]), np.concatenate(levels_max[::-1]), leaf)
+
+
+def _leaf_union(values: np.ndarray, size: int, leaf: int, fill: float, union) -> np.ndarray:
+    """``union`` (np.minimum or np.maximum) of each run of ``leaf`` rows of ``values``, padded
+    with ``fill`` to ``size`` runs."""
+    padded = np.full((size * leaf, values.shape[1]), fill)
+    padded[: len(values)] = values
+    out = padded[0::leaf].copy()
+    for k in range(1, leaf):
+        union(out, padded[k::leaf], out=out)
+    return out
 
 
 def _median_order(centre: np.ndarray, size: int, leaf: int) -> np.ndarray:
