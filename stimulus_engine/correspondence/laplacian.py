@@ -51,7 +51,10 @@ def _triangle_terms(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
     cross = np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
     twice_area = np.sqrt(np.einsum("cf,cf->f", cross, cross))
     # corner k's edges: v_{k+1} - v_k = e_{k+2} and v_{k+2} - v_k = -e_{k+1}
-    dot = -np.einsum("ckf,ckf->kf", e[:, [2, 0, 1]], e[:, [1, 2, 0]])
+    dot = np.empty_like(l2)
+    for k in range(3):  # row by row: no (3, 3, F) copies for the fancy-indexed einsum
+        u, w = e[:, (k + 2) % 3], e[:, (k + 1) % 3]
+        dot[k] = -(u[0] * w[0] + u[1] * w[1] + u[2] * w[2])
     cot = np.clip(dot / np.maximum(twice_area, 1e-300), -COT_CLAMP, COT_CLAMP)
     return l2, cot, twice_area
 
