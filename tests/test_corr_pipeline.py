@@ -122,6 +122,32 @@ def test_fairing_energy_is_the_energy_of_eq_3_7():
     assert res.energies[0] == pytest.approx(energy, rel=1e-6)
 
 
+def test_registration_on_the_fairing_map_equals_the_plain_one():
+    """The registration's matrices from the fairing's bi-Laplacian map (no sparse products) are
+    the ones it builds itself: the same registered vertices."""
+    from stimulus_engine.correspondence.closest import SurfaceIndex
+    from stimulus_engine.correspondence.laplacian import fairing_operator, voronoi_areas
+    from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
+
+    src, tgt, corr = synthetic_pair(400, 300, texture_size=16)
+    xs, xt = np.asarray(src.vertices, float), np.asarray(tgt.vertices, float)
+    ls = fairing_operator(xs, src.faces)
+    fair = joint_fairing(xs, src.faces, xt, tgt.faces, corr, iterations=2, source_laplacian=ls)
+    assert fair.source_bilaplacian is not None
+    args = (xs, np.asarray(src.faces), ls, voronoi_areas(xs, src.faces), SurfaceIndex(xt, tgt.faces), corr.source,
+            corr.target.positions(xt))
+    # one solve per stiffness (later closest-point rounds amplify 1e-13 differences into
+    # other pruning decisions at the thresholds)
+    kw = dict(schedule=((10.0, 1),), pruning=Pruning(2.0, 60.0, True))
+    plain = nonrigid_register(*args, **kw)
+    mapped = nonrigid_register(*args, **kw, bilaplacian_map=fair.source_bilaplacian)
+    assert mapped.solver.pattern is fair.source_bilaplacian[0]
+    np.testing.assert_allclose(mapped.vertices, plain.vertices, atol=1e-10)
+    kw = dict(schedule=((0.1, 1),), pruning=Pruning(2.0, 60.0, True))  # softer: the bi-Laplacian weighs less
+    np.testing.assert_allclose(nonrigid_register(*args, **kw, bilaplacian_map=fair.source_bilaplacian).vertices,
+                               nonrigid_register(*args, **kw).vertices, atol=1e-10)
+
+
 def test_texture_transfer_carries_target_features(pair):
     src, tgt, corr, res = pair
     dm = deformed_mesh(src, res.vertices)

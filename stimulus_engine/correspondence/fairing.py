@@ -61,6 +61,11 @@ class FairingResult:
     #: a fill-reducing ordering of the source's unknowns (nested dissection), for the
     #: registration's matrices on the same mesh; None if the solver chose its own
     source_ordering: np.ndarray | None = None
+    #: the source block of the bi-Laplacian map (:func:`~.laplacian.bilaplacian_map`):
+    #: ``(pattern, M)`` with ``M @ (1 / areas)`` the lower triangle of ``Lsᵀ A⁻¹ Ls`` on
+    #: ``pattern`` (which also holds the reference points' couplings): the registration's
+    #: matrices on the same mesh, without sparse products
+    source_bilaplacian: tuple | None = None
 
 
 def joint_fairing(
@@ -129,6 +134,8 @@ def joint_fairing(
     diag = pattern.diagonal
     x = x_hat.copy()
     res = FairingResult(xs, xt)
+    block, inside = pattern.leading(ns)
+    res.source_bilaplacian = (block, bilap[inside][:, :ns])
     # the target's reference unknowns last, each mesh by nested dissection before them
     coupled = ns + np.unique(corr.target.vertices[corr.target.weights != 0])
     if len(coupled) <= _MAX_COUPLED * np.sqrt(ns + nt):

@@ -275,6 +275,7 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
         corr.source, corr_c.target.positions(fair.target), params.schedule, params.mu2, params.mu3,
         Pruning(params.prune_distance_base * NORMALISED_DIAGONAL, params.prune_angle, True),
         tolerance=params.converge_tolerance * NORMALISED_DIAGONAL, ordering=fair.source_ordering,
+        bilaplacian_map=fair.source_bilaplacian,
     )
     seconds["register_base"] = time.perf_counter() - t
     logger.info(
@@ -293,6 +294,7 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
         ((w, max(1, params.final_iterations)),), params.final_fit_weight, w,
         Pruning(params.prune_distance_final * NORMALISED_DIAGONAL, params.prune_angle, True),
         fixed_targets=(c_orig, base.valid), ordering=base.ordering, solver=base.solver,
+        bilaplacian_map=fair.source_bilaplacian,
     )
     seconds["register_original"] = time.perf_counter() - t
 

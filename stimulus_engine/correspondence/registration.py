@@ -87,6 +87,7 @@ def nonrigid_register(
     ordering: np.ndarray | None = None,
     tolerance: float = 0.0,
     solver: ReusableSolver | None = None,
+    bilaplacian_map: tuple | None = None,
 ) -> RegistrationResult:
     """Deform ``start`` onto ``target`` (eq. 3.11-3.13).
 
@@ -127,10 +128,14 @@ def nonrigid_register(
     solver : ReusableSolver, optional
         ``RegistrationResult.solver`` of an earlier registration of the same mesh (same faces
         and reference points): its symbolic factorisation and matrix pattern are reused.
+    bilaplacian_map : (LowerPattern, sparse M), optional
+        ``laplacian``'s bi-Laplacian as a map from inverse areas to values on a pattern that
+        also holds the reference points' couplings (the joint fairing's source block,
+        :attr:`~.fairing.FairingResult.source_bilaplacian`): the matrices without sparse
+        products or lookups.
     """
     v_hat = np.asarray(start, dtype=np.float64)
     n = len(v_hat)
-    q = bilaplacian(laplacian, areas)
     w_area = 1.0 / areas.sum()
     cs = ref_source.matrix(n)
     m = max(len(ref_source), 1)
@@ -138,25 +143,35 @@ def nonrigid_register(
     ref_rhs = (mu3 / m) * (cs.T @ ref_target)
     if solver is None:
         solver = ReusableSolver(ordering)
-    if solver.ordering is None and solver.backend == "superlu":
-        solver.ordering = nested_dissection(q, v_hat)
     # one sparsity pattern for every matrix of the schedule (and of a later registration of the
     # same mesh): each factorisation only sets values, no sparse sums or conversions
-    pattern = solver.pattern
-    try:
-        if pattern is None or pattern.n != n:
-            raise ValueError
-        q_pos, q_val = pattern.positions(q)
-        r_pos, r_val = pattern.positions(ref_h)
-    except ValueError:
-        pattern = solver.pattern = LowerPattern(n, q, ref_h)
-        (q_pos, q_val), (r_pos, r_val) = pattern.matrix_positions
+    q_pos, q_val, pattern = None, None, solver.pattern
+    if bilaplacian_map is not None and (pattern is None or pattern is bilaplacian_map[0]):
+        try:
+            r_pos, r_val = bilaplacian_map[0].positions(ref_h)
+            pattern = solver.pattern = bilaplacian_map[0]
+            q_pos, q_val = np.arange(pattern.nnz), bilaplacian_map[1] @ (1.0 / areas)
+        except ValueError:  # the couplings are not in the map's pattern
+            pattern = solver.pattern
+    if q_pos is None:
+        q = bilaplacian(laplacian, areas)
+        try:
+            if pattern is None or pattern.n != n:
+                raise ValueError
+            q_pos, q_val = pattern.positions(q)
+            r_pos, r_val = pattern.positions(ref_h)
+        except ValueError:
+            pattern = solver.pattern = LowerPattern(n, q, ref_h)
+            (q_pos, q_val), (r_pos, r_val) = pattern.matrix_positions
+    if solver.ordering is None and solver.backend == "superlu":
+        solver.ordering = nested_dissection(pattern.matrix(np.ones(pattern.nnz)).lower(), v_hat)
     call = next(_CALLS)  # a solver handed on must not take this call's matrices for its last
     v = v_hat.copy()
     res = RegistrationResult(v, None, np.zeros(n, dtype=bool))
     it = 0
     c = v_hat.copy()
-    q_vhat = q @ v_hat
+    lap = sp.csr_matrix(laplacian)
+    q_vhat = lap.T @ ((lap @ v_hat) / areas[:, None])  # Lᵀ A⁻¹ L v̂
     for mu1, n_iter in schedule:
         q_rhs = (mu1 * w_area) * q_vhat
         for k in range(n_iter):

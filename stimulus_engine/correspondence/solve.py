@@ -122,7 +122,7 @@ class LowerPattern:
         order = _column_major_order(r, c, self.n)
         k = (c * self.n + r)[order]
         first = np.concatenate([[True], k[1:] != k[:-1]])
-        self._key = k[first]
+        self._set_keys(k[first])
         inverse = np.empty(len(k), dtype=np.int64)
         inverse[order] = np.cumsum(first) - 1
         #: positions of ``entries`` in the pattern
@@ -133,11 +133,28 @@ class LowerPattern:
         for lower in lowers:
             self.matrix_positions.append((inverse[at : at + lower.nnz], lower.data.copy()))
             at += lower.nnz
+
+    def _set_keys(self, key: np.ndarray) -> None:
+        """The structure from sorted, distinct keys ``column * n + row``."""
+        self._key = key
         col = self._key // self.n
         self.indices = (self._key - col * self.n).astype(np.int64)
         self.indptr = np.searchsorted(col, np.arange(self.n + 1)).astype(np.int64)
         self.diagonal = self.indptr[:-1]  # the diagonal is the first entry of each column
         self.nnz = len(self._key)
+
+    def leading(self, m: int) -> tuple["LowerPattern", np.ndarray]:
+        """The pattern of the leading ``m`` x ``m`` block, and the positions of its entries in
+        this pattern (in the block pattern's order)."""
+        col = self._key // self.n
+        row = self._key - col * self.n
+        inside = np.flatnonzero((row < m) & (col < m))
+        block = object.__new__(LowerPattern)
+        block.n = int(m)
+        block._set_keys(col[inside] * m + row[inside])
+        block.entry_positions = np.zeros(0, dtype=np.int64)
+        block.matrix_positions = []
+        return block, inside
 
     def _keys(self, lower: sp.csc_matrix) -> np.ndarray:
         col = np.repeat(np.arange(lower.shape[1], dtype=np.int64), np.diff(lower.indptr))
