@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 from stimulus_engine.correspondence.closest import SurfaceIndex
@@ -67,15 +69,29 @@ class FoldCheck:
         self._folds = _local_folds(self.reference, self.faces)
         self._area = face_normals(self.reference, self.faces)[1]
         self._collapsed = self._area <= 1e-300  # already degenerate in the reference
+        self._last: tuple = (None, None, None, None)  # (digest, local folds, normals, areas)
+
+    def _of(self, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Local folds, face normals and areas of ``vertices``, kept for the same positions
+        (the repair's last check and the metrics look at the same final vertices)."""
+        v = np.ascontiguousarray(vertices, dtype=np.float64)
+        digest = hashlib.blake2b(v.data, digest_size=16).digest()
+        if digest != self._last[0]:
+            self._last = (digest, _local_folds(v, self.faces), *face_normals(v, self.faces))
+        return self._last[1:]
 
     def flipped(self, vertices: np.ndarray) -> np.ndarray:
         """:func:`flipped_triangles` against the reference."""
-        return _local_folds(vertices, self.faces) & ~self._folds
+        return self._of(vertices)[0] & ~self._folds
 
     def degenerate(self, vertices: np.ndarray) -> np.ndarray:
         """:func:`degenerate_triangles` against the reference."""
-        _, a = face_normals(vertices, self.faces)
+        a = self._of(vertices)[2]
         return (a <= self.rel * np.maximum(self._area, 1e-300)) | (a <= 1e-300)
+
+    def normals(self, vertices: np.ndarray) -> np.ndarray:
+        """Unit face normals of ``vertices``."""
+        return self._of(vertices)[1]
 
     def bad(self, vertices: np.ndarray) -> np.ndarray:
         """Folded, or collapsed where the reference was not."""
@@ -89,12 +105,13 @@ def against_target_triangles(
     target_faces: np.ndarray,
     index: SurfaceIndex | None = None,
     vertex_faces_hint: np.ndarray | None = None,
+    normals: np.ndarray | None = None,
 ) -> np.ndarray:
     """Triangles whose normal points against the target's normal at the closest point of their
     centroid (sensitive to scan noise; reported beside :func:`flipped_triangles`).
     ``vertex_faces_hint``: each vertex's closest target triangle, if known (the search for a
-    centroid starts at its first corner's)."""
-    n, _ = face_normals(vertices, faces)
+    centroid starts at its first corner's); ``normals``: the triangles' unit normals, if known."""
+    n = face_normals(vertices, faces)[0] if normals is None else normals
     index = index if index is not None else SurfaceIndex(target_vertices, target_faces)
     hint = None if vertex_faces_hint is None else vertex_faces_hint[np.asarray(faces)[:, 0]]
     cp = index.query(vertices[faces].mean(axis=1), hint=hint)
@@ -134,7 +151,8 @@ def fit_metrics(
     d_ts = surface_distances(target_vertices, vertices, faces)
     folds = folds if folds is not None else FoldCheck(faces, reference_vertices)
     flipped = folds.flipped(vertices)
-    against = against_target_triangles(vertices, faces, target_vertices, target_faces, index, closest.face)
+    against = against_target_triangles(vertices, faces, target_vertices, target_faces, index, closest.face,
+                                       folds.normals(vertices))
     degenerate = folds.degenerate(vertices)
     return {
         "hausdorff_rel": float(d_st.max() / diag),
