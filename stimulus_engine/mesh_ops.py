@@ -55,10 +55,18 @@ __all__ = [
 ]
 
 
+def _face_cross_rows(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(3, F) cross products ``(b - a) x (c - a)`` (twice the area, along the normal), one
+    coordinate per row: the same numbers as ``np.cross`` on (F, 3) rows, in a third of its time
+    (contiguous rows instead of strided columns)."""
+    p = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)[:, np.asarray(faces).T]  # (xyz, corner, F)
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def _face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F, 3) cross products ``(b - a) x (c - a)`` (twice the area, along the normal)."""
-    v = vertices[faces]
-    return np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    return _face_cross_rows(vertices, faces).T
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -68,7 +76,7 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, n
     """
     n = _face_cross(vertices, faces)
     area = 0.5 * np.linalg.norm(n, axis=1)
-    return n / np.maximum(2 * area[:, None], 1e-300), area
+    return np.ascontiguousarray(n / np.maximum(2 * area[:, None], 1e-300)), area
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -77,12 +85,14 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     The sum of the cross products of the triangles around each vertex, normalised (see the
     module notes for why not trimesh's angle-weighted ``vertex_normals``).
     """
-    fn = _face_cross(vertices, faces)
-    n = np.zeros_like(vertices)
+    fn = _face_cross_rows(vertices, faces)
+    corners = np.ascontiguousarray(np.asarray(faces).T)
+    n = np.zeros((3, len(vertices)))
     for k in range(3):
         for d in range(3):
-            n[:, d] += np.bincount(faces[:, k], weights=fn[:, d], minlength=len(vertices))
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+            n[d] += np.bincount(corners[k], weights=fn[d], minlength=len(vertices))
+    n = n.T
+    return np.ascontiguousarray(n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300))
 
 
 def edge_keys(faces: np.ndarray) -> np.ndarray:
