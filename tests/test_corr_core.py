@@ -316,6 +316,11 @@ def test_direct_solvers_agree_and_refactorise(backend):
     x = f.solve(b)
     np.testing.assert_allclose(h @ x, b, atol=1e-9)
     np.testing.assert_allclose(f.solve(b[:, 0]), x[:, 0], atol=1e-12)  # one right-hand side
+    # columns solved together (CHOLMOD: its sparse-right-hand-side solve), zero columns too
+    b0 = b.copy()
+    b0[:, 1] = 0.0
+    np.testing.assert_allclose(f.solve(b0), np.stack([f.solve(c) for c in b0.T], axis=1), atol=1e-12)
+    assert (f.solve(np.zeros_like(b)) == 0).all()
     # same pattern, new values: refactorised (CHOLMOD: numerically, in place)
     h2 = (h + sp.diags(np.linspace(1.0, 2.0, len(v)))).tocsr()
     f2 = f.refactor(h2)
