@@ -40,7 +40,7 @@ import numpy as np
 # Plain pyrender on purpose, without the package: it has to run on a lent GPU machine where
 # the package cannot be installed, and the package's own pyrender set-up
 # (stimulus_engine/render/_pyrender.py, the project's one place for the np.infty alias) also
-# changes the shadow pass (204 ms here becomes 504 ms: filtered maps), so the platforms would
+# patches the shadow pass (with it, this loop's shadowed images took 504 ms here, not 204), so the platforms would
 # not be compared on the same work. Hence pyrender 0.1.45's np.infty, aliased here too.
 if not hasattr(np, "infty"):
     np.infty = np.inf
