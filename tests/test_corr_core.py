@@ -18,7 +18,7 @@ from stimulus_engine.correspondence import (
     reorder_landmarks,
     umeyama,
 )
-from stimulus_engine.correspondence.closest import SurfaceIndex, closest_point_on_triangles, project_to_triangles
+from stimulus_engine.correspondence.closest import SurfaceIndex, closest_point_on_triangles
 from stimulus_engine.correspondence.landmark_sets import landmark_orderings
 from stimulus_engine.correspondence.laplacian import (
     bilaplacian,
