@@ -139,7 +139,7 @@ def joint_fairing(
     # the target's reference unknowns last, each mesh by nested dissection before them
     coupled = ns + np.unique(corr.target.vertices[corr.target.weights != 0])
     if len(coupled) <= _MAX_COUPLED * np.sqrt(ns + nt):
-        order = coupled_ordering(pattern.matrix(np.ones(pattern.nnz)).lower(), x_hat, ns, coupled)
+        order = coupled_ordering(pattern.structure(), x_hat, ns, coupled)
         res.source_ordering = order[:ns]
     else:
         order = None

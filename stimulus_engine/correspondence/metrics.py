@@ -68,7 +68,7 @@ class FoldCheck:
         self.rel = rel
         self._folds = _local_folds(self.reference, self.faces)
         self._area = face_normals(self.reference, self.faces)[1]
-        self._collapsed = self._area <= 1e-300  # already degenerate in the reference
+        self._collapsed = _shrunk(self._area, self._area, rel)  # already degenerate in the reference
         self._last: tuple = (None, None, None, None)  # (digest, local folds, normals, areas)
 
     def _of(self, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -86,8 +86,7 @@ class FoldCheck:
 
     def degenerate(self, vertices: np.ndarray) -> np.ndarray:
         """:func:`degenerate_triangles` against the reference."""
-        a = self._of(vertices)[2]
-        return (a <= self.rel * np.maximum(self._area, 1e-300)) | (a <= 1e-300)
+        return _shrunk(self._of(vertices)[2], self._area, self.rel)
 
     def normals(self, vertices: np.ndarray) -> np.ndarray:
         """Unit face normals of ``vertices``."""
@@ -121,9 +120,12 @@ def against_target_triangles(
 def degenerate_triangles(vertices: np.ndarray, faces: np.ndarray, reference_vertices: np.ndarray, rel: float = 1e-4) -> np.ndarray:
     """Triangles whose area shrank below ``rel`` times their area in ``reference_vertices``
     (or whose area is zero). Returns a boolean mask (F,)."""
-    _, a = face_normals(vertices, faces)
-    _, a0 = face_normals(reference_vertices, faces)
-    return (a <= rel * np.maximum(a0, 1e-300)) | (a <= 1e-300)
+    return _shrunk(face_normals(vertices, faces)[1], face_normals(reference_vertices, faces)[1], rel)
+
+
+def _shrunk(area: np.ndarray, reference_area: np.ndarray, rel: float) -> np.ndarray:
+    """Triangles whose ``area`` is below ``rel`` times their reference area, or zero."""
+    return (area <= rel * np.maximum(reference_area, 1e-300)) | (area <= 1e-300)
 
 
 def fit_metrics(

@@ -164,7 +164,7 @@ def nonrigid_register(
             pattern = solver.pattern = LowerPattern(n, q, ref_h)
             (q_pos, q_val), (r_pos, r_val) = pattern.matrix_positions
     if solver.ordering is None and solver.backend == "superlu":
-        solver.ordering = nested_dissection(pattern.matrix(np.ones(pattern.nnz)).lower(), v_hat)
+        solver.ordering = nested_dissection(pattern.structure(), v_hat)
     call = next(_CALLS)  # a solver handed on must not take this call's matrices for its last
     v = v_hat.copy()
     res = RegistrationResult(v, None, np.zeros(n, dtype=bool))

@@ -169,6 +169,10 @@ class LowerPattern:
             raise ValueError("matrix has entries outside the pattern")
         return pos, lower.data.copy()
 
+    def structure(self) -> sp.csc_matrix:
+        """The pattern as a lower-triangular matrix of ones (for orderings)."""
+        return self.matrix(np.ones(self.nnz)).lower()
+
     def matrix(self, values: np.ndarray) -> "LowerMatrix":
         return LowerMatrix(self, np.asarray(values, dtype=np.float64))
 

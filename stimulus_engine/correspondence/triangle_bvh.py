@@ -3,9 +3,9 @@
 The triangles are grouped, ``leaf`` at a time, into the leaves of an implicit complete binary
 tree (node ``i`` has children ``2i + 1`` and ``2i + 2``): each node's triangles are split at
 the median of their centroids along the widest axis (a selection, not a sort), so the tree is
-balanced and its boxes tight. Each node keeps the bounding box of its triangles. A query walks the tree nearest box first and
-skips every box farther than the best triangle found so far, so the answer is the exact
-closest point (Ericson, *Real-Time Collision Detection*, 5.1.5, with the region rules of
+balanced and its boxes tight. Each node keeps the bounding box of its triangles. A query walks
+the tree nearest box first and skips every box farther than the best triangle found so far, so
+the answer is the exact closest point (Ericson, *Real-Time Collision Detection*, 5.1.5, with the region rules of
 :func:`~.closest.project_to_triangles`), wherever the point lies.
 
 Building takes a few milliseconds (compiled selections, then box unions level by level);
