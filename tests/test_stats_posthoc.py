@@ -81,7 +81,28 @@ def test_main_effect_uses_its_own_error_term():
     ours = _run(W2, "A")
     n_per_mean = 8 * 4  # subjects x levels of B
     assert np.allclose(ours.se, np.sqrt(2 * mse / n_per_mean), rtol=1e-12)
-    assert np.all(ours.df == row.den_df)
+    assert np.all(ours.df == row.den_df)  # one stratum: its df is a count, given exactly
+
+
+def test_one_stratum_df_is_its_count_exactly():
+    """A function of one error stratum gets that stratum's df exactly, not var^2/(var^2/df) rounded.
+
+    With these numbers the Satterthwaite formula gives 13.999999999999998 in floating point.
+    Two strata keep the Satterthwaite df (compared with a stated tolerance).
+    """
+    from types import SimpleNamespace
+
+    from analysis.stats.posthoc import _variance
+
+    fit = SimpleNamespace(error_ms={0: 9.127555772777217, 1: 2.0}, error_df={0: 14.0, 1: 42.0},
+                          mask=np.array([0, 1, 1]))
+    one = np.array([[[1.0, 0.0, 0.0]]])  # stratum 0 only
+    both = np.array([[[1.0, 1.0, 0.0]]])
+    var, df = _variance(fit, one, np.ones(1))
+    assert df[0] == 14.0 and var[0] == 9.127555772777217
+    var, df = _variance(fit, both, np.ones(1))
+    v = np.array([9.127555772777217, 2.0])
+    assert np.isclose(df[0], v.sum() ** 2 / (v**2 / [14.0, 42.0]).sum(), rtol=1e-12, atol=0)
 
 
 @pytest.mark.parametrize("method", ["holm", "bonferroni"])

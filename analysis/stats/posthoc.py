@@ -79,6 +79,12 @@ def _variance(fit: AnovaFit, T: np.ndarray, n_g: np.ndarray) -> tuple[np.ndarray
     var = v.sum(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         df = var**2 / (v**2 / dfs).sum(axis=1)
+    # A function of one stratum alone (every within main effect, every between one) has that
+    # stratum's error df, a count: give it exactly, not var² / (var² / df) rounded (14.000000000000002).
+    # Strata contributing under 1e-12 of the variance change the Satterthwaite df by < 1e-24.
+    used = v > 1e-12 * var[:, None]
+    alone = used.sum(axis=1) == 1
+    df[alone] = dfs[used[alone].argmax(axis=1)]
     return var, df
 
 
