@@ -10,11 +10,9 @@ bounded by one subject); :func:`process_subjects` maps it over the recordings wi
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
@@ -22,48 +20,11 @@ from appeal.parallel import parallel_map
 
 from analysis.erp.config import EventMap, event_map, find_recordings, subject_id
 from analysis.erp.report import ErpOutputs, write_erp_outputs
+from analysis.erp.results import ErpResult, SubjectResult
 from analysis.erp_schema import ErpConfig
 
 __all__ = ["SubjectResult", "ErpResult", "process_subject", "process_subjects", "preprocess", "run_erp",
            "resolve_components"]
-
-
-@dataclass
-class SubjectResult:
-    """What one subject gives back: QC numbers, measures, cell averages and source maps."""
-
-    subject: str
-    path: str
-    qc: dict
-    amplitudes: pd.DataFrame
-    evokeds: dict  # cell -> ndarray (n_channels, n_times), volts
-    n_trials: dict  # cell -> int
-    info: object  # mne.Info of the EEG channels
-    times: np.ndarray
-    source_maps: dict = field(default_factory=dict)  # (component, level) -> ndarray (n_vox,)
-
-
-@dataclass
-class ErpResult:
-    """All subjects: tables ready for statistics and figures."""
-
-    subjects: list[SubjectResult]
-    failures: list  # appeal.parallel.ItemFailure
-    emap: EventMap
-    head: object = None
-
-    @property
-    def amplitudes(self) -> pd.DataFrame:
-        """``amplitudes.csv``: subject, factor columns, component, cluster, measures, n_trials."""
-        if not self.subjects:
-            return pd.DataFrame()
-        return pd.concat([s.amplitudes.assign(subject=s.subject) for s in self.subjects], ignore_index=True)[
-            ["subject", *self.subjects[0].amplitudes.columns]]
-
-    @property
-    def qc(self) -> pd.DataFrame:
-        """One row per subject: channels interpolated, trials rejected, trials per cell."""
-        return pd.DataFrame([{"subject": s.subject, **s.qc} for s in self.subjects])
 
 
 def resolve_components(cfg: ErpConfig, ch_names: list[str], source: str = "config") -> dict:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -12,10 +11,9 @@ import pandas as pd
 from appeal.atomic import atomic_write_text
 from appeal.logs import logger
 
+from analysis.erp.results import ErpResult
 from analysis.erp_schema import ErpConfig
 
-if TYPE_CHECKING:  # annotations only: the pipeline imports this module to write its outputs
-    from analysis.erp.pipeline import ErpResult
 
 __all__ = ["ErpOutputs", "grand_averages", "level_peaks", "source_contrasts", "write_erp_outputs"]
 
