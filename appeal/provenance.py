@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import platform
+import re
 import subprocess
 import sys
 from collections.abc import Iterable
@@ -15,7 +16,8 @@ from typing import Any
 
 from appeal.atomic import atomic_write_text
 
-__all__ = ["file_sha256", "package_versions", "git_describe", "provenance_record", "write_provenance", "now_iso"]
+__all__ = ["constraints_status", "read_constraints", "file_sha256", "package_versions", "git_describe", "provenance_record",
+           "write_provenance", "now_iso"]
 
 #: Packages whose versions every provenance record lists (when installed).
 TRACKED_PACKAGES = (
@@ -47,6 +49,46 @@ def package_versions(names: Iterable[str] = TRACKED_PACKAGES) -> dict[str, str |
         except metadata.PackageNotFoundError:
             out[name] = None
     return out
+
+
+#: The pins ``make`` installs from: the versions the test-suite last passed with (a checkout's root).
+CONSTRAINTS_FILE = Path(__file__).resolve().parent.parent / "constraints.txt"
+
+
+def _canonical(name: str) -> str:
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def read_constraints(path: str | Path) -> dict[str, str]:
+    """``name==version`` pins of a pip constraints file (canonical names; comments skipped)."""
+    pins = {}
+    for line in Path(path).read_text(encoding="utf-8").splitlines():
+        line = line.split("#", 1)[0].strip()
+        if "==" in line:
+            name, version = line.split("==", 1)
+            pins[_canonical(name.split("[")[0].strip())] = version.split(";")[0].strip()
+    return pins
+
+
+def constraints_status(path: str | Path | None = None) -> dict[str, Any] | None:
+    """How the installed packages compare with the constraints file ``make`` installs from.
+
+    Returns
+    -------
+    dict | None
+        ``file``, its ``sha256``, the number of ``pinned`` packages and ``differs``: for each
+        pinned package installed at another version (or missing), ``{"pinned": ..,
+        "installed": ..}``; empty when the environment is the tested one. None where there is
+        no constraints file (an installed wheel, not a checkout).
+    """
+    path = Path(path) if path is not None else CONSTRAINTS_FILE
+    if not path.is_file():
+        return None
+    pins = read_constraints(path)
+    installed = {_canonical(d.metadata["Name"] or ""): d.version for d in metadata.distributions()}
+    differs = {name: {"pinned": v, "installed": installed.get(name)}
+               for name, v in sorted(pins.items()) if installed.get(name) != v}
+    return {"file": str(path), "sha256": file_sha256(path), "pinned": len(pins), "differs": differs}
 
 
 def git_describe(path: str | Path | None = None) -> str | None:
@@ -110,6 +152,7 @@ def provenance_record(
         "inputs": [_input_entry(Path(p)) for p in inputs],
         "seed": seed,
         "versions": package_versions(),
+        "constraints": constraints_status(),
         "git_describe": git_describe(),
         "platform": platform.platform(),
         "started": started,
