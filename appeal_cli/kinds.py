@@ -12,7 +12,7 @@ from appeal.studyfile import load_yaml, validate_data
 
 #: kind -> "module:Class" of its pydantic model.
 KINDS: dict[str, str] = {
-    "grid": "stimulus_engine.grid_schema:GridFile",
+    "grid": "stimulus_engine.grid.schema:GridFile",
     "protocol": "experiments.protocol_schema:Protocol",
     "ratings": "analysis.ratings_schema:RatingsAnalysis",
     "erp": "analysis.erp_schema:ErpConfig",

@@ -100,8 +100,8 @@ def transfer_texture(deformed: Path, target: Path, out: Path, map_path: Path | N
     from PIL import Image
 
     from appeal.atomic import atomic_write_bytes
-    from stimulus_engine.mesh_io import load_mesh
-    from stimulus_engine.texture_transfer import transfer_texture as run
+    from stimulus_engine.geometry.mesh_io import load_mesh
+    from stimulus_engine.correspondence.texture_transfer import transfer_texture as run
 
     refuse_existing_file(out, force)
     src = load_mesh(deformed)
@@ -144,9 +144,9 @@ def _split_weights(items: tuple, first: str) -> tuple[list[Path], list[float]]:
 def _part_morph(paths: list[Path], regions: str, landmarks: str, interpolation: str, sheet: Path | None,
                 out: Path, force: bool) -> None:
     """``appeal stimuli morph --regions``: load, check, morph, save (and the sheet)."""
-    from stimulus_engine.mesh_io import save_mesh
-    from stimulus_engine.morph import load_corresponded, part_morph
-    from stimulus_engine.morph_regions import parse_regions, part_morph_sheet, read_ibug
+    from stimulus_engine.geometry.mesh_io import save_mesh
+    from stimulus_engine.stylisation.morph import load_corresponded, part_morph
+    from stimulus_engine.stylisation.morph_regions import parse_regions, part_morph_sheet, read_ibug
 
     if len(paths) < 2:
         raise AppealInputError(f"MESH...: expected a base mesh and at least one donor (got {len(paths)})")
@@ -199,8 +199,8 @@ def morph(meshes: tuple, weights: str | None, regions: str | None, landmarks: st
     is; textures are blended in the gradient domain (Pérez 2003), so the part takes the
     surrounding skin tone. Regions sit around the first mesh's iBUG landmarks.
     """
-    from stimulus_engine.mesh_io import save_mesh
-    from stimulus_engine.morph import blend_meshes
+    from stimulus_engine.geometry.mesh_io import save_mesh
+    from stimulus_engine.stylisation.morph import blend_meshes
 
     if (weights is None) == (regions is None):
         raise AppealInputError("morph: give either --weights (a whole-face blend) or --regions (a part-based morph)")

@@ -39,7 +39,7 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
     from appeal.outputs import output_run
     from appeal.studyfile import load_study_file
     from stimulus_engine.grid import run_grid
-    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.grid.schema import GridFile
 
     spec = load_study_file(grid_file, GridFile)
     with output_run(out, force=force, resume=resume, seed=spec.seeds(), inputs=[grid_file]) as run:
@@ -73,7 +73,7 @@ def neoteny(manifest: Path, out: Path | None, force: bool, resume: bool) -> None
     import pandas as pd
 
     from appeal.outputs import output_run
-    from stimulus_engine.neoteny import neoteny_table, plot_neoteny
+    from stimulus_engine.stylisation.neoteny import neoteny_table, plot_neoteny
 
     manifest = Path(manifest)
     if not manifest.is_file():
@@ -151,7 +151,7 @@ def engine_sheet(grid_file: Path, photo: Path, engines: tuple[str, ...], charact
     from appeal.outputs import output_run
     from appeal.studyfile import load_study_file
     from stimulus_engine.grid.engine_sheet import engine_sheet as make_sheet
-    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.grid.schema import GridFile
     from stimulus_engine.render import save_png
     from stimulus_engine.render.cycles import check_cycles
 

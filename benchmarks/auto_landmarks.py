@@ -30,8 +30,8 @@ import numpy as np
 from appeal.assets import shared_data_dir
 from stimulus_engine.correspondence.auto_landmarks import ALL_AXIS_VIEWS, _View, detect_mesh_landmarks
 from stimulus_engine.correspondence.landmark_sets import read_ljson, reorder_landmarks
-from stimulus_engine.ict import ict_regions
-from stimulus_engine.mesh_io import load_mesh
+from stimulus_engine.geometry.ict_topology import ict_regions
+from stimulus_engine.geometry.mesh_io import load_mesh
 from stimulus_engine.morphpca.keypoints import detect_landmarks_scored
 
 

@@ -33,8 +33,8 @@ GRID = ROOT / "protocols" / "grids" / "exp2_stylisation.yaml"
 def _floor(spec: object) -> float:
     """Seconds to load the character's rig and detect its face once in a frontal render."""
     from stimulus_engine.correspondence.auto_landmarks import AXIS_VIEWS, _drawable, _View
-    from stimulus_engine.ict import load_ict_rig
-    from stimulus_engine.mesh_io import load_mesh
+    from stimulus_engine.characters.ict import load_ict_rig
+    from stimulus_engine.geometry.mesh_io import load_mesh
     from stimulus_engine.morphpca.keypoints import detect_landmarks_scored
 
     import numpy as np
@@ -55,7 +55,7 @@ def _one(name: str, what: str) -> None:
     """In this (new) process: build ``name`` (then again from the cache) or time its floor; print seconds."""
     from appeal.studyfile import validate_data
     from stimulus_engine.grid.characters import load_character
-    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.grid.schema import GridFile
 
     grid = validate_data(yaml.safe_load(GRID.read_text()), GridFile, source=GRID, base_dir=GRID.parent)
     spec = next(c for c in grid.characters if c.name == name)

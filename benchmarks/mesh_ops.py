@@ -1,4 +1,4 @@
-"""stimulus_engine.mesh_ops against trimesh's own operations, in one process.
+"""stimulus_engine.geometry.mesh_ops against trimesh's own operations, in one process.
 
 For each operation that mesh_ops implements itself, the trimesh equivalent is timed on the
 same mesh and compared: median seconds of repeats, the ratio trimesh / ours, and whether the
@@ -22,18 +22,18 @@ import trimesh
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from appeal.assets import shared_data_dir  # noqa: E402
-from stimulus_engine import mesh_ops  # noqa: E402
+from stimulus_engine.geometry import mesh_ops  # noqa: E402
 
 
 def _mesh() -> tuple[str, np.ndarray, np.ndarray]:
     d = shared_data_dir()
     path = None if d is None else d / "meshes" / "leeperrysmith" / "LeePerrySmith.obj"
     if path is not None and path.exists():
-        from stimulus_engine.mesh_io import load_mesh
+        from stimulus_engine.geometry.mesh_io import load_mesh
 
         m = load_mesh(path)
         return path.name, np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
-    from stimulus_engine.procedural_head import procedural_head
+    from stimulus_engine.characters.procedural_head import procedural_head
 
     rig = procedural_head()
     return "procedural head", np.asarray(rig.vertices, np.float64), np.asarray(rig.faces, np.int64)

@@ -24,8 +24,8 @@ import numpy as np
 
 def _ict_parts(ict: Path, shading: str = "pbr"):
     """The ICT head's parts; under ``skin`` shading with its baked occlusion (timed and printed)."""
-    from stimulus_engine.ict import load_ict_rig
-    from stimulus_engine.render.rig_parts import rig_occlusion, rig_render_parts
+    from stimulus_engine.characters.ict import load_ict_rig
+    from stimulus_engine.characters.render_parts import rig_occlusion, rig_render_parts
 
     rig = load_ict_rig(ict, shapes=[])
     occlusion = None

@@ -34,7 +34,7 @@ def _items(folder: Path):
     from appeal.studyfile import load_study_file
     from stimulus_engine.grid.examples import james_grid
     from stimulus_engine.grid.prepare import prepare_grid
-    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.grid.schema import GridFile
 
     p = james_grid(folder / "cycles_bench.yaml", shared_data_dir(), lighting=("direct_hard", "direct_soft", "gi_soft"),
                    render="{width: 1024, height: 768, engine: cycles}")

@@ -1,4 +1,4 @@
-"""The bilinear sampler (stimulus_engine.sampling, cv2.remap) against a float64 NumPy sampler.
+"""The bilinear sampler (stimulus_engine.geometry.sampling, cv2.remap) against a float64 NumPy sampler.
 
 The NumPy sampler is the one texture transfer used before (gather the four neighbours in
 float64, clamp coordinates at the border). Printed: median milliseconds of both and their
@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from appeal.assets import shared_data_dir  # noqa: E402
-from stimulus_engine.sampling import sample_points, uv_to_pixels  # noqa: E402
+from stimulus_engine.geometry.sampling import sample_points, uv_to_pixels  # noqa: E402
 
 
 def numpy_bilinear(image: np.ndarray, xy: np.ndarray) -> np.ndarray:

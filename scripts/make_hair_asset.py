@@ -4,7 +4,7 @@ The hair mesh is placed on MakeHuman's base mesh by its ``.mhclo`` fitting file 
 vertex a barycentric combination of three base vertices plus an offset scaled by the base's
 proportions). Every hair vertex is then stored as its *anchor* (the closest point of the base's
 head) and its *lift* above it along the head's normal, with seven head points of the base (eye
-centres, top, back and the two sides of the cranium): :func:`stimulus_engine.hair.fit_hair`
+centres, top, back and the two sides of the cranium): :func:`stimulus_engine.parts.hair.fit_hair`
 puts the same anchors on any rig's head. MakeHuman's hair texture is not in the CC0 release, so
 the strand texture (``short02.png``: grey strands, alpha = hair) is synthesised here: noise
 smeared along the combing direction (line-integral convolution along the gradient of the
@@ -25,10 +25,10 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
-from stimulus_engine.correspondence.closest import SurfaceIndex
-from stimulus_engine.hair import head_points
-from stimulus_engine.obj_format import parse_obj
-from stimulus_engine.texture_transfer import rasterize_uv
+from stimulus_engine.geometry.closest import SurfaceIndex
+from stimulus_engine.parts.hair import head_points
+from stimulus_engine.geometry.obj_format import parse_obj
+from stimulus_engine.geometry.uv_raster import rasterize_uv
 
 OUT = Path(__file__).resolve().parents[1] / "stimulus_engine" / "data" / "hair"
 SIZE = 512

@@ -1,16 +1,27 @@
-"""Stimulus engine: 3D face correspondence, texture transfer, morphing, rendered grids, and
-2D morph-space PCA face models."""
+"""Stimulus engine: face stimuli from 3D scans and rigs (correspondence, characters, stylisation,
+rendered grids) and from photographs (2D morph-space PCA face models).
 
-# --- mesh I/O, correspondence, texture transfer, morphing (issue 4) ---
-from stimulus_engine.mesh_io import (  # noqa: E402
-    load_mesh,
-    load_parts,
-    mesh_uv_layout,
-    save_mesh,
-    select_region,
-    texture_image,
-)
-from stimulus_engine.correspondence import (  # noqa: E402
+Sub-packages, lowest first; each imports only those listed before it (``docs/architecture.md``):
+
+``data``            the shipped assets (eyes, hair, one scan, eight photographs, tables)
+``geometry``        meshes, OBJ files, closest points, UV rasterisation, sampling, polylines
+``render``          cameras, lights, the pyrender and Cycles engines, contact sheets
+``morphpca``        2D morph-space PCA face models, expression projection, avatars
+``correspondence``  ElastiFace dense correspondence and texture transfer (thesis ch. 3)
+``parts``           eyes, eyelashes, hair
+``characters``      rigs of each kind, scans on rigs, expressions, skin maps
+``stylisation``     shape and material stylisation, morphs, neoteny measures
+``grid``            a study's stimulus grid from its file to the PNGs
+
+The names below are the user-facing ones, grouped by what they do; each sub-package's own
+``__all__`` has the rest.
+"""
+
+# --- meshes in and out ---
+from stimulus_engine.geometry import load_mesh, load_parts, mesh_uv_layout, save_mesh, select_region, texture_image
+
+# --- dense correspondence, texture transfer ---
+from stimulus_engine.correspondence import (
     CorrespondParams,
     Correspondences,
     CorrespondenceResult,
@@ -20,11 +31,46 @@ from stimulus_engine.correspondence import (  # noqa: E402
     parse_pairs,
     reorder_landmarks,
 )
-from stimulus_engine.texture_transfer import transfer_texture  # noqa: E402
-from stimulus_engine.morph import blend_images, blend_vertices, partial_blend  # noqa: E402
+from stimulus_engine.correspondence.texture_transfer import transfer_texture
 
-# --- 2D morph-space PCA face models (issue 6); full API in stimulus_engine.morphpca ---
-from stimulus_engine.morphpca import (  # noqa: E402
+# --- characters and their expressions ---
+from stimulus_engine.characters import (
+    EXPRESSIONS,
+    FaceRig,
+    MeshCharacter,
+    apply_expression,
+    correspond_rig,
+    deformation_transfer,
+    expression_weights,
+    front_region,
+    load_ict_rig,
+    procedural_head,
+    rig_albedo,
+    rig_detail_maps,
+)
+from stimulus_engine.geometry.ict_topology import ict_regions
+from stimulus_engine.parts import eye_texture, eyeball_uv
+
+# --- stylisation: shape, material, morphs, neoteny ---
+from stimulus_engine.stylisation import (
+    MATERIAL_LEVELS,
+    StyliseParams,
+    blend_images,
+    blend_vertices,
+    neoteny_measures,
+    neoteny_table,
+    partial_blend,
+    stylise,
+    stylise_albedo,
+    stylise_map,
+    stylise_rig,
+)
+
+# --- stimulus grids (the renderer, stimulus_engine.render, loads OpenGL: imported on use) ---
+from stimulus_engine.grid import run_grid
+
+# --- 2D morph-space PCA face models; full API in stimulus_engine.morphpca ---
+from stimulus_engine.morphpca import (
     MorphModel,
     Reconstructor,
     build_avatar,
@@ -33,26 +79,57 @@ from stimulus_engine.morphpca import (  # noqa: E402
     project_expression,
 )
 
-# --- stimulus grids: expressions, materials, stylisation, procedural head, neoteny (issue 5) ---
-# The renderer (pyrender/OpenGL) is the subpackage ``stimulus_engine.render`` (imported on use).
-from stimulus_engine.rig import FaceRig  # noqa: E402
-from stimulus_engine.ict import ict_regions, load_ict_rig  # noqa: E402
-from stimulus_engine.expressions import (  # noqa: E402
-    EXPRESSIONS,
-    apply_expression,
-    deformation_transfer,
-    expression_weights,
-)
-from stimulus_engine.materials import (  # noqa: E402
-    MATERIAL_LEVELS,
-    rig_albedo,
-    rig_detail_maps,
-    stylise_albedo,
-    stylise_map,
-)
-from stimulus_engine.stylise import StyliseParams, stylise, stylise_rig  # noqa: E402
-from stimulus_engine.procedural_head import procedural_head  # noqa: E402
-from stimulus_engine.eyes import eye_texture, eyeball_uv  # noqa: E402
-from stimulus_engine.mesh_character import MeshCharacter, correspond_rig, front_region  # noqa: E402
-from stimulus_engine.neoteny import neoteny_measures, neoteny_table  # noqa: E402
-from stimulus_engine.grid import run_grid  # noqa: E402
+from stimulus_engine._moved import install as _install_moved_paths
+
+__all__ = [
+    "apply_expression",
+    "blend_images",
+    "blend_vertices",
+    "build_avatar",
+    "build_model",
+    "correspond",
+    "correspond_rig",
+    "CorrespondenceResult",
+    "Correspondences",
+    "CorrespondParams",
+    "deformation_transfer",
+    "deformed_mesh",
+    "expression_weights",
+    "EXPRESSIONS",
+    "eye_texture",
+    "eyeball_uv",
+    "FaceRig",
+    "front_region",
+    "ict_regions",
+    "load_ict_rig",
+    "load_mesh",
+    "load_model",
+    "load_parts",
+    "MATERIAL_LEVELS",
+    "mesh_uv_layout",
+    "MeshCharacter",
+    "MorphModel",
+    "neoteny_measures",
+    "neoteny_table",
+    "parse_pairs",
+    "partial_blend",
+    "procedural_head",
+    "project_expression",
+    "Reconstructor",
+    "reorder_landmarks",
+    "rig_albedo",
+    "rig_detail_maps",
+    "run_grid",
+    "save_mesh",
+    "select_region",
+    "stylise",
+    "stylise_albedo",
+    "stylise_map",
+    "stylise_rig",
+    "StyliseParams",
+    "SurfacePoints",
+    "texture_image",
+    "transfer_texture",
+]
+
+_install_moved_paths()

@@ -10,8 +10,8 @@ import trimesh
 from appeal.errors import AppealInputError
 from stimulus_engine.correspondence.auto_landmarks import combine_views, detect_mesh_landmarks, merge_landmarks
 from stimulus_engine.correspondence.landmark_sets import read_ljson, reorder_landmarks
-from stimulus_engine.ict import ict_regions
-from stimulus_engine.mesh_io import load_mesh
+from stimulus_engine.geometry.ict_topology import ict_regions
+from stimulus_engine.geometry.mesh_io import load_mesh
 
 INNER = np.arange(17, 68)  # brows, nose, eyes, mouth (the jaw, 0-16, is a silhouette for the detector)
 

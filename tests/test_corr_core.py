@@ -18,7 +18,7 @@ from stimulus_engine.correspondence import (
     reorder_landmarks,
     umeyama,
 )
-from stimulus_engine.correspondence.closest import SurfaceIndex, closest_point_on_triangles
+from stimulus_engine.geometry.closest import SurfaceIndex, closest_point_on_triangles
 from stimulus_engine.correspondence.landmark_sets import landmark_orderings
 from stimulus_engine.correspondence.laplacian import (
     bilaplacian,
@@ -27,7 +27,7 @@ from stimulus_engine.correspondence.laplacian import (
     voronoi_areas,
 )
 from stimulus_engine.correspondence.solve import ReusableSolver, available_backends
-from stimulus_engine.mesh_ops import boundary_loops
+from stimulus_engine.geometry.mesh_ops import boundary_loops
 
 
 def test_cotangent_laplacian_right_triangle():
@@ -96,7 +96,7 @@ def test_closest_point_on_triangle_regions():
 
 
 def test_projection_kernel_matches_trimesh_on_random_triangles():
-    from stimulus_engine.correspondence.closest import project_to_triangles
+    from stimulus_engine.geometry.closest import project_to_triangles
 
     rng = np.random.default_rng(3)
     tri = rng.normal(size=(2000, 3, 3))
@@ -126,7 +126,7 @@ def test_compiled_hierarchy_is_exact():
     """The compiled BVH finds the exact closest point (trimesh's brute force) on a sphere, for
     points near, inside and far away, and on a soup of random and degenerate triangles; the
     NumPy candidate path agrees near the surface."""
-    from stimulus_engine.correspondence import triangle_bvh
+    from stimulus_engine.geometry import triangle_bvh
 
     if not triangle_bvh.compiled:
         pytest.skip("numba is not installed (the 'fast' extra)")

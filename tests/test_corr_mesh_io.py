@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from appeal.errors import AppealInputError
-from stimulus_engine.ict import ict_regions
-from stimulus_engine.mesh_io import (
+from stimulus_engine.geometry.ict_topology import ict_regions
+from stimulus_engine.geometry.mesh_io import (
     load_mesh,
     load_parts,
     mesh_uv_layout,

@@ -21,9 +21,9 @@ from stimulus_engine import (
 )
 from stimulus_engine.correspondence import CorrespondParams, Correspondences, SurfacePoints, joint_fairing
 from stimulus_engine.correspondence.datasets import ict_james_pair
-from stimulus_engine.mesh_ops import boundary_loops
+from stimulus_engine.geometry.mesh_ops import boundary_loops
 from stimulus_engine.correspondence.synthetic import synthetic_pair
-from stimulus_engine.mesh_io import load_mesh, save_mesh
+from stimulus_engine.geometry.mesh_io import load_mesh, save_mesh
 
 
 @pytest.fixture(scope="module")
@@ -125,7 +125,7 @@ def test_fairing_energy_is_the_energy_of_eq_3_7():
 def test_registration_on_the_fairing_map_equals_the_plain_one():
     """The registration's matrices from the fairing's bi-Laplacian map (no sparse products) are
     the ones it builds itself: the same registered vertices."""
-    from stimulus_engine.correspondence.closest import SurfaceIndex
+    from stimulus_engine.geometry.closest import SurfaceIndex
     from stimulus_engine.correspondence.laplacian import fairing_operator, voronoi_areas
     from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
 

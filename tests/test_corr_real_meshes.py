@@ -11,8 +11,8 @@ import trimesh
 from appeal_cli import main
 from stimulus_engine.correspondence.landmark_sets import LANDMARK_SUBSET_16, read_ljson, reorder_landmarks
 from stimulus_engine.correspondence.laplacian import voronoi_areas
-from stimulus_engine.ict import ict_regions
-from stimulus_engine.mesh_io import load_mesh
+from stimulus_engine.geometry.ict_topology import ict_regions
+from stimulus_engine.geometry.mesh_io import load_mesh
 
 
 def test_collapsed_areas_are_floored_relative_to_the_median():

@@ -11,7 +11,7 @@ from meshes import grid
 from stimulus_engine.correspondence.datasets import _rim_anchors
 from stimulus_engine.correspondence.boundary import rim_to_curve_correspondences
 from stimulus_engine.correspondence.curves import surface_polyline
-from stimulus_engine.mesh_ops import boundary_loops
+from stimulus_engine.geometry.mesh_ops import boundary_loops
 
 
 def holed_plane(n: int = 16, a: float = 1.0, b: float = 1.0, rings: int = 3, width: float = 0.5):

@@ -7,7 +7,7 @@ import pytest
 from appeal.errors import AppealInputError
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid.engine_sheet import SHEET_EXPRESSIONS, SHEET_LIGHTING, engine_grid, engine_sheet, variants_for
-from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.grid.schema import GridFile
 
 
 def _grid(shared_data, tmp_path) -> GridFile:

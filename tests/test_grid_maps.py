@@ -13,18 +13,13 @@ from appeal_cli import main
 from appeal.errors import AppealInputError, StudyFileError
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid import run_grid
-from stimulus_engine.grid_schema import GridFile
-from stimulus_engine.materials import (
-    FLAT_NORMAL,
-    check_map,
-    rig_detail_maps,
-    stylise_albedo,
-    stylise_map,
-)
-from stimulus_engine.procedural_head import procedural_head
+from stimulus_engine.grid.schema import GridFile
+from stimulus_engine.characters.skin_maps import FLAT_NORMAL, check_map, rig_detail_maps
+from stimulus_engine.stylisation.materials import stylise_albedo, stylise_map
+from stimulus_engine.characters.procedural_head import procedural_head
 from stimulus_engine.render import LightSpec, RenderPart, render_mesh
 from stimulus_engine.render._pyrender import phong_fragment_shader, pyrender
-from stimulus_engine.render.rig_parts import _new_material
+from stimulus_engine.characters.render_parts import _new_material
 
 
 def _plane() -> trimesh.Trimesh:
@@ -145,7 +140,7 @@ def test_procedural_detail_maps():
     hair = rig.texture_masks["hair"] > 0.99
     dev = np.abs(normal.astype(int) - FLAT_NORMAL).max(axis=-1)
     assert np.percentile(dev[hair], 99) <= 2 < np.percentile(dev[~hair], 50)  # no pores under hair
-    from stimulus_engine.materials import bake_surface_points
+    from stimulus_engine.characters.skin_maps import bake_surface_points
 
     pts, valid = bake_surface_points(rig, 256)
     lm = rig.landmark_points()
@@ -221,7 +216,7 @@ def test_grid_map_errors_are_one_line_and_before_rendering(tmp_path, capsys):
 def test_wrap_gaussian_equals_scipy_gaussian_filter():
     from scipy.ndimage import gaussian_filter
 
-    from stimulus_engine.materials import _gaussian_wrap
+    from stimulus_engine.stylisation.materials import _gaussian_wrap
 
     rng = np.random.default_rng(1)
     for shape in [(40, 56, 3), (33, 33)]:

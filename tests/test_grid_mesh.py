@@ -14,7 +14,7 @@ from appeal_cli import main
 from appeal.errors import StudyFileError
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid import run_grid
-from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.grid.schema import GridFile
 
 # MediaPipe canonical-face vertex ids of the rig landmarks (face_geometry/data mesh map; the
 # model looks along +z with the subject's right at -x, like the rigs)

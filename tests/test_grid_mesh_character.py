@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from stimulus_engine.correspondence import umeyama
-from stimulus_engine.correspondence.closest import SurfaceIndex
-from stimulus_engine.mesh_ops import boundary_loops
-from stimulus_engine.mesh_character import correspond_rig, front_region, rig_skin_mesh
-from stimulus_engine.mesh_io import load_mesh
-from stimulus_engine.procedural_head import procedural_head
+from stimulus_engine.geometry.closest import SurfaceIndex
+from stimulus_engine.geometry.mesh_ops import boundary_loops
+from stimulus_engine.characters.mesh_character import correspond_rig, front_region, rig_skin_mesh
+from stimulus_engine.geometry.mesh_io import load_mesh
+from stimulus_engine.characters.procedural_head import procedural_head
 
 # MediaPipe canonical-face vertex ids of the rig landmarks (as in tests/test_grid_mesh.py)
 MP = dict(nose_tip=4, chin=152, eye_right_outer=33, eye_right_inner=133, eye_left_outer=263, eye_left_inner=362,
@@ -90,7 +90,7 @@ def test_procedural_head_on_mediapipe_landmarks_outline_and_eyes(seed, mediapipe
 def test_mesh_landmarks_auto_by_default_and_auto_true_fills_in(tmp_path):
     from appeal.errors import StudyFileError
     from appeal.studyfile import validate_data
-    from stimulus_engine.grid_schema import MeshSpec
+    from stimulus_engine.grid.schema import MeshSpec
 
     f = tmp_path / "m.obj"
     f.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
@@ -107,7 +107,7 @@ def test_mesh_landmarks_auto_by_default_and_auto_true_fills_in(tmp_path):
 def test_scan_character_with_automatic_landmarks(shared_data, tmp_path):
     """The james scan as a grid character on the ICT rig with no hand-typed landmark."""
     from stimulus_engine.grid.characters import load_character
-    from stimulus_engine.grid_schema import CharacterSpec
+    from stimulus_engine.grid.schema import CharacterSpec
 
     d = shared_data / "meshes"
     spec = CharacterSpec(name="james", ict=d / "ict-facekit",
@@ -117,8 +117,8 @@ def test_scan_character_with_automatic_landmarks(shared_data, tmp_path):
     # the character is james's shape in the rig's frame: bring it back with the similarity between
     # its landmarks and james's hand-placed ones, then it lies on james's surface
     from stimulus_engine.correspondence.landmark_sets import read_ljson, reorder_landmarks
-    from stimulus_engine.ict import ict_regions
-    from stimulus_engine.rig import IBUG_LANDMARKS
+    from stimulus_engine.geometry.ict_topology import ict_regions
+    from stimulus_engine.characters.rig import IBUG_LANDMARKS
 
     james = load_mesh(d / "menpo3d-james" / "james.obj")
     pts, order = read_ljson(d / "menpo3d-james" / "james.ljson")
@@ -141,7 +141,7 @@ def test_a_closed_eyed_scan_on_the_rig_shows_its_eyeballs(shared_data, tmp_path)
     import trimesh
 
     from stimulus_engine.grid.characters import load_character
-    from stimulus_engine.grid_schema import CharacterSpec
+    from stimulus_engine.grid.schema import CharacterSpec
 
     d = shared_data / "meshes"
     spec = CharacterSpec(name="lps", ict=d / "ict-facekit", mesh={"file": d / "leeperrysmith" / "LeePerrySmith.obj",

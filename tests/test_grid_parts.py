@@ -5,18 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stimulus_engine.expressions import (
+from stimulus_engine.characters.expressions import (
     apply_expression,
     deformation_transfer,
     expression_weights,
     resolve_expression,
 )
-from stimulus_engine.ict import load_ict_rig
-from stimulus_engine.materials import stylise_albedo
-from stimulus_engine.neoteny import neoteny_measures
-from stimulus_engine.procedural_head import procedural_head
-from stimulus_engine.render.rig_parts import rig_render_parts
-from stimulus_engine.stylise import stylise
+from stimulus_engine.characters.ict import load_ict_rig
+from stimulus_engine.stylisation.materials import stylise_albedo
+from stimulus_engine.stylisation.neoteny import neoteny_measures
+from stimulus_engine.characters.procedural_head import procedural_head
+from stimulus_engine.characters.render_parts import rig_render_parts
+from stimulus_engine.stylisation.shape import stylise
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +118,7 @@ def test_procedural_head_is_deterministic_and_textured():
 
 
 def test_eye_texture_and_eyeball_uv():
-    from stimulus_engine.eyes import eye_texture, eyeball_uv, fit_sphere
+    from stimulus_engine.parts.eyes import eye_texture, eyeball_uv, fit_sphere
 
     tex = eye_texture(128)
     assert tex[64, 64].max() < 20  # pupil at the centre
@@ -183,9 +183,9 @@ def test_thesis_expressions_are_clearly_different_from_neutral(shared_data):
 
 
 def test_deformation_transfer_reuses_its_factorisation_bit_identically():
-    from stimulus_engine import expressions as ex
-    from stimulus_engine.procedural_head import procedural_head
-    from stimulus_engine.stylise import stylise
+    from stimulus_engine.characters import expressions as ex
+    from stimulus_engine.characters.procedural_head import procedural_head
+    from stimulus_engine.stylisation.shape import stylise
 
     rig = procedural_head(seed=4, texture_size=64, resolution=32)
     targets = [stylise(rig, s) for s in (0.25, 0.5, 1.0)]

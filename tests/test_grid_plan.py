@@ -8,7 +8,7 @@ import pytest
 
 from appeal.studyfile import validate_data
 from stimulus_engine.grid.plan import material_sources, plan_images, plan_photos
-from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.grid.schema import GridFile
 
 SPEC = {
     "kind": "grid",

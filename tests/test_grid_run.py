@@ -13,7 +13,7 @@ from appeal_cli import main
 from appeal.errors import StudyFileError
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid import prepare_grid, run_grid, sheet_layout
-from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.grid.schema import GridFile
 
 GRID = """kind: grid
 name: tiny

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from stimulus_engine.hair import (
+from stimulus_engine.parts.hair import (
     MIN_LIFT_IOD, Hair, fit_hair, hair_arrays, hair_asset, hair_from_arrays, head_points, linear_rgb,
 )
 
@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def ict(shared_data):
-    from stimulus_engine.ict import load_ict_rig
+    from stimulus_engine.characters.ict import load_ict_rig
 
     return load_ict_rig(shared_data / "meshes" / "ict-facekit", "identity000")
 
@@ -82,8 +82,8 @@ def test_hair_sits_on_the_scalp_outside_the_skin(ict):
 
 
 def test_hair_follows_the_skin_through_stylisation_and_identities(shared_data, ict):
-    from stimulus_engine.ict import load_ict_rig
-    from stimulus_engine.stylise import stylise
+    from stimulus_engine.characters.ict import load_ict_rig
+    from stimulus_engine.stylisation.shape import stylise
 
     hair = fit_hair(ict)
     cartoon = stylise(ict, 1.0)
@@ -116,9 +116,9 @@ def test_linear_rgb_is_the_srgb_curve():
 def test_alpha_tested_texels_are_not_drawn():
     """A quad whose texture is opaque red on the left half and alpha 0 on the right: the right
     half shows the background (pyrender alone would blend it, unsorted)."""
-    from stimulus_engine.hair import Hair
+    from stimulus_engine.parts.hair import Hair
     from stimulus_engine.render import CameraSpec, render_mesh
-    from stimulus_engine.render.rig_parts import hair_render_part
+    from stimulus_engine.characters.render_parts import hair_render_part
 
     tex = np.zeros((64, 64, 4), np.uint8)
     tex[:, :32] = (255, 255, 255, 255)
@@ -139,7 +139,7 @@ def test_a_grid_ict_character_has_hair_by_default(shared_data, tmp_path):
     """Rendered: dark hair above the forehead with the default, skin there with hair: none."""
     from appeal.studyfile import load_study_file
     from stimulus_engine.grid import run_grid
-    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.grid.schema import GridFile
 
     ict = shared_data / "meshes" / "ict-facekit"
     p = tmp_path / "hair.yaml"
@@ -168,7 +168,7 @@ render: {{width: 256, height: 192}}
 
 
 def test_the_hair_field_of_a_character():
-    from stimulus_engine.grid_schema import CharacterSpec
+    from stimulus_engine.grid.schema import CharacterSpec
 
     ict = {"name": "a", "ict": str(ROOT)}
     assert CharacterSpec.model_validate(ict).hair_style == "short"
@@ -198,7 +198,7 @@ def test_a_see_through_blended_card_casts_no_shadow():
     whole rectangle. A nearly empty blended card in front of a lit plane leaves the plane as it was."""
     from stimulus_engine.render import CameraSpec, RenderPart, render_mesh
     from stimulus_engine.render._pyrender import _see_through
-    from stimulus_engine.render.rig_parts import _new_material
+    from stimulus_engine.characters.render_parts import _new_material
 
     tex = np.zeros((32, 32, 4), np.uint8)
     tex[15:17, 15:17] = (20, 20, 20, 255)  # one small dark dot, the rest see-through

@@ -5,10 +5,14 @@ Folders: the core ``appeal`` (errors, study files, outputs, levels, triggers ...
 line). The core imports no room and not the roof; a room imports the core only, never another
 room or the roof. Between modules there is no circle at all.
 
+Inside the stimulus engine the same holds between its sub-packages (:data:`ENGINE_LAYERS`:
+``geometry`` at the bottom, ``grid`` at the top); its top level keeps a few modules only.
+
 Every ``import`` statement counts, at module level and inside functions (a lazy import is still
 an arrow: it runs when the function does); imports under ``if TYPE_CHECKING:`` do not (they
-never run). ``from pkg import name`` is an arrow to ``pkg.name`` when that is a module, else to
-``pkg`` (its ``__init__``).
+never run), except for one check: no two modules name each other even there (a type both need
+lives in a module of its own). ``from pkg import name`` is an arrow to ``pkg.name`` when that is
+a module, else to ``pkg`` (its ``__init__``).
 """
 
 from __future__ import annotations
@@ -22,6 +26,23 @@ ROOT = Path(__file__).resolve().parent.parent
 CORE, ROOF = "appeal", "appeal_cli"
 ROOMS = ("stimulus_engine", "experiments", "analysis")
 PACKAGES = (CORE, ROOF, *ROOMS)
+
+#: The stimulus engine's sub-packages, lowest first, and what each may import besides itself.
+#: Its top-level modules (``stimulus_engine``, ``stimulus_engine._moved``) may import any of them;
+#: no sub-package imports the top level.
+ENGINE_LAYERS: dict[str, set[str]] = {
+    "data": set(),
+    "geometry": {"data"},
+    "render": {"data", "geometry"},
+    "morphpca": {"data", "geometry"},
+    "correspondence": {"data", "geometry", "render", "morphpca"},
+    "parts": {"data", "geometry"},
+    "characters": {"data", "geometry", "render", "correspondence", "parts"},
+    "stylisation": {"data", "geometry", "render", "morphpca", "correspondence", "parts", "characters"},
+    "grid": {"data", "geometry", "render", "morphpca", "correspondence", "parts", "characters", "stylisation"},
+}
+#: At most this many modules at the stimulus engine's top level, its ``__init__`` included.
+ENGINE_TOP_LEVEL_MAX = 8
 
 
 def _modules() -> dict[str, Path]:
@@ -41,9 +62,10 @@ def _type_checking_nodes(tree: ast.AST) -> set[int]:
     return skip
 
 
-def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+def _imports(name: str, path: Path, modules: dict[str, Path], type_checking: bool = False) -> set[str]:
+    """The project modules ``name`` imports (with ``type_checking``, those under TYPE_CHECKING too)."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
-    skip = _type_checking_nodes(tree)
+    skip = set() if type_checking else _type_checking_nodes(tree)
     is_pkg = path.name == "__init__.py"
     out = set()
     for node in ast.walk(tree):
@@ -125,6 +147,50 @@ def test_no_import_circle(graph):
     assert _circles(graph) == []
 
 
+def test_no_circle_even_for_annotations():
+    """Counting imports under TYPE_CHECKING too, still no circle: shared types live in their own module."""
+    modules = _modules()
+    full = {name: _imports(name, path, modules, type_checking=True) for name, path in modules.items()}
+    assert _circles(full) == []
+
+
+def _engine_part(module: str) -> str | None:
+    """The stimulus-engine sub-package of a module (None for the engine's top-level modules)."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 2 or (len(parts) == 2 and parts[1] in ENGINE_LAYERS) else None
+
+
+def _upward_engine_imports(graph: dict[str, set[str]]) -> list[str]:
+    wrong = []
+    for m, ts in graph.items():
+        if _folder(m) != "stimulus_engine":
+            continue
+        part = _engine_part(m)
+        for t in ts:
+            if _folder(t) != "stimulus_engine" or part is None:
+                continue
+            target = _engine_part(t)
+            if target is None or (target != part and target not in ENGINE_LAYERS[part]):
+                wrong.append(f"{m} -> {t}")
+    return sorted(wrong)
+
+
+def test_engine_layers_run_one_way(graph):
+    """No sub-package of the stimulus engine imports one above it, nor the engine's top level."""
+    assert _upward_engine_imports(graph) == []
+
+
+def test_engine_layout_is_the_documented_one(graph):
+    """Every engine module lies in a listed sub-package or is one of a few top-level modules."""
+    engine = [m for m in graph if _folder(m) == "stimulus_engine"]
+    top = sorted(m for m in engine if _engine_part(m) is None)
+    assert len(top) <= ENGINE_TOP_LEVEL_MAX, top
+    packages = {m.split(".")[1] for m in engine if m.count(".") >= 1 and (ROOT / m.replace(".", "/")).is_dir()}
+    assert packages == set(ENGINE_LAYERS)
+    documented = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    assert all(f"`stimulus_engine/{p}/`" in documented for p in ENGINE_LAYERS)
+
+
 def test_the_checks_see_planted_faults(tmp_path):
     """The reader counts lazy and relative imports but not TYPE_CHECKING ones; a planted circle is found."""
     modules = {m: tmp_path for m in ("appeal", "appeal.errors", "analysis.erp", "analysis.erp.io", "analysis.erp.report",
@@ -136,5 +202,13 @@ def test_the_checks_see_planted_faults(tmp_path):
                    "if TYPE_CHECKING:\n    from experiments.trials import Trial\n"
                    "def f():\n    import stimulus_engine.grid.plan\n")
     assert _imports("analysis.erp.report", src, modules) == {"appeal.errors", "analysis.erp.io", "stimulus_engine.grid"}
+    assert _imports("analysis.erp.report", src, modules, type_checking=True) == {
+        "appeal.errors", "analysis.erp.io", "stimulus_engine.grid", "experiments.trials"}
     assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _circles({"a": {"b"}, "b": set()}) == []
+    planted = {"stimulus_engine.geometry.mesh_io": {"stimulus_engine.characters.rig"},
+               "stimulus_engine.characters.rig": {"stimulus_engine.geometry.mesh_ops", "stimulus_engine"},
+               "stimulus_engine.grid.plan": {"stimulus_engine.characters", "stimulus_engine.stylisation.shape"},
+               "stimulus_engine": {"stimulus_engine.grid"}}
+    assert _upward_engine_imports(planted) == ["stimulus_engine.characters.rig -> stimulus_engine",
+                                               "stimulus_engine.geometry.mesh_io -> stimulus_engine.characters.rig"]

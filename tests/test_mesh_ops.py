@@ -1,4 +1,4 @@
-"""stimulus_engine.mesh_ops on small meshes, and against trimesh where it has the operation."""
+"""stimulus_engine.geometry.mesh_ops on small meshes, and against trimesh where it has the operation."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import trimesh
 
 from meshes import grid
-from stimulus_engine import mesh_ops
-from stimulus_engine.correspondence.closest import SurfaceIndex
+from stimulus_engine.geometry import mesh_ops
+from stimulus_engine.geometry.closest import SurfaceIndex
 
 
 def test_vertex_normals_are_area_weighted():

@@ -9,9 +9,9 @@ import trimesh
 
 from appeal.errors import AppealInputError
 from meshes import grid
-from stimulus_engine.gradient_blend import gradient_blend
-from stimulus_engine.morph import partial_blend, slerp_vectors
-from stimulus_engine.morph_regions import REGIONS, parse_regions, region_weights
+from stimulus_engine.stylisation.gradient_blend import gradient_blend
+from stimulus_engine.stylisation.morph import partial_blend, slerp_vectors
+from stimulus_engine.stylisation.morph_regions import REGIONS, parse_regions, region_weights
 
 
 def test_slerp_vectors_is_slerp_for_two_and_keeps_one_hot_vectors():
@@ -117,8 +117,8 @@ def test_morph_regions_cli_on_the_james_scan(shared_data, tmp_path, capsys):
     """A donor with james's eye regions enlarged: the morph takes its eyes and keeps the mouth."""
     from appeal_cli import main
     from stimulus_engine.correspondence.pipeline import deformed_mesh
-    from stimulus_engine.mesh_io import load_mesh, save_mesh
-    from stimulus_engine.morph_regions import read_ibug
+    from stimulus_engine.geometry.mesh_io import load_mesh, save_mesh
+    from stimulus_engine.stylisation.morph_regions import read_ibug
 
     d = shared_data / "meshes" / "menpo3d-james"
     james = load_mesh(d / "james.obj")

@@ -129,8 +129,8 @@ def test_a_convex_object_does_not_shadow_itself(light):
 def plain_head():
     """A procedural head without texture (smooth shading: any abrupt step on its skin is an
     artefact) and its framing."""
-    from stimulus_engine.render.rig_parts import rig_render_parts
-    from stimulus_engine.procedural_head import procedural_head
+    from stimulus_engine.characters.render_parts import rig_render_parts
+    from stimulus_engine.characters.procedural_head import procedural_head
 
     rig = procedural_head(0, texture_size=64, resolution=48)
     lm = rig.landmark_points(rig.vertices)
@@ -222,8 +222,8 @@ def test_contact_sheet_title_is_not_cut_off():
 def test_textured_parts_render_at_two_sizes_in_one_process():
     """Materials (and their textures) are shared between images; switching image size must not
     try to load a texture into a second OpenGL context (pyrender refuses that)."""
-    from stimulus_engine.render.rig_parts import rig_render_parts
-    from stimulus_engine.procedural_head import procedural_head
+    from stimulus_engine.characters.render_parts import rig_render_parts
+    from stimulus_engine.characters.procedural_head import procedural_head
 
     r = procedural_head(0, texture_size=64, resolution=24)
     a = render_mesh(rig_render_parts(r, r.vertices, r.texture), width=64, height=48, lighting="flat")
@@ -237,7 +237,7 @@ def test_textured_scan_has_no_dark_band_along_its_uv_seam(shared_data):
     """james's texture is two photographs; vertices on the seam between them carry two UVs. Drawn
     with one UV per vertex, the seam triangles sampled the dark background between the photos:
     a black band down the face (2.1 % of the central face box darker than 15/255; now 0.05 %)."""
-    from stimulus_engine.mesh_io import load_mesh
+    from stimulus_engine.geometry.mesh_io import load_mesh
     from stimulus_engine.render import CameraSpec
     from stimulus_engine.render.renderer import split_uv_seams
 

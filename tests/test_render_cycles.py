@@ -17,7 +17,7 @@ from PIL import Image
 from appeal_cli import main
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid import run_grid
-from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.grid.schema import GridFile
 from stimulus_engine.render import CameraSpec, lighting_preset
 from stimulus_engine.render.cycles import cycles_python
 from stimulus_engine.render.scene_export import export_scene, world_lights

@@ -15,7 +15,7 @@ from stimulus_engine.render.light_shadows import (
     light_shadow_fragment_shader,
 )
 from stimulus_engine.render.occlusion import cone_directions, light_visibility
-from stimulus_engine.render.rig_parts import _new_material
+from stimulus_engine.characters.render_parts import _new_material
 
 SKIN = (0.85, 0.62, 0.52, 1.0)
 

@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from stimulus_engine.render import LightSpec, RenderPart, render_mesh
-from stimulus_engine.render.rig_parts import _new_material
+from stimulus_engine.characters.render_parts import _new_material
 from stimulus_engine.render.skin_shader import SCATTER_WRAP, skin_fragment_shader
 
 SKIN = (0.85, 0.62, 0.52, 1.0)
@@ -59,7 +59,7 @@ def test_background_stays_50_percent_grey_and_skin_renders_are_deterministic():
 def test_skin_shading_in_a_grid(tmp_path):
     from appeal.studyfile import load_study_file
     from stimulus_engine.grid import run_grid
-    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.grid.schema import GridFile
 
     p = tmp_path / "g.yaml"
     p.write_text("""kind: grid

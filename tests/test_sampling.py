@@ -1,10 +1,10 @@
-"""The bilinear sampler (stimulus_engine.sampling) against the bilinear formula."""
+"""The bilinear sampler (stimulus_engine.geometry.sampling) against the bilinear formula."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from stimulus_engine.sampling import sample_points, uv_to_pixels
+from stimulus_engine.geometry.sampling import sample_points, uv_to_pixels
 
 
 def _bilinear(image, x, y):

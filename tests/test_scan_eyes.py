@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from stimulus_engine.eyes import eyeball_asset, tint_iris
-from stimulus_engine.scan_eyes import (
+from stimulus_engine.parts.eyes import eyeball_asset, tint_iris
+from stimulus_engine.characters.scan_eyes import (
     CLOSED_RATIO, EYEBALL_RATIO, cut_openings, eye_geometry, lid_contour, openness,
 )
 
@@ -48,7 +48,7 @@ def test_cut_openings_follow_the_contour_without_folds():
     contour = lid_contour(_eye_points(-2.5) + [0, 0, 0.1])
     keep, v = cut_openings(sheet.vertices, sheet.faces, [contour], reach=4.0)
     assert 0 < (~keep).sum() < 0.05 * len(keep)
-    from stimulus_engine.polyline2d import inside_polygon as _inside
+    from stimulus_engine.geometry.polyline2d import inside_polygon as _inside
 
     kept = sheet.faces[keep]
     assert not _inside(v[kept].mean(axis=1)[:, :2], contour[:, :2]).any()  # nothing kept inside the lids
@@ -75,7 +75,7 @@ def test_eye_geometry_puts_anatomical_balls_behind_the_lids():
     centres = [b.mean(axis=0) for b in eyes.balls]
     assert centres[0][0] < 0 < centres[1][0]  # the subject's right eye (-x) first
     for ball, p in zip(eyes.balls, pts.reshape(2, 6, 3)):
-        from stimulus_engine.eyes import fit_sphere
+        from stimulus_engine.parts.eyes import fit_sphere
 
         c, r = fit_sphere(ball)
         assert r == pytest.approx(EYEBALL_RATIO * 6.3, rel=0.05)
@@ -84,7 +84,7 @@ def test_eye_geometry_puts_anatomical_balls_behind_the_lids():
     # outside the openings no part of a ball comes through the skin
     from scipy.interpolate import LinearNDInterpolator
 
-    from stimulus_engine.polyline2d import inside_polygon as _inside
+    from stimulus_engine.geometry.polyline2d import inside_polygon as _inside
 
     skin = LinearNDInterpolator(eyes.vertices[:, :2], eyes.vertices[:, 2])
     for ball, p in zip(eyes.balls, pts.reshape(2, 6, 3)):
@@ -118,7 +118,7 @@ def _lip_points(gap: float) -> np.ndarray:
 
 @pytest.mark.parametrize("gap", [0.0, 0.2, 1.2])
 def test_cut_lips_separates_upper_from_lower(gap):
-    from stimulus_engine.scan_mouth import CLOSED_GAP, cut_lips, lip_arcs
+    from stimulus_engine.characters.scan_mouth import CLOSED_GAP, cut_lips, lip_arcs
 
     sheet = _sheet()
     pts = _lip_points(gap)
@@ -140,14 +140,14 @@ def test_cut_lips_separates_upper_from_lower(gap):
         assert on_line.sum() >= 20
         assert set(side[moved[on_line]]) == {1, -1}
     else:
-        from stimulus_engine.polyline2d import inside_polygon
+        from stimulus_engine.geometry.polyline2d import inside_polygon
 
         opening = np.vstack([upper, lower[::-1][1:-1]])
         assert not inside_polygon(v[kept].mean(axis=1)[:, :2], opening[:, :2]).any()
 
 
 def test_push_behind_keeps_a_part_behind_the_skin_outside_an_opening():
-    from stimulus_engine.polyline2d import push_behind
+    from stimulus_engine.geometry.polyline2d import push_behind
 
     g = np.linspace(-2, 2, 9)
     x, y = np.meshgrid(g, g)
@@ -165,7 +165,7 @@ def test_photographic_eye_texture_puts_the_photographed_iris_at_the_rigs_angle()
     (saturated) ending at the requested angle, sclera beyond, the back of the ball dark."""
     from matplotlib.colors import rgb_to_hsv
 
-    from stimulus_engine.eyes import IRIS_ANGLE, photographic_eye_texture
+    from stimulus_engine.parts.eyes import IRIS_ANGLE, photographic_eye_texture
 
     tex = photographic_eye_texture(256)
     assert tex.shape == (256, 256, 3) and not tex.flags.writeable
@@ -186,7 +186,7 @@ def test_photographic_eye_texture_puts_the_photographed_iris_at_the_rigs_angle()
 
 
 def test_lid_shadow_darkens_the_top_of_the_ball_not_its_middle():
-    from stimulus_engine.scan_eyes import lid_shadow
+    from stimulus_engine.characters.scan_eyes import lid_shadow
 
     templates, _ = eyeball_asset()
     grey = np.full((256, 256, 3), 200, np.uint8)
@@ -201,7 +201,7 @@ def test_lid_shadow_darkens_the_top_of_the_ball_not_its_middle():
 
 
 def test_lash_strip_curls_up_from_the_lid_and_is_longest_towards_the_outer_corner():
-    from stimulus_engine.eyelashes import ROWS, lash_strip, lash_texture
+    from stimulus_engine.parts.eyelashes import ROWS, lash_strip, lash_texture
 
     # the subject's right eye (x < 0): inner corner at x = -1, outer at x = -4
     arc = lid_contour(_eye_points(-2.5))[:25]  # the upper arc, corner to corner

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from stimulus_engine.materials import stylise_albedo
-from stimulus_engine.mesh_io import load_mesh, mesh_uv_layout, texture_image
-from stimulus_engine.scan_regions import scan_masks
+from stimulus_engine.stylisation.materials import stylise_albedo
+from stimulus_engine.geometry.mesh_io import load_mesh, mesh_uv_layout, texture_image
+from stimulus_engine.characters.scan_regions import scan_masks
 
 
 def test_james_texture_splits_into_skin_hair_lips_and_shirt(shared_data):

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stimulus_engine.procedural_head import procedural_head
-from stimulus_engine.scan_surface import bind_scan
+from stimulus_engine.characters.procedural_head import procedural_head
+from stimulus_engine.characters.scan_surface import bind_scan
 
 
 def test_pose_follows_the_rig_and_keeps_the_neutral():
@@ -37,8 +37,8 @@ def test_james_scan_drawn_as_itself_in_a_grid(shared_data, tmp_path):
     """Realistic level = the scan's own vertices and texture (hair included); the rig's smile moves it."""
     from appeal.studyfile import validate_data
     from stimulus_engine.grid import run_grid
-    from stimulus_engine.grid_schema import GridFile
-    from stimulus_engine.mesh_io import load_mesh
+    from stimulus_engine.grid.schema import GridFile
+    from stimulus_engine.geometry.mesh_io import load_mesh
 
     d = shared_data / "meshes"
     spec = validate_data({
@@ -73,7 +73,7 @@ def test_james_gets_eyeballs_and_lips_that_part(shared_data, tmp_path):
 
     from appeal.studyfile import validate_data
     from stimulus_engine.grid import run_grid
-    from stimulus_engine.grid_schema import GridFile
+    from stimulus_engine.grid.schema import GridFile
 
     d = shared_data / "meshes"
     images = {}

@@ -17,7 +17,7 @@ def _run(out: Path, seed: int) -> ReportSection:
     from stimulus_engine.correspondence import flipped_triangles
     from stimulus_engine.correspondence.sheet import correspondence_sheet, result_panels
     from stimulus_engine.correspondence.synthetic import synthetic_pair
-    from stimulus_engine.mesh_io import save_mesh
+    from stimulus_engine.geometry.mesh_io import save_mesh
 
     # source: plain proportions, grid tessellation; target: eyes x1.6, nose x0.6, jittered points
     src, tgt, corr = synthetic_pair(3000, 2000, seed=seed)

@@ -14,8 +14,8 @@ def _run(out: Path, seed: int) -> ReportSection:
     from appeal.studyfile import validate_data
     from stimulus_engine.grid import run_grid
     from stimulus_engine.data import EMBEDDED_SCAN
-    from stimulus_engine.grid_schema import CharacterSpec, GridFile
-    from stimulus_engine.neoteny import neoteny_table, plot_neoteny
+    from stimulus_engine.grid.schema import CharacterSpec, GridFile
+    from stimulus_engine.stylisation.neoteny import neoteny_table, plot_neoteny
 
     import pandas as pd
 

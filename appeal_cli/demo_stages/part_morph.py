@@ -17,11 +17,11 @@ def _run(out: Path, seed: int) -> ReportSection:
     from stimulus_engine.correspondence.pipeline import deformed_mesh
     from stimulus_engine.data import EMBEDDED_SCAN
     from stimulus_engine.grid.characters import load_character
-    from stimulus_engine.grid_schema import CharacterSpec
-    from stimulus_engine.mesh_io import load_mesh, save_mesh
-    from stimulus_engine.morph import part_morph
-    from stimulus_engine.morph_regions import part_morph_sheet
-    from stimulus_engine.stylise import stylise
+    from stimulus_engine.grid.schema import CharacterSpec
+    from stimulus_engine.geometry.mesh_io import load_mesh, save_mesh
+    from stimulus_engine.stylisation.morph import part_morph
+    from stimulus_engine.stylisation.morph_regions import part_morph_sheet
+    from stimulus_engine.stylisation.shape import stylise
 
     # the embedded scan, and the same scan at cartoon shape (the stylisation operator through a
     # procedural rig): two meshes in correspondence by construction

@@ -11,7 +11,7 @@ SurfacePoints, Correspondences, parse_points, parse_pairs, load_pairs_file
 boundary_correspondences
     Boundary-loop correspondences by relative arc length (Fig. 3.5; module ``boundary``, with
     rims mapped onto curves drawn on the target, module ``curves``). The loops themselves:
-    :func:`stimulus_engine.mesh_ops.boundary_loops`.
+    :func:`stimulus_engine.geometry.mesh_ops.boundary_loops`.
 reorder_landmarks, read_ljson, landmark_orderings, LANDMARK_SUBSET_16
     68-point landmark orderings (iBUG/Multi-PIE vs menpo LJSON; module ``landmark_sets``).
 umeyama, Similarity

@@ -123,7 +123,7 @@ def _rotate(v: np.ndarray, axis: np.ndarray, deg: float) -> np.ndarray:
 
 def _drawable(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     """The mesh as drawn for the detector: its texture, or light grey when it has none."""
-    from stimulus_engine.mesh_io import texture_image
+    from stimulus_engine.geometry.mesh_io import texture_image
 
     if texture_image(mesh) is not None:
         return mesh

@@ -8,7 +8,7 @@ eyelids against a model's mouth and eye openings), :func:`rim_to_curve_correspon
 source boundary loop the same way onto a closed curve drawn on the target surface through
 given points (e.g. the lip or eyelid landmarks;
 :func:`~stimulus_engine.correspondence.curves.surface_polyline`). The loops themselves are
-:func:`stimulus_engine.mesh_ops.boundary_loops`.
+:func:`stimulus_engine.geometry.mesh_ops.boundary_loops`.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from appeal.errors import AppealInputError
-from stimulus_engine.correspondence.closest import SurfaceIndex
+from stimulus_engine.geometry.closest import SurfaceIndex
 from stimulus_engine.correspondence.curves import surface_polyline
 from stimulus_engine.correspondence.points import Correspondences, SurfacePoints
-from stimulus_engine.mesh_ops import boundary_loops
+from stimulus_engine.geometry.mesh_ops import boundary_loops
 
 __all__ = ["boundary_correspondences", "rim_to_curve_correspondences", "nearest_boundary_vertices"]
 

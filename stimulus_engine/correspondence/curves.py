@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from appeal.errors import AppealInputError
-from stimulus_engine.correspondence.closest import SurfaceIndex
+from stimulus_engine.geometry.closest import SurfaceIndex
 
 __all__ = ["surface_polyline"]
 

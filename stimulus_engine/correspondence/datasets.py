@@ -17,9 +17,9 @@ import trimesh
 from stimulus_engine.correspondence.boundary import nearest_boundary_vertices, rim_to_curve_correspondences
 from stimulus_engine.correspondence.landmark_sets import LANDMARK_SUBSET_16, read_ljson, reorder_landmarks
 from stimulus_engine.correspondence.points import Correspondences, SurfacePoints, parse_points
-from stimulus_engine.ict import ict_regions
-from stimulus_engine.mesh_io import load_mesh, select_region
-from stimulus_engine.mesh_ops import boundary_loops
+from stimulus_engine.geometry.ict_topology import ict_regions
+from stimulus_engine.geometry.mesh_io import load_mesh, select_region
+from stimulus_engine.geometry.mesh_ops import boundary_loops
 
 __all__ = ["ict_james_pair", "RIM_CURVES"]
 
@@ -110,7 +110,7 @@ def ict_james_pair(
     corr = Correspondences(SurfacePoints.from_vertices(lm_src[subset]), parse_points(lm_t[subset], james))
     used = set(subset.tolist())
     if rims:
-        from stimulus_engine.correspondence.closest import SurfaceIndex
+        from stimulus_engine.geometry.closest import SurfaceIndex
 
         index = SurfaceIndex(james.vertices, james.faces)
         vs = np.asarray(src.vertices)

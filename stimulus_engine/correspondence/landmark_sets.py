@@ -13,10 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from appeal.errors import AppealInputError
+from stimulus_engine.data import DATA_DIR
 
 __all__ = ["landmark_orderings", "reorder_landmarks", "read_ljson", "LANDMARK_SUBSET_16"]
 
-_ORDERINGS = Path(__file__).resolve().parent.parent / "data" / "landmark_orderings.json"
+_ORDERINGS = DATA_DIR / "landmark_orderings.json"
 
 
 @lru_cache(maxsize=1)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from stimulus_engine.mesh_ops import boundary_neighbours
+from stimulus_engine.geometry.mesh_ops import boundary_neighbours
 
 __all__ = [
     "cotangent_laplacian",

@@ -6,8 +6,8 @@ import hashlib
 
 import numpy as np
 
-from stimulus_engine.correspondence.closest import SurfaceIndex
-from stimulus_engine.mesh_ops import face_normals
+from stimulus_engine.geometry.closest import SurfaceIndex
+from stimulus_engine.geometry.mesh_ops import face_normals
 
 __all__ = ["FoldCheck", "surface_distances", "flipped_triangles", "against_target_triangles", "degenerate_triangles", "fit_metrics"]
 
@@ -23,7 +23,7 @@ def surface_distances(
 def _local_folds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Triangles facing against the mean of their three (area-weighted) vertex normals.
 
-    :func:`~stimulus_engine.mesh_ops.vertex_normals` with the triangles' cross products
+    :func:`~stimulus_engine.geometry.mesh_ops.vertex_normals` with the triangles' cross products
     computed once (for the sign, a triangle's unnormalised cross product does as well as its
     unit normal), coordinate by coordinate."""
     faces = np.asarray(faces)

@@ -12,7 +12,7 @@ import trimesh
 from appeal.errors import AppealInputError
 from appeal.logs import logger
 from stimulus_engine.correspondence.alignment import Similarity, umeyama
-from stimulus_engine.correspondence.closest import SurfaceIndex
+from stimulus_engine.geometry.closest import SurfaceIndex
 from stimulus_engine.correspondence.fairing import joint_fairing
 from stimulus_engine.correspondence.points import Correspondences, SurfacePoints
 from stimulus_engine.correspondence.laplacian import fairing_operator, voronoi_areas
@@ -20,8 +20,8 @@ from stimulus_engine.correspondence.metrics import FoldCheck, fit_metrics
 from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
 from stimulus_engine.correspondence.repair import repair_mesh
 from stimulus_engine.correspondence.untangle import untangle
-from stimulus_engine.mesh_io import mesh_uv_layout, texture_image, validate_surface
-from stimulus_engine.mesh_ops import edge_face_counts, edge_keys
+from stimulus_engine.geometry.mesh_io import mesh_uv_layout, texture_image, validate_surface
+from stimulus_engine.geometry.mesh_ops import edge_face_counts, edge_keys
 
 #: The weights of eq. 3.7-3.13 mix unitless curvature energies with squared distances, so
 #: their balance depends on the model's size. Both meshes are scaled so that the target's
@@ -359,7 +359,7 @@ def _correspond(source_vertices, source_faces, target_vertices, target_faces, co
 
 def deformed_mesh(source: trimesh.Trimesh, vertices: np.ndarray) -> trimesh.Trimesh:
     """A copy of ``source`` with new vertex positions; connectivity, UV layout and texture kept."""
-    from stimulus_engine.mesh_io import build_trimesh
+    from stimulus_engine.geometry.mesh_io import build_trimesh
 
     layout = mesh_uv_layout(source)
     uv, fuv = layout if layout is not None else (None, None)

@@ -20,7 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from appeal.errors import AppealInputError
-from stimulus_engine.correspondence.closest import SurfaceIndex
+from stimulus_engine.geometry.closest import SurfaceIndex
 
 __all__ = ["SurfacePoints", "Correspondences", "parse_points", "parse_pairs", "load_pairs_file", "check_spread", "closest_surface_points"]
 
@@ -221,6 +221,6 @@ def check_spread(points: np.ndarray, where: str, scale: float, rtol: float = 1e-
 
 def load_pairs_file(path, source_mesh, target_mesh) -> Correspondences:
     """Read a pairs JSON file (see :func:`parse_pairs`)."""
-    from stimulus_engine.mesh_io import read_json
+    from stimulus_engine.geometry.mesh_io import read_json
 
     return parse_pairs(read_json(path, "landmark pairs file"), source_mesh, target_mesh, where=str(path))

@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from stimulus_engine.correspondence.closest import ClosestPoints, SurfaceIndex
+from stimulus_engine.geometry.closest import ClosestPoints, SurfaceIndex
 from stimulus_engine.correspondence.points import SurfacePoints
 from stimulus_engine.correspondence.laplacian import bilaplacian
 from stimulus_engine.correspondence.ordering import nested_dissection
 from stimulus_engine.correspondence.solve import LowerPattern, ReusableSolver
-from stimulus_engine.mesh_ops import vertex_normals
+from stimulus_engine.geometry.mesh_ops import vertex_normals
 
 __all__ = ["Pruning", "RegistrationResult", "prune_mask", "nonrigid_register"]
 

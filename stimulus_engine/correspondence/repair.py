@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 import trimesh
 
-from stimulus_engine.mesh_ops import argsort_keys, face_normals
+from stimulus_engine.geometry.mesh_ops import argsort_keys, face_normals
 
 __all__ = ["RepairedMesh", "repair_mesh", "weld", "consistent_winding", "landmark_pieces"]
 

@@ -36,7 +36,7 @@ from scipy.sparse.linalg import spsolve
 
 from stimulus_engine.correspondence.laplacian import cotangent_laplacian
 from stimulus_engine.correspondence.metrics import FoldCheck
-from stimulus_engine.mesh_ops import boundary_neighbours, grow_rings, vertex_adjacency
+from stimulus_engine.geometry.mesh_ops import boundary_neighbours, grow_rings, vertex_adjacency
 
 __all__ = ["UntangleResult", "untangle"]
 

@@ -93,7 +93,7 @@ def read_correspondence_job(source: Path, target: Path, landmarks: str, *, bound
     Parameters
     ----------
     source, target : Path
-        Mesh files (see :func:`stimulus_engine.mesh_io.load_mesh`).
+        Mesh files (see :func:`stimulus_engine.geometry.mesh_io.load_mesh`).
     landmarks : str
         A pairs file (``.json``), inline JSON ``{"source": [...], "target": [...]}``, or
         ``"auto"`` (:func:`auto_pairs`).
@@ -107,7 +107,7 @@ def read_correspondence_job(source: Path, target: Path, landmarks: str, *, bound
     AppealInputError
         One line naming the file or option and what was expected.
     """
-    from stimulus_engine.mesh_io import load_mesh
+    from stimulus_engine.geometry.mesh_io import load_mesh
 
     if lambda1 <= 0 or fairing_iterations < 1:
         raise AppealInputError("--lambda1 must be > 0 and --fairing-iterations >= 1")
@@ -133,7 +133,7 @@ def run_correspondence(job: CorrespondenceJob, out: Path, *, sheet: bool = True)
         The fit metrics (:func:`~stimulus_engine.correspondence.metrics.fit_metrics`) with
         ``stage_seconds``.
     """
-    from stimulus_engine.mesh_io import save_mesh
+    from stimulus_engine.geometry.mesh_io import save_mesh
 
     src, tgt = job.source, job.target
     res = correspond(src, tgt, job.corr, job.params)

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from appeal.atomic import atomic_write_bytes
-from stimulus_engine.hair import hair_arrays, hair_from_arrays
-from stimulus_engine.rig import FaceRig
+from stimulus_engine.parts.hair import hair_arrays, hair_from_arrays
+from stimulus_engine.characters.rig import FaceRig
 
 __all__ = ["GRID_VERSION", "file_sha", "load_rig", "npz_cached", "save_npy", "save_npz", "save_png_once", "save_rig", "sha"]
 

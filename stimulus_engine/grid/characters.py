@@ -4,7 +4,7 @@ A character's *base rig* comes from one of :data:`CHARACTER_KINDS` (``ict``: an 
 identity, ``procedural``: a head made by code); a new kind (e.g. a scanned head) is one more
 entry there: a function from the spec to the rig and a hash of its inputs. A ``mesh`` on top of
 any kind makes the character that mesh, corresponded in the base rig's topology
-(:func:`stimulus_engine.mesh_character.correspond_rig`, cached in ``.cache/mesh``); its
+(:func:`stimulus_engine.characters.mesh_character.correspond_rig`, cached in ``.cache/mesh``); its
 expressions are then carried over from the base rig by deformation transfer.
 """
 
@@ -22,16 +22,16 @@ from appeal.logs import logger
 from stimulus_engine.correspondence.alignment import Similarity
 from stimulus_engine.grid.cache import GRID_VERSION, file_sha, npz_cached, save_npz, sha
 from stimulus_engine.grid.inputs import load_map, load_texture
-from stimulus_engine.grid_schema import CharacterSpec, MeshSpec
-from stimulus_engine.mesh_io import load_mesh
-from stimulus_engine.rig import FaceRig
-from stimulus_engine.scan_surface import ScanSurface
+from stimulus_engine.grid.schema import CharacterSpec, MeshSpec
+from stimulus_engine.geometry.mesh_io import load_mesh
+from stimulus_engine.characters.rig import FaceRig
+from stimulus_engine.characters.scan_surface import ScanSurface
 
 __all__ = ["CHARACTER_KINDS", "Character", "base_rig", "character_albedo", "character_kind", "load_character"]
 
 
 def _ict_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
-    from stimulus_engine.ict import load_ict_rig
+    from stimulus_engine.characters.ict import load_ict_rig
 
     rig = load_ict_rig(c.ict, c.identity)
     files = sorted(Path(c.ict).glob("*.obj*"))
@@ -39,7 +39,7 @@ def _ict_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
 
 
 def _procedural_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
-    from stimulus_engine.procedural_head import procedural_head
+    from stimulus_engine.characters.procedural_head import procedural_head
 
     p = c.procedural
     rig = procedural_head(p.seed, texture_size=p.texture_size, resolution=p.resolution)
@@ -94,7 +94,7 @@ class Character:
 
 def _with_hair(c: CharacterSpec, rig: FaceRig, rig_hash: str) -> tuple[FaceRig, str]:
     """``rig`` wearing the character's hair (if any) and the hash of both."""
-    from stimulus_engine.hair import fit_hair, linear_rgb
+    from stimulus_engine.parts.hair import fit_hair, linear_rgb
 
     style = c.hair_style
     if style is None:
@@ -160,11 +160,11 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
     ``rig``, wearing its own albedo (``mesh.texture``, else the mesh file's texture), with
     eyeballs behind its lids (``mesh.eyes: eyeballs``) and lips that part over the rig's mouth
     (``mesh.mouth: inside``); ``ibug``: the 68 points on the mesh."""
-    from stimulus_engine.mesh_io import mesh_uv_layout, texture_image
-    from stimulus_engine.scan_eyes import eye_geometry
-    from stimulus_engine.scan_mouth import cut_lips
-    from stimulus_engine.scan_regions import scan_masks
-    from stimulus_engine.scan_surface import bind_scan
+    from stimulus_engine.geometry.mesh_io import mesh_uv_layout, texture_image
+    from stimulus_engine.characters.scan_eyes import eye_geometry
+    from stimulus_engine.characters.scan_mouth import cut_lips
+    from stimulus_engine.characters.scan_regions import scan_masks
+    from stimulus_engine.characters.scan_surface import bind_scan
 
     where = f"{source}: characters.{c.name}.mesh"
     layout = mesh_uv_layout(mesh)
@@ -205,10 +205,10 @@ def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | No
     if region is None:
         return None
     if region == "front":
-        from stimulus_engine.mesh_character import front_region
+        from stimulus_engine.characters.mesh_character import front_region
 
         return front_region(base)
-    from stimulus_engine.ict import ict_regions
+    from stimulus_engine.geometry.ict_topology import ict_regions
 
     regions = ict_regions(Path(c.ict) / "vertex_indices.json")
     if region not in regions or region == "landmarks":
@@ -220,7 +220,7 @@ def _mesh_region(c: CharacterSpec, base: FaceRig, where: str) -> np.ndarray | No
 def _corresponded(c: CharacterSpec, base: FaceRig, mesh: trimesh.Trimesh, source: str,
                   found: object | None = None) -> tuple[FaceRig, Similarity]:
     """The character's mesh in the base rig's topology, with its texture and maps re-laid."""
-    from stimulus_engine.mesh_character import correspond_rig
+    from stimulus_engine.characters.mesh_character import correspond_rig
 
     m = c.mesh
     where = f"{source}: characters.{c.name}.mesh"
@@ -230,7 +230,7 @@ def _corresponded(c: CharacterSpec, base: FaceRig, mesh: trimesh.Trimesh, source
             for kind, path in (("normal", m.normal_map), ("specular", m.specular_map)) if path is not None}
     landmarks = {k: (list(v) if isinstance(v, tuple) else v) for k, v in m.given_landmarks().items()}
     if m.auto_landmarks:
-        from stimulus_engine.mesh_character import auto_landmark_points
+        from stimulus_engine.characters.mesh_character import auto_landmark_points
 
         auto = {k: list(v) for k, v in auto_landmark_points(base, mesh, region, name=f"{where}.landmarks",
                                                              found=found).items()}
@@ -247,9 +247,9 @@ def character_albedo(ch: Character, source: str, cache: Path | None = None) -> t
     """The character's albedo and region masks before any stylisation.
 
     The spec's ``texture`` file, else the rig's own texture, else one painted by code on its UVs
-    (:func:`stimulus_engine.materials.rig_albedo`; cached in ``cache/painted`` when given).
+    (:func:`stimulus_engine.characters.skin_maps.rig_albedo`; cached in ``cache/painted`` when given).
     """
-    from stimulus_engine.materials import rig_albedo
+    from stimulus_engine.characters.skin_maps import rig_albedo
 
     c, rig = ch.spec, ch.rig
     if ch.scan is not None:  # drawn as itself: the mesh's own albedo (and found regions) in its own layout

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.grid.schema import GridFile
 
 __all__ = ["SHEET_LIGHTING", "SHEET_EXPRESSIONS", "VARIANTS", "engine_grid", "engine_sheet", "variants_for"]
 

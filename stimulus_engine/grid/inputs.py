@@ -33,7 +33,7 @@ def load_map(path: Path, kind: str, size: tuple[int, int] | None, where: str) ->
     where : str
         Prefix of error messages (e.g. ``grid.yaml: materials.m.normal_map``).
     """
-    from stimulus_engine.materials import check_map
+    from stimulus_engine.characters.skin_maps import check_map
 
     try:
         with Image.open(path) as im:

@@ -12,8 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from stimulus_engine.expressions import resolve_expression
-from stimulus_engine.grid_schema import GridFile, MaterialSpec, shape_label
+from stimulus_engine.characters.expressions import resolve_expression
+from stimulus_engine.grid.schema import GridFile, MaterialSpec, shape_label
 
 __all__ = ["PlannedImage", "PlannedPhoto", "material_sources", "plan_images", "plan_photos"]
 
@@ -30,7 +30,7 @@ class PlannedImage:
     shape : float
         Stylisation level (0 realistic .. 1 cartoon).
     shape_label : str
-        :func:`stimulus_engine.grid_schema.shape_label` of ``shape``.
+        :func:`stimulus_engine.grid.schema.shape_label` of ``shape``.
     stylisation : int
         :meth:`GridFile.stylisation_index` of ``shape``.
     material : MaterialSpec

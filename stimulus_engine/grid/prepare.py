@@ -1,7 +1,7 @@
 """Preparing a grid's inputs in ``DIR/.cache`` and turning its plan into render items.
 
 Each character is loaded once (:mod:`stimulus_engine.grid.characters`), each material once per
-albedo character (albedo and maps stylised by one :func:`stimulus_engine.materials.stylise_material`
+albedo character (albedo and maps stylised by one :func:`stimulus_engine.stylisation.materials.stylise_material`
 call), each (character, shape, expression) geometry once; every image of
 :func:`~stimulus_engine.grid.plan.plan_images` then gets its input hash, a manifest row and a
 :class:`~stimulus_engine.grid.worker.RenderItem`. Everything that can be wrong with the inputs
@@ -30,7 +30,7 @@ from stimulus_engine.grid.characters import Character, character_albedo, load_ch
 from stimulus_engine.grid.inputs import load_map
 from stimulus_engine.grid.plan import PlannedImage, material_sources, plan_images, plan_photos
 from stimulus_engine.grid.worker import RenderItem
-from stimulus_engine.grid_schema import GridFile, MaterialSpec
+from stimulus_engine.grid.schema import GridFile, MaterialSpec
 
 __all__ = ["PreparedMaterial", "prepare_grid"]
 
@@ -67,7 +67,7 @@ def _check_shared_uv(grid: GridFile, chars: dict[str, Character], source: str) -
 def _painted_maps(ch: Character, m: MaterialSpec, size: tuple[int, int], cache: Path,
                   source: str) -> dict[str, np.ndarray]:
     """Normal and specular maps painted by code on the character (``procedural_maps``), cached."""
-    from stimulus_engine.materials import rig_detail_maps
+    from stimulus_engine.characters.skin_maps import rig_detail_maps
 
     if ch.rig.uv is None:
         raise AppealInputError(f"{source}: materials.{m.name}.procedural_maps: character '{ch.spec.name}' has no "
@@ -101,7 +101,7 @@ def _material_maps(m: MaterialSpec, ch: Character, size: tuple[int, int], cache:
 def _prepare_material(m: MaterialSpec, ch: Character, albedo: tuple[np.ndarray, dict], cache: Path,
                       source: str) -> PreparedMaterial:
     """Stylise the material on the character's albedo once and keep the PNGs in the cache."""
-    from stimulus_engine.materials import albedo_hash, maps_hash, stylise_material
+    from stimulus_engine.stylisation.materials import albedo_hash, maps_hash, stylise_material
 
     img, masks = albedo
     styl, maps = stylise_material(img, m.style, masks, _material_maps(m, ch, img.shape[:2], cache, source))
@@ -158,7 +158,7 @@ def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
     The rig's own blendshapes on its own neutral; deformation transfer onto a stylised shape or
     a corresponded mesh character.
     """
-    from stimulus_engine.expressions import apply_expression
+    from stimulus_engine.characters.expressions import apply_expression
 
     r = grid.render
     gh = sha(GRID_VERSION, ch.rig_hash, im.shape, im.expression, r.intensity)
@@ -192,7 +192,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
     landmarks : DataFrame
         Long table: character, shape, stylisation, expression, landmark, x, y, z.
     """
-    from stimulus_engine.stylise import stylise
+    from stimulus_engine.stylisation.shape import stylise
 
     cache = out / ".cache"
     chars = {c.name: load_character(c, cache, source) for c in grid.characters}

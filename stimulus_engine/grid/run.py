@@ -16,7 +16,7 @@ from appeal.logs import logger
 from stimulus_engine.grid.prepare import prepare_grid
 from stimulus_engine.grid.sheets import write_sheets
 from stimulus_engine.grid.worker import place_photo, render_item
-from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.grid.schema import GridFile
 
 __all__ = ["previous_hashes", "run_grid"]
 

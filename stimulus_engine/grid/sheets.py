@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 from PIL import Image
 
-from stimulus_engine.grid_schema import GridFile
+from stimulus_engine.grid.schema import GridFile
 
 __all__ = ["sheet_layout", "write_sheets"]
 

@@ -67,7 +67,7 @@ def _occlusion(rig, vertices: np.ndarray, geometry_npy: str) -> np.ndarray:
     """The geometry's baked ambient visibility, cached beside it (once per character, shape and
     expression: every lighting, material and shading of that geometry reuses it)."""
     from stimulus_engine.grid.cache import save_npy
-    from stimulus_engine.render.rig_parts import rig_occlusion
+    from stimulus_engine.characters.render_parts import rig_occlusion
 
     path = Path(geometry_npy).with_suffix(".occlusion.npy")
     if path.exists():
@@ -80,7 +80,7 @@ def _occlusion(rig, vertices: np.ndarray, geometry_npy: str) -> np.ndarray:
 def item_scene(item: RenderItem) -> tuple[list, object]:
     """The render parts and the camera of ``item`` (the scene both engines draw)."""
     from stimulus_engine.render import CameraSpec
-    from stimulus_engine.render.rig_parts import rig_render_parts
+    from stimulus_engine.characters.render_parts import rig_render_parts
 
     rig = load_rig(item.rig_npz)
     v = np.load(item.geometry_npy).astype(np.float64)

@@ -16,7 +16,7 @@ import threading
 import cv2
 import numpy as np
 
-from stimulus_engine.sampling import sample_bilinear
+from stimulus_engine.geometry.sampling import sample_bilinear
 
 __all__ = ["FLOW_BACKENDS", "DIS_SETTINGS", "compute_flow", "grey_u8", "grid", "warp_image", "sample_field",
            "invert_displacement", "jacobian_det", "fix_foldovers"]
@@ -131,7 +131,7 @@ def compute_flow(reference: np.ndarray, image: np.ndarray, backend: str = "dis",
 
 def warp_image(image: np.ndarray, positions: np.ndarray) -> np.ndarray:
     """Sample ``image`` at absolute ``positions`` (``out(p) = image(positions(p))``), bilinearly
-    (:func:`stimulus_engine.sampling.sample_bilinear`).
+    (:func:`stimulus_engine.geometry.sampling.sample_bilinear`).
 
     Backward mapping: every output pixel gets a value, so there are no holes; outside the
     image the border is replicated.

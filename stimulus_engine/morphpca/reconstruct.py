@@ -24,7 +24,7 @@ import numpy as np
 
 from stimulus_engine.morphpca.flow import fix_foldovers, grid, invert_displacement
 from stimulus_engine.morphpca.morphvec import TEXTURE_SCALE
-from stimulus_engine.sampling import sample_bilinear
+from stimulus_engine.geometry.sampling import sample_bilinear
 
 __all__ = ["HALF_RESOLUTION_MIN", "render_morph", "render_vectors", "Reconstructor", "reconstruct_image"]
 

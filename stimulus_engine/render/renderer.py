@@ -42,7 +42,7 @@ class RenderPart:
         ``material`` is None.
     material : pyrender.Material or None
         Overrides the mesh's own material (e.g. a PBR or Phong-like material made by
-        :mod:`stimulus_engine.materials`).
+        :mod:`stimulus_engine.stylisation.materials`).
     smooth : bool
         Interpolate vertex normals (True) or shade per face.
     name : str
@@ -116,13 +116,13 @@ def split_uv_seams(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     """A copy of ``mesh`` for drawing, with a vertex per (vertex, UV) pair of its exact layout.
 
     A textured scan keeps one position per vertex but several UVs where its texture charts meet
-    (an OBJ's per-corner ``vt`` indices, kept by :func:`stimulus_engine.mesh_io.load_mesh` as
+    (an OBJ's per-corner ``vt`` indices, kept by :func:`stimulus_engine.geometry.mesh_io.load_mesh` as
     ``uv_coords``/``face_uv``); drawn with one UV per vertex, every triangle along such a seam
     samples across the texture's empty background — on the menpo3d james scan a jagged black
     band down the middle of the face. Normals are the unsplit mesh's, so shading stays smooth
     across the seam. Meshes without such seams are returned as they are.
     """
-    from stimulus_engine.mesh_io import mesh_uv_layout
+    from stimulus_engine.geometry.mesh_io import mesh_uv_layout
 
     if "uv_coords" not in mesh.metadata or getattr(mesh.visual, "kind", None) != "texture":
         return mesh  # one UV per vertex: nothing to split

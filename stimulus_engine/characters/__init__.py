@@ -1,0 +1,69 @@
+"""Characters: a rig (topology, expression shapes, landmarks, parts) of each kind — the ICT
+model, the procedural head, a mesh or scan corresponded onto a rig — with its expressions, its
+own skin maps and its parts as the renderer's parts. Imports ``geometry``, ``parts``,
+``correspondence`` (a scan on a rig) and ``render`` (the renderer's part type).
+
+Public API
+----------
+FaceRig, LANDMARK_NAMES, IBUG_LANDMARKS
+    The rig every character is (module ``rig``).
+load_ict_rig
+    An ICT Face Model identity with its 33 ARKit/FACS shapes (module ``ict``).
+procedural_head
+    A head made by code, with a painted texture (module ``procedural_head``).
+MeshCharacter, correspond_rig, front_region
+    Any mesh or scan carried onto a rig through a dense correspondence (module
+    ``mesh_character``); a scan's surface, eyes, mouth and regions: ``bind_scan``,
+    ``eye_geometry``, ``cut_lips``, ``scan_masks`` (modules ``scan_surface``, ``scan_eyes``,
+    ``scan_mouth``, ``scan_regions``, ``scan_cut``).
+EXPRESSIONS, apply_expression, expression_weights, deformation_transfer
+    FACS expressions as weighted action units, and deformation transfer (module
+    ``expressions``).
+rig_albedo, rig_detail_maps, check_map
+    The character's own albedo, pore normal map and specular map (module ``skin_maps``).
+rig_render_parts, hair_render_part, SHADINGS
+    The character as pyrender parts for a shading model (module ``render_parts``).
+"""
+
+from stimulus_engine.characters.expressions import (
+    EXPRESSIONS,
+    apply_expression,
+    deformation_transfer,
+    expression_weights,
+)
+from stimulus_engine.characters.ict import load_ict_rig
+from stimulus_engine.characters.mesh_character import MeshCharacter, correspond_rig, front_region
+from stimulus_engine.characters.procedural_head import procedural_head
+from stimulus_engine.characters.render_parts import SHADINGS, hair_render_part, rig_render_parts
+from stimulus_engine.characters.rig import IBUG_LANDMARKS, LANDMARK_NAMES, FaceRig
+from stimulus_engine.characters.scan_eyes import eye_geometry
+from stimulus_engine.characters.scan_mouth import cut_lips
+from stimulus_engine.characters.scan_regions import scan_masks
+from stimulus_engine.characters.scan_surface import ScanSurface, bind_scan
+from stimulus_engine.characters.skin_maps import check_map, rig_albedo, rig_detail_maps
+
+__all__ = [
+    "EXPRESSIONS",
+    "FaceRig",
+    "IBUG_LANDMARKS",
+    "LANDMARK_NAMES",
+    "MeshCharacter",
+    "SHADINGS",
+    "ScanSurface",
+    "apply_expression",
+    "bind_scan",
+    "check_map",
+    "correspond_rig",
+    "cut_lips",
+    "deformation_transfer",
+    "expression_weights",
+    "eye_geometry",
+    "front_region",
+    "hair_render_part",
+    "load_ict_rig",
+    "procedural_head",
+    "rig_albedo",
+    "rig_detail_maps",
+    "rig_render_parts",
+    "scan_masks",
+]

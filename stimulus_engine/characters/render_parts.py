@@ -1,0 +1,244 @@
+"""A character as pyrender render parts: the pyrender engine's side of materials.
+
+:func:`rig_render_parts` splits a posed rig into parts (skin with its stylised albedo and
+maps, eyes, teeth, mouth, lashes) with pyrender materials for a shading model of
+:data:`SHADINGS`; :func:`hair_render_part` does the same for its hair. The textures and maps
+themselves are arrays (:mod:`stimulus_engine.characters.skin_maps`, stylised by
+:mod:`stimulus_engine.stylisation.materials`); another render engine translates the same arrays
+its own way.
+
+Shaders: ``pbr`` (metallic-roughness, pyrender's shader) and ``phong`` (specular-glossiness
+with an energy-normalised Blinn-Phong BRDF: a sharper, brighter highlight; pyrender 0.1.45 has
+no shader for it, see :func:`stimulus_engine.render._pyrender.phong_fragment_shader`). A
+specular map ``s`` sets, with ``pbr``, the roughness ``r = r_skin · (1.4 − 0.8 s)`` (0.87 … 0.37
+for skin; a metallic-roughness texture); with ``phong`` the specular level ``0.16 s`` and the
+glossiness ``g_skin + 0.3 (s − 0.5)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from stimulus_engine.characters.rig import FaceRig
+from stimulus_engine.parts.hair import Hair
+
+__all__ = ["SHADINGS", "hair_render_part", "rig_occlusion", "rig_render_parts"]
+
+#: Shading models: ``pbr`` (metallic-roughness), ``phong`` (specular-glossiness, Blinn-Phong: the
+#: thesis's contrast to PBR) and ``skin`` (PBR with scattering-softened skin, wet eyes and a filmic
+#: tone curve: :mod:`stimulus_engine.render.skin_shader`).
+SHADINGS: tuple[str, ...] = ("pbr", "phong", "skin")
+
+#: Colours of the untextured parts (linear RGB, alpha). ``mouth`` is the mouth socket (dark, it
+#: is mostly in shadow inside a real mouth), ``tongue`` gums and tongue.
+_PART_COLOURS = {
+    "sclera": (0.85, 0.83, 0.80, 1.0), "iris": (0.18, 0.22, 0.30, 1.0), "teeth": (0.82, 0.79, 0.70, 1.0),
+    "mouth": (0.05, 0.012, 0.015, 1.0), "socket": (0.09, 0.045, 0.04, 1.0), "tongue": (0.30, 0.08, 0.09, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0),
+    "skin": (0.8, 0.62, 0.52, 1.0), "eye": (0.9, 0.88, 0.85, 1.0),
+}
+#: Specular level of the ``phong`` shader (Blinn-Phong without Fresnel: a skin-like sheen; the
+#: 0.22 first chosen here made ICT faces look like wet plastic).
+_PHONG_SPECULAR = 0.08
+#: PBR roughness per part (wet eyes and teeth are glossy; the default is the skin's).
+_PART_ROUGHNESS = {"eye": 0.32, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
+#: Under ``skin`` shading the eyes are wet: a sharp highlight of the key light on the cornea.
+_SKIN_SHADING_ROUGHNESS = {"eye": 0.07, "sclera": 0.08, "iris": 0.07, "teeth": 0.25}
+
+
+_MATERIALS: dict[tuple, tuple[tuple, object]] = {}
+
+
+def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float = 0.62,
+              normal: np.ndarray | None = None, specular: np.ndarray | None = None, scatter: bool = False) -> object:
+    """A pyrender material; cached per (shading, colour, texture array, roughness, scatter) in this process.
+
+    ``scatter``: under ``skin`` shading, the subsurface-softened diffuse term (the skin part).
+
+    Reusing the same material (and so the same ``pyrender.Texture``) for every image that wears
+    the same albedo lets the renderer keep the texture on the GPU (pyrender uploads a texture,
+    and builds its mipmaps, only when it first appears in a scene): the texture upload was most
+    of the per-image time on llvmpipe. The key holds the array's id and the entry the array
+    itself, so a new array that reuses a freed id never hits a stale material.
+    """
+    return _cached(("part", shading, tuple(colour), float(roughness), scatter), (texture, normal, specular),
+                   lambda: _new_material(shading, colour, texture, roughness, normal, specular, scatter))
+
+
+def _cached(key: tuple, arrays: tuple, make) -> object:
+    """``make()``'s material, kept per ``key`` and the identity of ``arrays`` (see :func:`_material`)."""
+    key = key + tuple(None if a is None else id(a) for a in arrays)
+    hit = _MATERIALS.get(key)
+    if hit is not None and all(x is a for x, a in zip(hit[0], arrays)):
+        return hit[1]
+    mat = make()
+    if len(_MATERIALS) > 32:
+        _MATERIALS.clear()
+    _MATERIALS[key] = (arrays, mat)
+    return mat
+
+
+def _shader_defines(material: object, shading: str, scatter: bool) -> object:
+    """Turn on this material's shader switches (:mod:`.skin_shader`): baked visibility in the
+    vertex colour for every shading (a soft light's shadow is baked per vertex,
+    :mod:`.baked_shadows`), and the ``skin`` shading's occluded ambient light, scattering and
+    tone curve."""
+    material.appeal_defines = {"VISIBILITY_IN_COLOR0": 1}
+    if shading == "skin":
+        material.appeal_defines.update({"TONEMAP_FILMIC": 1, "OCCLUDED_AMBIENT": 1, **({"SKIN_SCATTER": 1} if scatter else {})})
+    return material
+
+
+def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float,
+                  normal: np.ndarray | None = None, specular: np.ndarray | None = None, scatter: bool = False) -> object:
+    from stimulus_engine.render._pyrender import pyrender
+
+    def tex(a: np.ndarray | None, channels: str = "RGB") -> object:
+        return None if a is None else pyrender.Texture(source=np.ascontiguousarray(a), source_channels=channels)
+
+    base = (1.0, 1.0, 1.0, 1.0) if texture is not None else colour
+    if texture is not None and texture.shape[-1] == 4:  # cards (lashes): alpha-blended, both sides
+        return _shader_defines(pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=base, baseColorTexture=tex(texture, "RGBA"), metallicFactor=0.0, roughnessFactor=roughness,
+            alphaMode="BLEND", doubleSided=True), shading, scatter=False)
+    s = None if specular is None else np.asarray(specular, np.float64) / 255.0
+    if shading in ("pbr", "skin"):
+        mr = None
+        if s is not None:  # pyrender reads roughness from R and metallic from G (× the factors)
+            r = np.rint(255 * np.clip(roughness * (1.4 - 0.8 * s), 0, 1))
+            mr = np.stack([r, np.full_like(r, 255), np.zeros_like(r)], axis=-1).astype(np.uint8)
+        return _shader_defines(pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=base, baseColorTexture=tex(texture), metallicFactor=0.0,
+            roughnessFactor=1.0 if s is not None else roughness, normalTexture=tex(normal),
+            metallicRoughnessTexture=tex(mr)), shading, scatter)
+    if shading == "phong":
+        gloss = min(0.95, 1.17 - roughness)
+        sg, level = None, _PHONG_SPECULAR
+        if s is not None:  # specular level 2 s × the default, glossiness g_skin ± 0.15 (mid-grey = no map)
+            level = 2 * _PHONG_SPECULAR
+            a = np.clip(gloss + 0.3 * (s - 0.5), 0, 1)
+            sg = np.rint(255 * np.stack([s] * 3 + [a], axis=-1)).astype(np.uint8)
+            gloss = 1.0
+        return _shader_defines(pyrender.material.SpecularGlossinessMaterial(
+            diffuseFactor=base, diffuseTexture=tex(texture), specularFactor=(level,) * 3, glossinessFactor=gloss,
+            normalTexture=tex(normal), specularGlossinessTexture=tex(sg, "RGBA")), shading, scatter=False)
+    raise ValueError(f"unknown shading '{shading}' (expected one of: {', '.join(SHADINGS)})")
+
+
+_SPLITS: dict[tuple, tuple[object, list]] = {}
+
+
+def _split_parts(rig: FaceRig, textured_skin: bool) -> list:
+    """Per part: (name, (vertex, uv) index pairs, triangles, textured); cached per rig topology."""
+    key = (id(rig.faces), id(rig.face_part), textured_skin, tuple(sorted(rig.part_textures)))
+    hit = _SPLITS.get(key)
+    if hit is not None and hit[0][0] is rig.faces and hit[0][1] is rig.face_part:
+        return hit[1]
+    out = []
+    for k, name in enumerate(rig.part_names):
+        sel = rig.face_part == k
+        if name == "hidden" or not sel.any():
+            continue
+        f = rig.faces[sel]
+        textured = (name == "skin" and textured_skin) or (name in rig.part_textures and rig.face_uv is not None)
+        second = rig.face_uv[sel].ravel() if textured else np.zeros(f.size, np.int64)
+        uniq, inv = np.unique(np.stack([f.ravel(), second], axis=1), axis=0, return_inverse=True)
+        out.append((name, uniq, inv.reshape(-1, 3), textured))
+    if len(_SPLITS) > 16:
+        _SPLITS.clear()
+    _SPLITS[key] = ((rig.faces, rig.face_part), out)
+    return out
+
+
+def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | None, *,
+                     shading: str = "pbr", normal_map: np.ndarray | None = None,
+                     specular_map: np.ndarray | None = None, occlusion: np.ndarray | None = None) -> list:
+    """Render parts (skin with texture, eyes, teeth, mouth, lashes) for ``vertices`` of ``rig``.
+
+    Skin vertices are split where the UV layout has seams (normals are computed on the welded
+    mesh first, so the shading stays smooth across seams). Parts named ``hidden`` are left out.
+
+    Parameters
+    ----------
+    rig : FaceRig
+    vertices : (N, 3) array
+        The shape to draw (expression and stylisation applied).
+    albedo : (H, W, 3) uint8 array or None
+        Skin texture (None = plain skin colour).
+    shading : {"pbr", "phong"}
+    normal_map : (H, W, 3) uint8 array, optional
+        Tangent-space normal map of the skin (see :func:`check_map`).
+    specular_map : (H, W) uint8 array, optional
+        Specularity of the skin, white = shiny.
+    occlusion : (N,) array, optional
+        Ambient visibility per rig vertex (:func:`rig_occlusion`), used by ``skin`` shading.
+    """
+    from stimulus_engine.render.renderer import RenderPart
+
+    v = np.asarray(vertices, np.float64)
+    maps = normal_map is not None or specular_map is not None
+    if (albedo is not None or maps) and (rig.uv is None or rig.face_uv is None):
+        raise ValueError(f"rig '{rig.name}' has no UVs but a texture was asked for")
+    normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
+    parts = []
+    for name, uniq, tri, textured in _split_parts(rig, albedo is not None or maps):
+        mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=normals[uniq[:, 0]], process=False)
+        if textured:
+            mesh.visual = trimesh.visual.TextureVisuals(uv=rig.uv[uniq[:, 1]])
+        tex = (albedo if name == "skin" else rig.part_textures[name]) if textured else None
+        skin = name == "skin" and textured
+        rough = _SKIN_SHADING_ROUGHNESS.get(name) if shading == "skin" else None
+        rough = _PART_ROUGHNESS.get(name, 0.62) if rough is None else rough
+        mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough,
+                        normal_map if skin else None, specular_map if skin else None, scatter=name == "skin")
+        occ = None if occlusion is None else np.asarray(occlusion)[uniq[:, 0]]
+        parts.append(RenderPart(mesh, material=mat, smooth=True, name=name, occlusion=occ))
+    if rig.hair is not None:
+        parts.append(hair_render_part(rig.hair, v, shading))
+    return parts
+
+
+#: Roughness of hair (a soft sheen: the cards have no strand-level normals, and a sharper highlight
+#: showed the mesh's facets as grey patches).
+HAIR_ROUGHNESS = 0.8
+
+
+def hair_render_part(hair: Hair, vertices: np.ndarray, shading: str = "pbr") -> object:
+    """The rig's hair (:mod:`stimulus_engine.parts.hair`), posed on ``vertices``, as an alpha-tested
+    double-sided part; its grey strand texture is multiplied by the hair colour."""
+    from stimulus_engine.render.renderer import RenderPart
+
+    mesh = trimesh.Trimesh(hair.pose(vertices), hair.faces, process=False)
+    mesh.visual = trimesh.visual.TextureVisuals(uv=hair.uv)
+    return RenderPart(mesh, material=_hair_material(shading, hair.colour, hair.texture), smooth=True, name="hair")
+
+
+def _hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray) -> object:
+    """A cached material per (shading, colour, texture) for the hair (see :func:`_material`)."""
+    return _cached(("hair", shading, tuple(colour)), (texture,), lambda: _new_hair_material(shading, colour, texture))
+
+
+def _new_hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray) -> object:
+    from stimulus_engine.render._pyrender import pyrender
+
+    tex = pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGBA")
+    if shading == "phong":
+        mat = pyrender.material.SpecularGlossinessMaterial(
+            diffuseFactor=(*colour, 1.0), diffuseTexture=tex, specularFactor=(_PHONG_SPECULAR,) * 3,
+            glossinessFactor=1.17 - HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
+    else:
+        mat = pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=HAIR_ROUGHNESS,
+            alphaMode="MASK", doubleSided=True)
+    return _shader_defines(mat, shading, scatter=False)
+
+
+def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32) -> np.ndarray:
+    """Ambient visibility ``(N,)`` of every vertex of ``rig`` at ``vertices``, the whole head
+    (every part, hidden ones too: the inside of the mouth) occluding (:mod:`.occlusion`)."""
+    from stimulus_engine.render.occlusion import vertex_occlusion
+
+    v = np.asarray(vertices, np.float64)
+    normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
+    return vertex_occlusion(v, rig.faces, normals, rays=rays)
+

@@ -1,0 +1,38 @@
+"""Stylisation: the operators that move a character along the realism scale — its shape, its
+material, and blends between corresponded faces — and the neoteny measures that describe where
+a shape lies. Imports everything below it (characters, parts, correspondence, render, geometry).
+
+Public API
+----------
+stylise, stylise_rig, StyliseParams
+    The shape operator: neotenous proportions by regions of the rig (module ``shape``).
+MATERIAL_LEVELS, stylise_albedo, stylise_map, stylise_material
+    Material levels 0 (original) … 4 (flat) on albedos and their maps (module ``materials``).
+blend_vertices, blend_images, partial_blend, blend_meshes, part_morph
+    Morphs between corresponded meshes, whole or by facial region (modules ``morph``,
+    ``morph_regions``; gradient-domain texture blending in ``gradient_blend``).
+neoteny_measures, neoteny_table
+    Baby-schema proportions of a face (module ``neoteny``).
+"""
+
+from stimulus_engine.stylisation.materials import MATERIAL_LEVELS, stylise_albedo, stylise_map, stylise_material
+from stimulus_engine.stylisation.morph import blend_images, blend_meshes, blend_vertices, part_morph, partial_blend
+from stimulus_engine.stylisation.neoteny import neoteny_measures, neoteny_table
+from stimulus_engine.stylisation.shape import StyliseParams, stylise, stylise_rig
+
+__all__ = [
+    "MATERIAL_LEVELS",
+    "StyliseParams",
+    "blend_images",
+    "blend_meshes",
+    "blend_vertices",
+    "neoteny_measures",
+    "neoteny_table",
+    "part_morph",
+    "partial_blend",
+    "stylise",
+    "stylise_albedo",
+    "stylise_map",
+    "stylise_material",
+    "stylise_rig",
+]
