@@ -23,6 +23,8 @@ rig_albedo, rig_detail_maps, check_map
     The character's own albedo, pore normal map and specular map (module ``skin_maps``).
 rig_render_parts, hair_render_part, SHADINGS
     The character as pyrender parts for a shading model (module ``render_parts``).
+aim_eyes, lines_of_sight
+    Each eye's line of sight, and eyeballs turned to look at a point (module ``gaze``).
 """
 
 from stimulus_engine.characters.expressions import (
@@ -31,6 +33,7 @@ from stimulus_engine.characters.expressions import (
     deformation_transfer,
     expression_weights,
 )
+from stimulus_engine.characters.gaze import aim_eyes, lines_of_sight
 from stimulus_engine.characters.ict import load_ict_rig
 from stimulus_engine.characters.mesh_character import MeshCharacter, correspond_rig, front_region
 from stimulus_engine.characters.procedural_head import procedural_head
@@ -50,6 +53,7 @@ __all__ = [
     "MeshCharacter",
     "SHADINGS",
     "ScanSurface",
+    "aim_eyes",
     "apply_expression",
     "bind_scan",
     "check_map",
@@ -60,6 +64,7 @@ __all__ = [
     "eye_geometry",
     "front_region",
     "hair_render_part",
+    "lines_of_sight",
     "load_ict_rig",
     "procedural_head",
     "rig_albedo",

@@ -39,43 +39,49 @@ _ICT_PARTS = ("skin", "eye", "teeth", "mouth", "tongue", "lashes", "hidden")
 
 
 def _ict_eyes(v: np.ndarray, faces: np.ndarray, face_part: np.ndarray, uv: np.ndarray | None,
-              face_uv: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+              face_uv: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, dict]:
     """Hide the corneal caps and give the eyeballs their own UVs about each eye's gaze axis.
 
     The gaze axis of an eye points from the centre of the sphere fitted to its corneal cap
-    through the cap's bulge (its 15 % of vertices farthest from the centre).
+    through the cap's bulge (its 15 % of vertices farthest from the centre). Also returns each
+    eye's pupil ring (``pupil_left``, ``pupil_right``: :func:`~stimulus_engine.characters.gaze.pupil_ring`).
     """
+    from stimulus_engine.characters.gaze import pupil_ring
     from stimulus_engine.parts.eyes import eyeball_uv, fit_sphere
 
+    pupils = {}
     face_part = face_part.copy()
     hidden = _ICT_PARTS.index("hidden")
     new_uv, fuv = [], None if face_uv is None else face_uv.copy()
     n_uv = 0 if uv is None else len(uv)
-    for (c0, c1), (b0, b1) in zip(_ICT_CORNEA, _ICT_BALL):
+    for side, (c0, c1), (b0, b1) in zip(("left", "right"), _ICT_CORNEA, _ICT_BALL):
         cap = v[c0:c1 + 1]
         centre, _ = fit_sphere(cap)
         d = np.linalg.norm(cap - centre, axis=1)
         axis = (cap[d > np.percentile(d, 85)] - centre).mean(axis=0)
         face_part[((faces >= c0) & (faces <= c1)).any(axis=1)] = hidden
+        ball_centre, _ = fit_sphere(v[b0:b1 + 1])
+        pupils[f"pupil_{side}"] = pupil_ring(v, np.arange(b0, b1 + 1), ball_centre, axis)
         if fuv is not None:
             ball = ((faces >= b0) & (faces <= b1)).all(axis=1)
-            ball_centre, _ = fit_sphere(v[b0:b1 + 1])
             new_uv.append(eyeball_uv(v[b0:b1 + 1], ball_centre, axis))
             fuv[ball] = faces[ball] - b0 + n_uv
             n_uv += b1 + 1 - b0
     if fuv is None:
-        return face_part, uv, fuv
-    return face_part, np.concatenate([uv, *new_uv]), fuv
+        return face_part, uv, fuv, pupils
+    return face_part, np.concatenate([uv, *new_uv]), fuv, pupils
 
 
-def _ict_landmarks(v: np.ndarray, lm: np.ndarray, regions: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Named landmark sets from the 68 Multi-PIE landmarks (iBUG order) of the ICT README."""
+def _ict_landmarks(v: np.ndarray, lm: np.ndarray, regions: Mapping[str, np.ndarray],
+                   pupils: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Named landmark sets from the 68 Multi-PIE landmarks (iBUG order) of the ICT README, the
+    eyeballs and their pupil rings."""
     face = regions["face"]
     fv = v[face]
     mid = face[(np.abs(fv[:, 0]) < 0.6) & (fv[:, 2] > 0)]
     top = mid[np.argmax(v[mid, 1])]
     special = {"eye_right": regions["eyeball_right"], "eye_left": regions["eyeball_left"],
-               "forehead_top": np.array([top])}
+               "forehead_top": np.array([top]), **pupils}
     return {name: special[name] if name in special else lm[list(IBUG_LANDMARKS[name])] for name in LANDMARK_NAMES}
 
 
@@ -169,12 +175,12 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
         low = v[faces[lash]].mean(axis=1)[:, 1] < v[regions[f"eyeball_{side}"]].mean(axis=0)[1]
         face_part[np.flatnonzero(lash)[low]] = _ICT_PARTS.index("hidden")
     uv, face_uv = (None, None) if layout is None else layout
-    face_part, uv, face_uv = _ict_eyes(v, faces, face_part, uv, face_uv)
+    face_part, uv, face_uv, pupils = _ict_eyes(v, faces, face_part, uv, face_uv)
     skin = np.concatenate([regions["face"], regions["head_and_neck"], regions["eye_socket_left"],
                            regions["eye_socket_right"]])
     return FaceRig(
         name=identity, vertices=v, faces=faces, uv=uv, face_uv=face_uv, face_part=face_part, part_names=_ICT_PARTS,
-        landmarks=_ict_landmarks(v, regions["landmarks"], regions), blendshapes=blend,
+        landmarks=_ict_landmarks(v, regions["landmarks"], regions, pupils), blendshapes=blend,
         rigid_sets=[regions["eyeball_left"], regions["eyeball_right"]], skin=skin,
         part_textures={} if uv is None else {"eye": photographic_eye_texture()},
     )

@@ -17,6 +17,7 @@ import functools
 
 import numpy as np
 
+from stimulus_engine.characters.gaze import pupil_ring
 from stimulus_engine.characters.rig import FaceRig
 from stimulus_engine.parts.eyes import eyeball_uv, photographic_eye_texture, tint_iris
 
@@ -354,6 +355,8 @@ def _cached(seed: int, texture_size: int, resolution: int) -> FaceRig:
         "face_right": _nearest(v, (-p["rx"], 1.0, 0.0), skin), "face_left": _nearest(v, (p["rx"], 1.0, 0.0), skin),
         "forehead_top": at(0, 6.3), "brow_right": np.concatenate([at(-2.0, 4.1), at(-3.0, 4.2), at(-4.0, 4.1)]),
         "brow_left": np.concatenate([at(2.0, 4.1), at(3.0, 4.2), at(4.0, 4.1)]),
+        **{f"pupil_{side}": pupil_ring(v, ball, np.array([cx, cy, ecz - 0.45]), np.array([0.0, 0.0, 1.0]))
+           for side, ball, (cx, cy, _) in zip(("right", "left"), eye_sets, eye_c)},
     }
     tex, masks = _paint_texture(p, texture_size, rng)
     return FaceRig(

@@ -29,6 +29,7 @@ LANDMARK_NAMES: tuple[str, ...] = (
     "nasion", "subnasale", "nose_tip", "nose_right", "nose_left",
     "mouth_right", "mouth_left", "mouth_top", "mouth_bottom",
     "chin", "face_right", "face_left", "forehead_top", "brow_right", "brow_left",
+    "pupil_right", "pupil_left",  # eyeball vertices about the gaze axis (stimulus_engine.characters.gaze)
 )
 
 #: iBUG 68 points (0-based) whose mean is each rig landmark, where the 68-point markup has one

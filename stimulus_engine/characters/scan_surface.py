@@ -79,6 +79,19 @@ def _eye_pieces(eyes: EyeGeometry) -> list[tuple[np.ndarray, np.ndarray, np.ndar
             + [(lv, lf, luv, 3) for lv, lf, luv in eyes.lashes])
 
 
+def _eye_landmarks(vertices: np.ndarray, balls: list[np.ndarray]) -> dict[str, np.ndarray]:
+    """The drawn eyeballs (right first) and their pupil rings: each template looks along +z
+    (:func:`stimulus_engine.parts.eyes.eyeball_asset`), so its gaze axis is +z in the neutral."""
+    from stimulus_engine.characters.gaze import SIDES, pupil_ring
+    from stimulus_engine.parts.eyes import fit_sphere
+
+    out = {}
+    for side, ball in zip(SIDES, balls):
+        out[f"eye_{side}"] = ball
+        out[f"pupil_{side}"] = pupil_ring(vertices, ball, fit_sphere(vertices[ball])[0], np.array([0.0, 0.0, 1.0]))
+    return out
+
+
 def _rig_pieces(rig: FaceRig, parts: tuple[str, ...], first: int) -> tuple[list, list[np.ndarray]]:
     """The rig's ``parts`` as pieces (part numbers from ``first``) and each piece's rig vertices."""
     pieces, verts = [], []
@@ -157,13 +170,14 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
     t, ft = np.asarray(uv, np.float64), np.asarray(face_uv, np.int64)
     keep = (np.ones(len(f), bool) if eyes is None else eyes.keep) if keep is None else keep
     f, ft = f[keep], ft[keep]
-    part, names, textures, rigid, follow = np.zeros(len(f), np.int64), ["skin"], {}, (), ()
+    part, names, textures, rigid, follow, landmarks = np.zeros(len(f), np.int64), ["skin"], {}, (), (), {}
     n_scan = len(v)
     lashes: list[np.ndarray] = []
     if eyes is not None:
         v, f, t, ft, part, pieces = _with_pieces(v, f, t, ft, part, _eye_pieces(eyes))
         balls, lashes = pieces[:len(eyes.balls)], pieces[len(eyes.balls) + len(eyes.sockets):]
         names, textures = ["skin", "eye", "socket", "lashes"], {"eye": eyes.texture, "lashes": lash_texture()}
+        landmarks = _eye_landmarks(v, balls)
         centres = np.array([rig.vertices[s].mean(axis=0) for s in rig.rigid_sets])
         if len(centres):
             rigid = tuple((b, rig.rigid_sets[int(np.argmin(np.linalg.norm(centres - v[b].mean(axis=0), axis=1)))])
@@ -195,6 +209,6 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
         root = strip[np.arange(len(strip)) % (len(strip) // LASH_ROWS)]
         corners[strip], bary[strip] = corners[root], bary[root]
     topology = FaceRig(name=name, vertices=v, faces=f, uv=t, face_uv=ft, face_part=part, part_names=tuple(names),
-                       landmarks={}, skin=np.flatnonzero(np.isin(np.arange(len(v)), f[part == 0])),
+                       landmarks=landmarks, skin=np.flatnonzero(np.isin(np.arange(len(v)), f[part == 0])),
                        part_textures=textures)
     return ScanSurface(topology, v, np.asarray(rig.vertices, np.float64).copy(), corners, bary, rigid, follow)

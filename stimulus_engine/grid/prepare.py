@@ -151,17 +151,27 @@ def _camera_text(cam: tuple) -> str:
     return CameraSpec(tuple(cam[0]), tuple(cam[1]), cam[2], tuple(cam[3])).describe()
 
 
+def _gaze_target(grid: GridFile, cam: tuple) -> np.ndarray | None:
+    """The point the eyes look at (``render.gaze``): the camera, a given point, or None (as modelled)."""
+    gaze = grid.render.gaze
+    if gaze == "model":
+        return None
+    return np.asarray(cam[0] if gaze == "camera" else gaze, np.float64)
+
+
 def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFile, cache: Path,
-              source: str) -> tuple[Path, str]:
+              source: str, target: np.ndarray | None = None) -> tuple[Path, str]:
     """The posed vertices of (character, shape, expression) in ``cache/geometry`` and their hash.
 
     The rig's own blendshapes on its own neutral; deformation transfer onto a stylised shape or
-    a corresponded mesh character.
+    a corresponded mesh character; then the eyeballs turned to look at ``target`` (if given).
     """
     from stimulus_engine.characters.expressions import apply_expression
+    from stimulus_engine.characters.gaze import aim_eyes
 
     r = grid.render
-    gh = sha(GRID_VERSION, ch.rig_hash, im.shape, im.expression, r.intensity)
+    aim = () if target is None else ("gaze", *np.round(target, 6).tolist())
+    gh = sha(GRID_VERSION, ch.rig_hash, im.shape, im.expression, r.intensity, *aim)
     gp = cache / "geometry" / f"{gh}.npy"
     if not gp.exists():
         plain = im.shape == 0 and ch.expression_rig is ch.rig
@@ -169,6 +179,8 @@ def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
             v = apply_expression(ch.expression_rig, im.expression, r.intensity, target=None if plain else shape_v)
         except ValueError as exc:  # a recipe shape the rig lacks
             raise AppealInputError(f"{source}: characters.{im.character}: {exc}") from None
+        if target is not None:
+            v = aim_eyes(ch.rig.landmarks, v, target)
         save_npy(gp, v.astype(np.float32))
     return gp, gh
 
@@ -192,6 +204,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
     landmarks : DataFrame
         Long table: character, shape, stylisation, expression, landmark, x, y, z.
     """
+    from stimulus_engine.characters.gaze import aim_eyes
     from stimulus_engine.stylisation.shape import stylise
 
     cache = out / ".cache"
@@ -217,14 +230,19 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
             shapes[im.character, im.shape] = (shape_v, _camera_for(ch, shape_v, grid))
         shape_v, cam = shapes[im.character, im.shape]
         gkey = (im.character, im.shape, im.expression)
+        target = _gaze_target(grid, cam)
         if gkey not in geometry:
-            geometry[gkey] = _geometry(ch, im, shape_v, grid, cache, source)
+            geometry[gkey] = _geometry(ch, im, shape_v, grid, cache, source, target)
             lm_rows += _landmark_rows(ch, im, np.load(geometry[gkey][0]))
         gp, gh = geometry[gkey]
         if ch.scan is not None:  # the posed rig carries the scan's own surface
             gp = cache / "geometry" / f"{sha(gh, 'scan', ch.scan.topology.name)}.npy"
             if not gp.exists():
-                save_npy(gp, ch.scan.pose(np.load(geometry[gkey][0])).astype(np.float32))
+                topo = ch.scan.topology
+                drawn = ch.scan.pose(np.load(geometry[gkey][0]))
+                if target is not None:  # the drawn eyeballs follow the rig's only nearly: aim them too
+                    drawn = aim_eyes(topo.landmarks, drawn, target)
+                save_npy(gp, drawn.astype(np.float32))
         look = looks[im.albedo_from, im.material.name]
         extra = () if look.maps_hash == "none" else (look.maps_hash,)  # hashes without maps as before
         ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(), *extra)

@@ -186,6 +186,11 @@ class RenderSettings(StudyModel):
     the default 16 shows no noise after OpenImageDenoise: 1.0 grey levels mean difference to 64
     samples on the james scan at 1024×768) and ``seed`` are Cycles' own; the same file renders
     with either engine.
+
+    ``gaze``: where the eyes look in every image (:func:`stimulus_engine.characters.gaze.aim_eyes`):
+    ``camera`` (default: both lines of sight meet at the camera, the face looks at the viewer),
+    ``model`` (as the rig and its expressions leave the eyeballs), or a point ``[x, y, z]`` in the
+    scene's frame (centimetres, the frame of the manifest's ``camera`` column).
     """
 
     engine: Literal["pyrender", "cycles"] = "pyrender"
@@ -199,6 +204,7 @@ class RenderSettings(StudyModel):
     shadows: bool = True
     background: tuple[float, float, float] = (0.5, 0.5, 0.5)
     intensity: float = Field(1.0, ge=0, le=2)
+    gaze: Literal["camera", "model"] | tuple[float, float, float] = "camera"
 
     @field_validator("engine")
     @classmethod

@@ -17,7 +17,8 @@ import numpy as np
 
 from stimulus_engine.data import DATA_DIR
 
-__all__ = ["eye_texture", "eyeball_asset", "eyeball_uv", "fit_sphere", "photographic_eye_texture", "tint_iris"]
+__all__ = ["eye_texture", "eyeball_asset", "eyeball_uv", "fit_sphere", "painted_pupils", "photographic_eye_texture",
+           "tint_iris"]
 
 #: Default angles (degrees from the gaze axis, seen from the eyeball centre). Measured on the ICT
 #: Face Model's inner eyeball (the flattened iris cone ends at 24–27°, the pupil dip at ~8°;
@@ -236,7 +237,12 @@ _ASSET = DATA_DIR / "eyes"
 @functools.lru_cache(maxsize=1)
 def eyeball_asset() -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], np.ndarray]:
     """The two template eyeballs of ``stimulus_engine/data/eyes`` (MakeHuman's CC0 high-poly
-    eyes; unit sphere about the origin, looking along +z) and their photographic texture.
+    eyes; unit sphere about the origin, the painted pupil on +z) and their photographic texture.
+
+    Each ball is turned so that its line of sight, from the centre through the pupil painted in
+    the texture (:func:`painted_pupils`), runs along +z. (The mesh's own front cap lies 15–18°
+    above the painted pupil: aligned by the cap, the irises looked down and showed white above
+    them.)
 
     Returns
     -------
@@ -248,6 +254,9 @@ def eyeball_asset() -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], np
 
     d = np.load(_ASSET / "eyeballs.npz")
     v, f, uv, eye = (d[k] for k in ("vertices", "faces", "uv", "eye"))
+    with Image.open(_ASSET / "brown_eye.jpg") as im:
+        texture = np.asarray(im.convert("RGB"))
+    pupils = painted_pupils(texture)
     balls = []
     for e in sorted((0, 1), key=lambda e: float(v[eye == e, 0].mean())):
         idx = np.flatnonzero(eye == e)
@@ -256,11 +265,48 @@ def eyeball_asset() -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], np
         faces = remap[f[(eye[f] == e).all(axis=1)]]
         centre, radius = fit_sphere(v[idx].astype(np.float64))
         unit = (v[idx] - centre) / radius
-        front = unit[unit[:, 2] > np.percentile(unit[:, 2], 95)].mean(axis=0)
-        balls.append((_rotate_onto(unit, front, np.array([0.0, 0.0, 1.0])), faces, uv[idx].astype(np.float64)))
-    with Image.open(_ASSET / "brown_eye.jpg") as im:
-        texture = np.asarray(im.convert("RGB"))
+        ball_uv = uv[idx].astype(np.float64)
+        pupil = min(pupils, key=lambda p: float(np.linalg.norm(ball_uv - p, axis=1).min()))
+        balls.append((_rotate_onto(unit, _uv_direction(unit, ball_uv, pupil), np.array([0.0, 0.0, 1.0])), faces, ball_uv))
     return balls, texture
+
+
+def painted_pupils(texture: np.ndarray, dark: float = 40.0) -> list[np.ndarray]:
+    """UV centres of the pupils painted in an eyeball texture: its two largest dark blobs.
+
+    Parameters
+    ----------
+    texture : (H, W, 3) uint8 array
+    dark : float
+        Grey level (0–255) below which a pixel counts as pupil.
+
+    Returns
+    -------
+    list of (2,) arrays
+        UV (OBJ convention: v = 0 at the image's bottom row), largest blob first.
+    """
+    from scipy import ndimage
+
+    grey = np.asarray(texture, np.float64).mean(axis=2)
+    labels, n = ndimage.label(grey < dark)
+    if n == 0:
+        raise ValueError(f"no pupil in the eye texture (no pixel darker than {dark:g})")
+    sizes = ndimage.sum_labels(np.ones_like(grey), labels, np.arange(1, n + 1))
+    order = np.argsort(-sizes)[:2] + 1
+    h, w = grey.shape
+    return [np.array([(x + 0.5) / w, 1.0 - (y + 0.5) / h])
+            for y, x in ndimage.center_of_mass(np.ones_like(grey), labels, order)]
+
+
+def _uv_direction(unit: np.ndarray, uv: np.ndarray, at: np.ndarray, radius: float = 0.03) -> np.ndarray:
+    """The unit direction of the ball's surface where its UV layout has ``at`` (mean of the
+    vertices within ``radius`` in UV, at least the 6 nearest)."""
+    d = np.linalg.norm(uv - at, axis=1)
+    near = d < radius
+    if near.sum() < 6:
+        near = np.isin(np.arange(len(d)), np.argsort(d)[:6])
+    a = unit[near].mean(axis=0)
+    return a / np.linalg.norm(a)
 
 
 def _rotate_onto(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
