@@ -23,7 +23,7 @@ import trimesh
 from stimulus_engine.characters.rig import FaceRig
 from stimulus_engine.parts.hair import Hair
 
-__all__ = ["SHADINGS", "hair_render_part", "rig_occlusion", "rig_render_parts"]
+__all__ = ["INSIDE_PARTS", "SHADINGS", "hair_render_part", "rig_occlusion", "rig_render_parts"]
 
 #: Shading models: ``pbr`` (metallic-roughness), ``phong`` (specular-glossiness, Blinn-Phong: the
 #: thesis's contrast to PBR) and ``skin`` (PBR with scattering-softened skin, wet eyes and a filmic
@@ -33,15 +33,20 @@ SHADINGS: tuple[str, ...] = ("pbr", "phong", "skin")
 #: Colours of the untextured parts (linear RGB, alpha). ``mouth`` is the mouth socket (dark, it
 #: is mostly in shadow inside a real mouth), ``tongue`` gums and tongue.
 _PART_COLOURS = {
-    "sclera": (0.85, 0.83, 0.80, 1.0), "iris": (0.18, 0.22, 0.30, 1.0), "teeth": (0.82, 0.79, 0.70, 1.0),
-    "mouth": (0.05, 0.012, 0.015, 1.0), "socket": (0.09, 0.045, 0.04, 1.0), "tongue": (0.30, 0.08, 0.09, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0),
+    "sclera": (0.85, 0.83, 0.80, 1.0), "iris": (0.18, 0.22, 0.30, 1.0), "teeth": (0.56, 0.50, 0.40, 1.0),
+    "mouth": (0.05, 0.012, 0.015, 1.0), "socket": (0.09, 0.045, 0.04, 1.0), "tongue": (0.40, 0.12, 0.12, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0),
     "skin": (0.8, 0.62, 0.52, 1.0), "eye": (0.9, 0.88, 0.85, 1.0),
 }
+#: The parts inside the mouth: every light reaches them only as far as their baked ambient
+#: visibility lets it (the ``OCCLUDED_LIGHTS`` switch), in every shading, so an open mouth is a
+#: dark cavity with shaded teeth. Teeth are ivory, not white (linear albedo about 0.5: enamel
+#: over dentine), and the tongue a muted pink.
+INSIDE_PARTS: tuple[str, ...] = ("mouth", "teeth", "tongue")
 #: Specular level of the ``phong`` shader (Blinn-Phong without Fresnel: a skin-like sheen; the
 #: 0.22 first chosen here made ICT faces look like wet plastic).
 _PHONG_SPECULAR = 0.08
 #: PBR roughness per part (wet eyes and teeth are glossy; the default is the skin's).
-_PART_ROUGHNESS = {"eye": 0.32, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
+_PART_ROUGHNESS = {"eye": 0.12, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
 #: Under ``skin`` shading the eyes are wet: a sharp highlight of the key light on the cornea.
 _SKIN_SHADING_ROUGHNESS = {"eye": 0.07, "sclera": 0.08, "iris": 0.07, "teeth": 0.25}
 
@@ -50,10 +55,12 @@ _MATERIALS: dict[tuple, tuple[tuple, object]] = {}
 
 
 def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float = 0.62,
-              normal: np.ndarray | None = None, specular: np.ndarray | None = None, scatter: bool = False) -> object:
+              normal: np.ndarray | None = None, specular: np.ndarray | None = None, scatter: bool = False,
+              inside: bool = False) -> object:
     """A pyrender material; cached per (shading, colour, texture array, roughness, scatter) in this process.
 
     ``scatter``: under ``skin`` shading, the subsurface-softened diffuse term (the skin part).
+    ``inside``: a part inside the mouth (:data:`INSIDE_PARTS`), lit through its ambient visibility.
 
     Reusing the same material (and so the same ``pyrender.Texture``) for every image that wears
     the same albedo lets the renderer keep the texture on the GPU (pyrender uploads a texture,
@@ -61,8 +68,15 @@ def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | Non
     of the per-image time on llvmpipe. The key holds the array's id and the entry the array
     itself, so a new array that reuses a freed id never hits a stale material.
     """
-    return _cached(("part", shading, tuple(colour), float(roughness), scatter), (texture, normal, specular),
-                   lambda: _new_material(shading, colour, texture, roughness, normal, specular, scatter))
+    return _cached(("part", shading, tuple(colour), float(roughness), scatter, inside), (texture, normal, specular),
+                   lambda: _inside(_new_material(shading, colour, texture, roughness, normal, specular, scatter), inside))
+
+
+def _inside(material: object, inside: bool) -> object:
+    """``material`` with the ``OCCLUDED_LIGHTS`` (and occluded ambient) switches of a part inside the mouth."""
+    if inside:
+        material.appeal_defines.update({"OCCLUDED_LIGHTS": 1, "OCCLUDED_AMBIENT": 1})
+    return material
 
 
 def _cached(key: tuple, arrays: tuple, make) -> object:
@@ -171,7 +185,8 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
     specular_map : (H, W) uint8 array, optional
         Specularity of the skin, white = shiny.
     occlusion : (N,) array, optional
-        Ambient visibility per rig vertex (:func:`rig_occlusion`), used by ``skin`` shading.
+        Ambient visibility per rig vertex (:func:`rig_occlusion`), used by ``skin`` shading for
+        its ambient light, and in every shading for the parts inside the mouth (:data:`INSIDE_PARTS`).
     """
     from stimulus_engine.render.renderer import RenderPart
 
@@ -190,7 +205,8 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         rough = _SKIN_SHADING_ROUGHNESS.get(name) if shading == "skin" else None
         rough = _PART_ROUGHNESS.get(name, 0.62) if rough is None else rough
         mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough,
-                        normal_map if skin else None, specular_map if skin else None, scatter=name == "skin")
+                        normal_map if skin else None, specular_map if skin else None, scatter=name == "skin",
+                        inside=name in INSIDE_PARTS and occlusion is not None)
         occ = None if occlusion is None else np.asarray(occlusion)[uniq[:, 0]]
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name, occlusion=occ))
     if rig.hair is not None:
@@ -235,10 +251,37 @@ def _new_hair_material(shading: str, colour: tuple[float, float, float], texture
 
 def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32) -> np.ndarray:
     """Ambient visibility ``(N,)`` of every vertex of ``rig`` at ``vertices``, the whole head
-    (every part, hidden ones too: the inside of the mouth) occluding (:mod:`.occlusion`)."""
-    from stimulus_engine.render.occlusion import vertex_occlusion
+    (every part, hidden ones too: the inside of the mouth) occluding (:mod:`.occlusion`).
+
+    The parts inside the mouth (:data:`INSIDE_PARTS`) get their visibility of the front instead:
+    the share of directions within :data:`FRONT_CONE_DEG` of +z (towards the camera, where the
+    lighting presets' key and dome lights stand) that leave the mouth unblocked, among those
+    their surface faces. The whole hemisphere's visibility (about 0.1 behind parted lips) made
+    teeth seen through the opening, and lit through it, dark grey.
+    """
+    from stimulus_engine.render.occlusion import cone_directions, light_visibility, vertex_occlusion
 
     v = np.asarray(vertices, np.float64)
     normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
-    return vertex_occlusion(v, rig.faces, normals, rays=rays)
+    out = vertex_occlusion(v, rig.faces, normals, rays=rays)
+    inside = [rig.part_names.index(p) for p in INSIDE_PARTS if p in rig.part_names]
+    idx = np.unique(rig.faces[np.isin(rig.face_part, inside)]) if inside else np.zeros(0, np.int64)
+    if len(idx):
+        dirs = cone_directions(np.array([0.0, 0.0, 1.0]), np.radians(FRONT_CONE_DEG), 24)
+        seen = light_visibility(v[idx], normals[idx], (v, rig.faces), dirs)  # unblocked and facing, of all
+        facing = (normals[idx] @ dirs.T > 0).mean(axis=1)
+        out[idx] = np.where(facing > 0, seen / np.maximum(facing, 1e-9), 0.0).astype(np.float32)
+        if "teeth" in rig.part_names:  # enamel carries light in from the lit front teeth
+            teeth = np.unique(rig.faces[rig.face_part == rig.part_names.index("teeth")])
+            out[teeth] = np.maximum(out[teeth], TEETH_FLOOR)
+    return out
 
+
+#: The least visibility of a tooth: enamel and dentine scatter light along the tooth (seen
+#: through barely parted lips, teeth lit only through the gap came out black, like holes).
+TEETH_FLOOR = 0.4
+
+
+#: Half-angle of the cone of directions, about the view axis, whose visibility lights the inside
+#: of the mouth (``gi_soft``'s dome reaches 69° from the front).
+FRONT_CONE_DEG = 60.0

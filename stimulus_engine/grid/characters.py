@@ -154,6 +154,11 @@ def _scan_landmarks(c: CharacterSpec, mesh: trimesh.Trimesh, source: str) -> obj
     return detect_mesh_landmarks(mesh, name=f"{source}: characters.{c.name}.mesh.landmarks")
 
 
+#: The rig's parts drawn behind a scan's cut lips, moving as on the rig: the mouth socket (a dark
+#: cavity), the teeth, and the gums with the tongue.
+MOUTH_PARTS: tuple[str, ...] = ("mouth", "teeth", "tongue")
+
+
 def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignment: Similarity,
                   source: str, ibug: np.ndarray | None) -> ScanSurface:
     """The character's mesh as drawn itself (``topology: scan``), in the rig's frame, bound to
@@ -193,8 +198,8 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
     if c.mesh.mouth == "inside":
         cut, v, splits["lips"] = cut_lips(v, f, pts[60:68])
         keep = keep & cut
-    scan = bind_scan(rig, v, f, *layout, name=f"{c.name}_scan", eyes=eyes, keep=keep,
-                     splits=splits, inside_parts=("mouth",) if "lips" in splits and "mouth" in rig.part_names else ())
+    inside = tuple(p for p in MOUTH_PARTS if p in rig.part_names) if "lips" in splits else ()
+    scan = bind_scan(rig, v, f, *layout, name=f"{c.name}_scan", eyes=eyes, keep=keep, splits=splits, inside_parts=inside)
     masks = {} if pts is None else scan_masks(albedo, v, f, *layout, pts)
     return replace(scan, topology=replace(scan.topology, texture=albedo, texture_masks=masks))
 

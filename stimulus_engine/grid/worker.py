@@ -82,9 +82,13 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     from stimulus_engine.render import CameraSpec
     from stimulus_engine.characters.render_parts import rig_render_parts
 
+    from stimulus_engine.characters.render_parts import INSIDE_PARTS
+
     rig = load_rig(item.rig_npz)
     v = np.load(item.geometry_npy).astype(np.float64)
-    occlusion = _occlusion(rig, v, item.geometry_npy) if item.shading == "skin" and item.engine == "pyrender" else None
+    # baked ambient visibility: skin shading's ambient light, and a mouth's inside in every shading
+    wanted = item.shading == "skin" or any(p in rig.part_names for p in INSIDE_PARTS)
+    occlusion = _occlusion(rig, v, item.geometry_npy) if wanted and item.engine == "pyrender" else None
     parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,
                              normal_map=_map_image(item.normal_png, "normal"),
                              specular_map=_map_image(item.specular_png, "specular"), occlusion=occlusion)

@@ -30,6 +30,11 @@ made ``direct_hard`` 610 ms an image and ``direct_soft`` 1.3 s. Here each light 
     pyrender's own per-light map and the 16-tap filter (a soft light's samples on meshes that
     carry no baked visibility; lights made elsewhere, which keep pyrender's behaviour).
 
+Materials with the ``OCCLUDED_LIGHTS`` switch (the inside of a mouth: socket, teeth, gums and
+tongue) take every light times the vertex's baked ambient visibility (the vertex colour's red
+channel): no light of ``gi_soft``'s dome casts a shadow, and without it the inside of an open
+mouth was lit as brightly as the lips.
+
 :func:`light_shadow_fragment_shader` patches ``mesh.frag``; :mod:`._pyrender` (where pyrender is
 patched) sets the field of every bound light, binds the key light's map and renders it;
 :func:`casts_shadow_map` tells the shadow passes which lights to skip.
@@ -76,6 +81,11 @@ _SWITCHED = """        float shadow_kind = {lights}[i].appeal_shadow;
 #ifdef VISIBILITY_IN_COLOR0
 #ifdef COLOR_0_LOC
         if (shadow_kind == 2.0) res *= color_multiplier.g;
+#endif
+#endif
+#ifdef OCCLUDED_LIGHTS
+#ifdef COLOR_0_LOC
+        res *= color_multiplier.r;
 #endif
 #endif
 {KEY}"""

@@ -1,0 +1,119 @@
+"""The inside of the mouth: teeth, gums and tongue behind a scan's parted lips, lit through the
+opening (a dark cavity), and visible in a front render of the open-mouth expressions."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+from PIL import Image
+
+from stimulus_engine.characters.render_parts import INSIDE_PARTS, TEETH_FLOOR, rig_occlusion
+from stimulus_engine.characters.rig import FaceRig
+
+
+def _quad(x0: float, x1: float, y0: float, y1: float, z: float, facing: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], float)
+    f = np.array([[0, 1, 2], [0, 2, 3]]) if facing > 0 else np.array([[0, 2, 1], [0, 3, 2]])
+    return v, f
+
+
+def _box_mouth(gap: bool) -> FaceRig:
+    """A wall of "lips" at z = 0 (with or without a slot) and, behind it at z = -1, a tooth
+    and a tongue facing the viewer (+z)."""
+    pieces, parts = [], []
+    if gap:
+        pieces += [_quad(-5, 5, 0.5, 5, 0), _quad(-5, 5, -5, -0.5, 0)]
+    else:
+        pieces += [_quad(-5, 5, -5, 5, 0)]
+    parts += [0] * len(pieces)
+    pieces += [_quad(-1, 0, -0.4, 0.4, -1), _quad(0, 1, -0.4, 0.4, -1)]
+    parts += [1, 2]
+    vs, fs, fp, n = [], [], [], 0
+    for (v, f), p in zip(pieces, parts):
+        vs.append(v), fs.append(f + n), fp.append(np.full(len(f), p))
+        n += len(v)
+    return FaceRig(name="box", vertices=np.vstack(vs), faces=np.vstack(fs), uv=None, face_uv=None,
+                   face_part=np.concatenate(fp), part_names=("skin", "teeth", "tongue"), landmarks={})
+
+
+def test_inside_parts_see_the_front_through_the_opening():
+    for gap in (True, False):
+        rig = _box_mouth(gap)
+        occ = rig_occlusion(rig, rig.vertices)
+        teeth = np.unique(rig.faces[rig.face_part == 1])
+        tongue = np.unique(rig.faces[rig.face_part == 2])
+        if gap:  # a slot 1 unit high, 1 unit in front: the front cone is partly open
+            assert 0.05 < occ[tongue].mean() < 0.9 and occ[teeth].min() >= TEETH_FLOOR
+        else:  # a closed mouth: no light reaches the tongue, teeth keep their floor
+            assert occ[tongue].max() < 1e-6 and np.allclose(occ[teeth], TEETH_FLOOR)
+    assert set(INSIDE_PARTS) == {"mouth", "teeth", "tongue"}
+
+
+def test_every_light_loop_can_be_occluded():
+    from stimulus_engine.render._pyrender import _mesh_shader_path
+
+    for glossy in (False, True):
+        text = open(_mesh_shader_path(__import__("pyrender").__path__[0] + "/shaders", glossy)).read()
+        assert text.count("#ifdef OCCLUDED_LIGHTS") == (4 if glossy else 2)  # directional + spot loops
+
+
+def _project(camera: str, point: np.ndarray, width: int, height: int) -> np.ndarray:
+    nums = [float(x) for x in re.findall(r"-?\d+(?:\.\d+)?(?:e-?\d+)?", camera)]
+    pos, target, yfov = np.array(nums[0:3]), np.array(nums[3:6]), nums[6]
+    z = (pos - target) / np.linalg.norm(pos - target)
+    x = np.cross([0.0, 1.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    q = (point - pos) @ np.stack([x, np.cross(z, x), z], axis=1)
+    f = height / 2 / np.tan(np.radians(yfov) / 2)
+    return np.array([width / 2 + f * q[0] / -q[2], height / 2 - f * q[1] / -q[2]])
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_teeth_show_in_the_open_mouth_expressions(tmp_path):
+    """A front render of the james scan (Exp. 1a's character): inside the box of the lip
+    landmarks, teeth-coloured pixels (bright, unsaturated) in anger and happiness, none in
+    neutral. Before the teeth were drawn, the open mouth was an empty dark-purple cavity: 0 %."""
+    from matplotlib.colors import rgb_to_hsv
+
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid.schema import GridFile
+
+    src = (__import__("pathlib").Path(__file__).resolve().parent.parent / "protocols" / "grids" / "exp1a_shape_material.yaml")
+    text = re.sub(r"(?m)^(shapes|materials|expressions): .*$",
+                  lambda m: {"shapes": "shapes: [0.0]", "materials": "materials: [original]",
+                             "expressions": "expressions: [neutral, anger, happiness]"}[m.group(1)], src.read_text())
+    grid_file = tmp_path / "mouth.yaml"
+    grid_file.write_text(text.replace("name: exp1a_shape_material", "name: mouth_check"))
+    grid = load_study_file(grid_file, GridFile)
+    run_grid(grid, tmp_path / "out", n_jobs=1)
+    manifest = pd.read_csv(tmp_path / "out" / "manifest.csv")
+    marks = pd.read_csv(tmp_path / "out" / "landmarks.csv")
+    share = {}
+    for row in manifest.itertuples():
+        lm = marks[(marks["character"] == row.character) & (marks["expression"] == row.expression)].set_index("landmark")
+        box = np.array([_project(row.camera, lm.loc[n, ["x", "y", "z"]].to_numpy(float), row.width, row.height)
+                        for n in ("mouth_left", "mouth_right", "mouth_top", "mouth_bottom")])
+        (x0, y0), (x1, y1) = box.min(axis=0).astype(int), box.max(axis=0).astype(int)
+        hsv = rgb_to_hsv(np.asarray(Image.open(tmp_path / "out" / row.file).convert("RGB"))[y0:y1, x0:x1] / 255.0)
+        share[row.expression] = float(((hsv[..., 2] > 0.55) & (hsv[..., 1] < 0.22)).mean())
+    assert share["neutral"] < 0.01
+    assert share["anger"] > 0.02 and share["happiness"] > 0.02, share  # measured 6.0 % and 3.3 %
+
+
+def test_the_inside_is_moved_behind_the_skin_it_pokes_through():
+    from stimulus_engine.characters.scan_mouth import inside_behind_skin
+
+    rig = _box_mouth(gap=True)  # lips at z = 0 with a slot at |y| < 0.5; teeth and tongue at z = -1
+    v = rig.vertices.copy()
+    assert np.array_equal(inside_behind_skin(v, rig.faces, rig.face_part, rig.part_names), v)  # behind: kept
+    inside = np.unique(rig.faces[rig.face_part > 0])
+    v[inside] += [0.0, 1.0, 1.5]  # up over the upper lip and 0.5 in front of it
+    out = inside_behind_skin(v, rig.faces, rig.face_part, rig.part_names, gap=0.05)
+    assert np.allclose(out[inside], v[inside] - [0.0, 0.0, 0.55])  # all of it, by the deepest poke + gap
+    skin = np.setdiff1d(np.arange(len(v)), inside)
+    assert np.array_equal(out[skin], v[skin])
