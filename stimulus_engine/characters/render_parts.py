@@ -249,7 +249,7 @@ def _new_hair_material(shading: str, colour: tuple[float, float, float], texture
     return _shader_defines(mat, shading, scatter=False)
 
 
-def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32) -> np.ndarray:
+def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32, *, inside_only: bool = False) -> np.ndarray:
     """Ambient visibility ``(N,)`` of every vertex of ``rig`` at ``vertices``, the whole head
     (every part, hidden ones too: the inside of the mouth) occluding (:mod:`.occlusion`).
 
@@ -257,13 +257,14 @@ def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32) -> np.ndar
     the share of directions within :data:`FRONT_CONE_DEG` of +z (towards the camera, where the
     lighting presets' key and dome lights stand) that leave the mouth unblocked, among those
     their surface faces. The whole hemisphere's visibility (about 0.1 behind parted lips) made
-    teeth seen through the opening, and lit through it, dark grey.
+    teeth seen through the opening, and lit through it, dark grey. With ``inside_only`` the rest
+    is left at 1 (what shadings other than ``skin`` need: a third of the time).
     """
     from stimulus_engine.render.occlusion import cone_directions, light_visibility, vertex_occlusion
 
     v = np.asarray(vertices, np.float64)
     normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
-    out = vertex_occlusion(v, rig.faces, normals, rays=rays)
+    out = np.ones(len(v), np.float32) if inside_only else vertex_occlusion(v, rig.faces, normals, rays=rays)
     inside = [rig.part_names.index(p) for p in INSIDE_PARTS if p in rig.part_names]
     idx = np.unique(rig.faces[np.isin(rig.face_part, inside)]) if inside else np.zeros(0, np.int64)
     if len(idx):

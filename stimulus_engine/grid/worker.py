@@ -63,16 +63,17 @@ def _map_image(path: str, kind: str) -> np.ndarray | None:
     return _image(path) if kind == "normal" else _grey(path)
 
 
-def _occlusion(rig, vertices: np.ndarray, geometry_npy: str) -> np.ndarray:
+def _occlusion(rig, vertices: np.ndarray, geometry_npy: str, inside_only: bool = False) -> np.ndarray:
     """The geometry's baked ambient visibility, cached beside it (once per character, shape and
-    expression: every lighting, material and shading of that geometry reuses it)."""
+    expression: every lighting, material and shading of that geometry reuses it); with
+    ``inside_only``, only the mouth's inside (the rest 1)."""
     from stimulus_engine.grid.cache import save_npy
     from stimulus_engine.characters.render_parts import rig_occlusion
 
-    path = Path(geometry_npy).with_suffix(".occlusion.npy")
+    path = Path(geometry_npy).with_suffix(".inside.npy" if inside_only else ".occlusion.npy")
     if path.exists():
         return np.load(path)
-    occ = rig_occlusion(rig, vertices)
+    occ = rig_occlusion(rig, vertices, inside_only=inside_only)
     save_npy(path, occ)  # atomic: two workers baking the same geometry write the same bytes
     return occ
 
@@ -87,8 +88,9 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     rig = load_rig(item.rig_npz)
     v = np.load(item.geometry_npy).astype(np.float64)
     # baked ambient visibility: skin shading's ambient light, and a mouth's inside in every shading
-    wanted = item.shading == "skin" or any(p in rig.part_names for p in INSIDE_PARTS)
-    occlusion = _occlusion(rig, v, item.geometry_npy) if wanted and item.engine == "pyrender" else None
+    inside_only = item.shading != "skin"
+    wanted = not inside_only or any(p in rig.part_names for p in INSIDE_PARTS)
+    occlusion = _occlusion(rig, v, item.geometry_npy, inside_only) if wanted and item.engine == "pyrender" else None
     parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,
                              normal_map=_map_image(item.normal_png, "normal"),
                              specular_map=_map_image(item.specular_png, "specular"), occlusion=occlusion)
