@@ -52,16 +52,17 @@ def _run(out: Path, seed: int) -> ReportSection:
     atomic_write_text(out / "neoteny.csv", table.to_csv(index=False))
     figs = plot_neoteny(table, out / "neoteny.png")
     n = int((manifest["status"] == "rendered").sum())
-    text = (f"{n} images rendered from two procedurally generated, textured heads (no downloaded assets): "
-            "shape stylisation levels 0, 0.5, 1 (artist-free operator: larger eyes, smaller nose and mouth, "
-            "shorter jaw, larger cranium, smoother skin), materials original / blurred / flat / albedo of the other "
-            "head, FACS-recipe expressions carried onto the stylised shapes by deformation transfer. Every face "
-            "is framed with the same size and eye position. Manifest: `manifest.csv`. "
-            "A real face: the embedded 3D scan (menpo3d's 'james', BSD-3) drawn as itself — its own surface, "
-            "photographic texture and hair — with its landmarks found automatically, posed through the procedural "
-            "head's rig for the same shapes and expressions (`scan/`).")
-    return ReportSection(title="Stimulus grid", text=text, figures=[*sheets, *scan_sheets, *lit_sheets, figs[0]],
+    text = ("A real face first: the embedded 3D scan (menpo3d's 'james', BSD-3) drawn as itself — its own "
+            "surface, photographic texture and hair, eyeballs behind its lids that look into the lens, teeth behind "
+            "its lips — with its landmarks found automatically, posed through a procedural head's rig for shape "
+            "stylisation levels 0, 0.5, 1 (artist-free operator: larger eyes, smaller nose and mouth, shorter jaw, "
+            "larger cranium, smoother skin) and FACS-recipe expressions carried onto the stylised shapes by "
+            "deformation transfer (`scan/`). Then "
+            f"{n} images of two procedurally generated, textured heads (no downloaded assets): the same shapes and "
+            "expressions, materials original / blurred / flat / albedo of the other head. Every face is framed "
+            "with the same size and eye position. Manifest: `manifest.csv`.")
+    return ReportSection(title="Stimulus grid", text=text, figures=[*scan_sheets, *sheets, *lit_sheets, figs[0]],
                          tables=[out / "manifest.csv", out / "neoteny.csv"])
 
 
-STAGE = DemoStage(name="grid", title="Stimulus grid (procedural head)", order=100, run=_run)
+STAGE = DemoStage(name="grid", title="Stimulus grid (a real scan, then procedural heads)", order=100, run=_run)
