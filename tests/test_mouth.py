@@ -106,7 +106,7 @@ def test_teeth_show_in_the_open_mouth_expressions(tmp_path):
 
 
 def test_the_inside_is_moved_behind_the_skin_it_pokes_through():
-    from stimulus_engine.characters.scan_mouth import inside_behind_skin
+    from stimulus_engine.characters.skin_clearance import inside_behind_skin
 
     rig = _box_mouth(gap=True)  # lips at z = 0 with a slot at |y| < 0.5; teeth and tongue at z = -1
     v = rig.vertices.copy()

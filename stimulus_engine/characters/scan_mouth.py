@@ -16,7 +16,7 @@ import numpy as np
 from stimulus_engine.geometry.polyline2d import catmull_rom
 from stimulus_engine.characters.scan_cut import cut_along
 
-__all__ = ["lip_arcs", "cut_lips", "inside_behind_skin", "CLOSED_GAP"]
+__all__ = ["lip_arcs", "cut_lips", "CLOSED_GAP"]
 
 #: Lips whose inner arcs are nowhere further apart than this fraction of the mouth's width are
 #: closed: both sides of the cut are laid on the line between the arcs, so they meet.
@@ -70,48 +70,3 @@ def cut_lips(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray,
     return cut_along(vertices, faces, upper, lower, reach=width if reach is None else reach,
                      closed_gap=CLOSED_GAP)
 
-
-def inside_behind_skin(vertices: np.ndarray, faces: np.ndarray, face_part: np.ndarray, part_names: tuple[str, ...],
-                       inside: tuple[str, ...] = ("mouth", "teeth", "tongue"), gap: float = 0.05) -> np.ndarray:
-    """``vertices`` with the mouth's inside moved back (-z) until none of it is in front of the skin.
-
-    The inside parts move as on the rig, the scan's skin as bound to the rig's: a stylised shape
-    (a smaller mouth, a shorter jaw) or an expression can bring a tooth or the gums out in front
-    of the lips or the chin. A vertex of the inside is *in front of the skin* where a ray from it
-    away from the viewer (-z) first meets a skin triangle that faces the viewer; the whole inside
-    moves back by the deepest such distance plus ``gap`` (so teeth that would show through skin
-    stay hidden behind it, and the inside keeps its shape).
-
-    Parameters
-    ----------
-    vertices : (N, 3) array
-        A pose of a drawn topology (+z towards the viewer).
-    faces, face_part, part_names
-        Its triangles and their parts (``skin`` is the surface that may not be pierced).
-    inside : tuple of str
-        The parts that must stay behind it.
-    gap : float
-        Clearance behind the skin (the rig's units: centimetres).
-
-    Returns
-    -------
-    (N, 3) array
-        A copy (the same array's values where nothing pokes through).
-    """
-    import trimesh
-
-    v = np.array(vertices, np.float64, copy=True)
-    ids = [part_names.index(p) for p in inside if p in part_names]
-    if "skin" not in part_names or not ids:
-        return v
-    moved = np.unique(faces[np.isin(face_part, ids)])
-    skin_faces = faces[face_part == part_names.index("skin")]
-    front = trimesh.Trimesh(v, skin_faces, process=False)
-    front = trimesh.Trimesh(v, skin_faces[front.face_normals[:, 2] > 0], process=False)
-    back = np.tile([0.0, 0.0, -1.0], (len(moved), 1))
-    loc, ray, tri = front.ray.intersects_location(v[moved], back, multiple_hits=False)
-    if not len(ray):
-        return v
-    depth = float((v[moved][ray, 2] - loc[:, 2]).max())
-    v[moved, 2] -= depth + gap
-    return v

@@ -205,7 +205,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
         Long table: character, shape, stylisation, expression, landmark, x, y, z.
     """
     from stimulus_engine.characters.gaze import aim_eyes
-    from stimulus_engine.characters.scan_mouth import inside_behind_skin
+    from stimulus_engine.characters.skin_clearance import eyes_behind_skin, inside_behind_skin
     from stimulus_engine.stylisation.shape import stylise
 
     cache = out / ".cache"
@@ -244,6 +244,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
                 if target is not None:  # the drawn eyeballs follow the rig's only nearly: aim them too
                     drawn = aim_eyes(topo.landmarks, drawn, target)
                 drawn = inside_behind_skin(drawn, topo.faces, topo.face_part, topo.part_names)
+                drawn = eyes_behind_skin(drawn, topo.faces, topo.face_part, topo.part_names, topo.landmarks)
                 save_npy(gp, drawn.astype(np.float32))
         look = looks[im.albedo_from, im.material.name]
         extra = () if look.maps_hash == "none" else (look.maps_hash,)  # hashes without maps as before
