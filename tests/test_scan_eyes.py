@@ -220,3 +220,35 @@ def test_lash_strip_curls_up_from_the_lid_and_is_longest_towards_the_outer_corne
     a = tex[..., 3]
     assert 0.03 < (a > 128).mean() < 0.5 and ((a > 0) & (a < 255)).any()  # strands with soft edges
     assert (a[-8:] > 0).mean() > (a[:8] > 0).mean()  # more lash at the root (bottom rows) than the tips
+
+
+def test_painted_eye_remnants_on_the_lids_are_inpainted():
+    """A pale smear (painted sclera, a wet lid rim's glint) next to an eye's opening goes; skin
+    texture elsewhere, and dark lash paint, stay."""
+    from stimulus_engine.characters.scan_eyes import erase_painted_eyes
+
+    n = 41  # a flat grid mesh over x, y in [-10, 10], UV = the same square
+    xs, ys = np.meshgrid(np.linspace(-10, 10, n), np.linspace(-10, 10, n))
+    v = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(n * n)])
+    uv = (v[:, :2] + 10) / 20
+    q = np.arange(n * n).reshape(n, n)[:-1, :-1].ravel()
+    faces = np.vstack([np.column_stack([q, q + 1, q + n + 1]), np.column_stack([q, q + n + 1, q + n])])
+    rng = np.random.default_rng(0)
+    tex = np.clip(np.array([180, 130, 100]) + rng.normal(0, 4, (200, 200, 3)), 0, 255).astype(np.uint8)
+
+    def px(x, y):  # texture pixel of a surface point
+        return int(round((1 - (y + 10) / 20) * 199)), int(round((x + 10) / 20 * 199))
+
+    r, c = px(-4, -1.2)  # just under the right eye's opening: a pale glint
+    tex[r - 2:r + 3, c - 3:c + 4] = (235, 232, 222)
+    r2, c2 = px(-4, -2.0)  # a dark lash line below it, as close to the eye
+    tex[r2, c2 - 4:c2 + 5] = (40, 30, 25)
+    eye = lambda cx: np.array([[cx - 1.5, 0, 0], [cx - 0.8, 0.6, 0], [cx + 0.8, 0.6, 0],  # noqa: E731
+                               [cx + 1.5, 0, 0], [cx + 0.8, -0.6, 0], [cx - 0.8, -0.6, 0]])
+    pts = np.vstack([eye(-4.0), eye(4.0)])
+    keep = np.ones(len(faces), bool)
+    out = erase_painted_eyes(tex, v, faces, uv, faces, keep, pts)
+    assert np.abs(out[r, c].astype(int) - (180, 130, 100)).max() < 25  # the glint is skin now
+    assert out[r2, c2].max() < 80  # the lash stays dark
+    fr, fc = px(8, 8)
+    assert np.array_equal(out[fr - 5:fr + 5, fc - 5:fc + 5], tex[fr - 5:fr + 5, fc - 5:fc + 5])  # far away: untouched

@@ -29,7 +29,7 @@ from stimulus_engine.parts.eyes import eyeball_asset
 from stimulus_engine.parts.eyelashes import lash_strip
 from stimulus_engine.geometry.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, push_behind, relax_around
 
-__all__ = ["EyeGeometry", "eye_geometry", "lid_contour", "cut_openings", "place_eyeballs",
+__all__ = ["EyeGeometry", "erase_painted_eyes", "eye_geometry", "lid_contour", "cut_openings", "place_eyeballs",
            "openness", "painted_iris_colour"]
 
 #: Eyeball radius over the distance between the eye centres (12 mm / 63 mm).
@@ -295,3 +295,65 @@ def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray
     lashes = [lash_strip(c[:half + 1], float(np.linalg.norm(p[3] - p[0]))) for c, p in zip(contours, pts)]
     return EyeGeometry(keep, v, balls, [t[1] for t in templates], [t[2] for t in templates], sockets, eye_texture,
                        lashes)
+
+
+def erase_painted_eyes(texture: np.ndarray, vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray,
+                       face_uv: np.ndarray, keep: np.ndarray, eye_points: np.ndarray, band: float = 0.3) -> np.ndarray:
+    """A scan's albedo with what its painted eyes left on the lids painted over with skin.
+
+    The openings are cut along the detected lid contours; what the photograph shows just outside
+    them stays on the kept lids: the glistening wet rim of the lower lid and the painted sclera
+    at the corners (a pale smear under the james scan's right eye once a real eyeball sits
+    behind it, with its own wet look). Around each eye (kept triangles whose centre lies within
+    half the eye's width plus ``band`` widths of its centre), texels much lighter than the skin
+    just outside (L* above its median by more than 15) or far paler in colour (chroma under
+    55 % of its median, not darker by more than 25 L*: sclera and its grey shade, not lashes or
+    the lid crease) are inpainted (OpenCV's Telea method) from the skin around them.
+
+    Parameters
+    ----------
+    texture : (H, W, 3) uint8 array
+    vertices, faces, uv, face_uv
+        The scan's surface (with its openings' rims on the contours) and UV layout.
+    keep : (F,) bool array
+        The triangles that stay (:attr:`EyeGeometry.keep`).
+    eye_points : (12, 3) array
+        iBUG points 36–47 on the surface.
+
+    Returns
+    -------
+    (H, W, 3) uint8 array
+        A copy.
+    """
+    import cv2
+
+    from stimulus_engine.geometry.uv_raster import rasterize_uv
+
+    tex = np.ascontiguousarray(texture, np.uint8)
+    h, w = tex.shape[:2]
+    centroids = np.asarray(vertices, np.float64)[faces].mean(axis=1)
+    near, ring = np.zeros(len(faces), bool), np.zeros(len(faces), bool)
+    for p in np.asarray(eye_points, np.float64).reshape(2, 6, 3):
+        width = float(np.linalg.norm(p[3] - p[0]))
+        d = np.linalg.norm(centroids - p.mean(axis=0), axis=1) / width
+        near |= keep & (d < 0.5 + band)
+        ring |= keep & (d >= 0.5 + band) & (d < 0.5 + 2 * band)
+
+    def texels(sel: np.ndarray) -> np.ndarray:
+        mask = np.zeros((h, w), bool)
+        if sel.any():
+            rows, cols, _, _ = rasterize_uv(uv, face_uv[sel], w, h)
+            mask[rows, cols] = True
+        return mask
+
+    region, skin = texels(near), texels(ring)
+    if not region.any() or skin.sum() < 50:
+        return tex.copy()
+    lab = cv2.cvtColor(tex, cv2.COLOR_RGB2LAB).astype(np.float64)
+    light, chroma = lab[..., 0] * 100 / 255, np.hypot(lab[..., 1] - 128, lab[..., 2] - 128)
+    l_skin, c_skin = np.median(light[skin]), np.median(chroma[skin])
+    paint = region & ((light > l_skin + 15) | ((chroma < 0.55 * c_skin) & (light > l_skin - 25)))
+    if not paint.any():
+        return tex.copy()
+    paint = cv2.dilate(paint.astype(np.uint8), np.ones((3, 3), np.uint8), iterations=2)
+    return cv2.inpaint(tex, paint, 6, cv2.INPAINT_TELEA)

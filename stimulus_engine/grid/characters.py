@@ -166,7 +166,7 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
     eyeballs behind its lids (``mesh.eyes: eyeballs``) and lips that part over the rig's mouth
     (``mesh.mouth: inside``); ``ibug``: the 68 points on the mesh."""
     from stimulus_engine.geometry.mesh_io import mesh_uv_layout, texture_image
-    from stimulus_engine.characters.scan_eyes import eye_geometry
+    from stimulus_engine.characters.scan_eyes import erase_painted_eyes, eye_geometry
     from stimulus_engine.characters.scan_mouth import cut_lips
     from stimulus_engine.characters.scan_regions import scan_masks
     from stimulus_engine.characters.scan_surface import bind_scan
@@ -195,6 +195,7 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
             raise AppealInputError(f"{where}.eyes: {exc}") from None
     if eyes is not None:
         v, keep = eyes.vertices, eyes.keep
+        albedo = erase_painted_eyes(albedo, v, f, *layout, keep, pts[36:48])
     if c.mesh.mouth == "inside":
         cut, v, splits["lips"] = cut_lips(v, f, pts[60:68])
         keep = keep & cut
