@@ -167,3 +167,28 @@ def test_aimed_eyeballs_stay_behind_the_lids(prepared):
                 assert np.abs(moved[ball] - v[ball]).max() < 1e-3, (row.file, side)  # float32 storage
                 checked += 1
     assert checked > 0
+
+
+@pytest.mark.slow
+def test_lashes_stay_rooted_on_the_lids(prepared):
+    """Rig characters (ICT rig on a mesh: Lee Perry-Smith) keep every lash root within 0.5 mm of
+    the lid skin in every shape and expression (carried along with the smooth displacement, the
+    upper lashes floated a few millimetres above the lid)."""
+    from stimulus_engine.geometry.closest import SurfaceIndex
+
+    checked = 0
+    for _, _, manifest, items, chars in prepared:
+        for item, row in zip(items, manifest.itertuples()):
+            rig = chars[row.character].rig
+            if chars[row.character].scan is not None or "lashes" not in rig.part_names:
+                continue
+            skin = rig.faces[rig.face_part == rig.part_names.index("skin")]
+            lash = np.unique(rig.faces[rig.face_part == rig.part_names.index("lashes")])
+            index = SurfaceIndex(rig.vertices, skin)
+            roots = lash[index.query(rig.vertices[lash]).distance < 0.01]  # on the lid in the neutral
+            assert len(roots) > 20
+            v = np.load(item.geometry_npy).astype(np.float64)
+            gap = SurfaceIndex(v, skin).query(v[roots]).distance
+            assert gap.max() < 0.05, (row.file, float(gap.max()))
+            checked += 1
+    assert checked > 0

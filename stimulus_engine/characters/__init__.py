@@ -25,6 +25,8 @@ rig_render_parts, hair_render_part, SHADINGS
     The character as pyrender parts for a shading model (module ``render_parts``).
 aim_eyes, lines_of_sight
     Each eye's line of sight, and eyeballs turned to look at a point (module ``gaze``).
+seat_lashes
+    Eyelashes kept rooted on the lids in every shape and pose (module ``lashes``).
 """
 
 from stimulus_engine.characters.expressions import (
@@ -35,6 +37,7 @@ from stimulus_engine.characters.expressions import (
 )
 from stimulus_engine.characters.gaze import aim_eyes, lines_of_sight
 from stimulus_engine.characters.ict import load_ict_rig
+from stimulus_engine.characters.lashes import seat_lashes
 from stimulus_engine.characters.mesh_character import MeshCharacter, correspond_rig, front_region
 from stimulus_engine.characters.procedural_head import procedural_head
 from stimulus_engine.characters.render_parts import SHADINGS, hair_render_part, rig_render_parts
@@ -71,4 +74,5 @@ __all__ = [
     "rig_detail_maps",
     "rig_render_parts",
     "scan_masks",
+    "seat_lashes",
 ]

@@ -27,6 +27,7 @@ from scipy.spatial import cKDTree
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
+from stimulus_engine.characters.lashes import seat_lashes
 from stimulus_engine.characters.rig import FaceRig
 
 __all__ = ["MeshCharacter", "auto_landmark_points", "correspond_rig", "front_region", "rig_skin_mesh", "source_landmark_names"]
@@ -473,6 +474,7 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
         lining = skin[(np.linalg.norm(v0[skin] - c, axis=1) < SOCKET_DEPTH * r) & ~marked[skin]]
         both = np.concatenate([ball, lining])
         new_v[both] = sim.apply(v0[both])
+    new_v = seat_lashes(rig, v0, new_v)
     out = rig.with_vertices(new_v, name=name or f"{rig.name}_on_mesh")
     transferred = None
     image = texture

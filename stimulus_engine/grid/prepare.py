@@ -168,6 +168,7 @@ def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
     """
     from stimulus_engine.characters.expressions import apply_expression
     from stimulus_engine.characters.gaze import aim_eyes
+    from stimulus_engine.characters.lashes import seat_lashes
 
     r = grid.render
     aim = () if target is None else ("gaze", *np.round(target, 6).tolist())
@@ -179,6 +180,7 @@ def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
             v = apply_expression(ch.expression_rig, im.expression, r.intensity, target=None if plain else shape_v)
         except ValueError as exc:  # a recipe shape the rig lacks
             raise AppealInputError(f"{source}: characters.{im.character}: {exc}") from None
+        v = seat_lashes(ch.rig, ch.rig.vertices, v)
         if target is not None:
             v = aim_eyes(ch.rig.landmarks, v, target)
         save_npy(gp, v.astype(np.float32))
