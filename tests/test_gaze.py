@@ -192,3 +192,27 @@ def test_lashes_stay_rooted_on_the_lids(prepared):
             assert gap.max() < 0.05, (row.file, float(gap.max()))
             checked += 1
     assert checked > 0
+
+
+def test_template_sclera_is_lit_like_a_photographed_one():
+    """The eyeball texture's sclera sits at SCLERA_LEVEL (MakeHuman's photograph had it at 120-130:
+    as dark as the skin around a rendered eye); the iris and pupil keep their colours."""
+    from stimulus_engine.geometry.uv_raster import rasterize_uv
+    from stimulus_engine.parts.eyes import SCLERA_LEVEL
+
+    from PIL import Image
+
+    from stimulus_engine.data import DATA_DIR
+
+    balls, texture = eyeball_asset()
+    raw = np.asarray(Image.open(DATA_DIR / "eyes" / "brown_eye.jpg").convert("RGB"))
+    h, w = texture.shape[:2]
+    for unit, faces, uv in balls:
+        angle = np.degrees(np.arccos(np.clip(unit[:, 2], -1, 1)))
+        rows, cols, fid, bary = rasterize_uv(uv, faces, w, h)
+        a = np.einsum("nk,nk->n", bary, angle[faces[fid]])
+        grey = texture[rows, cols].astype(float).mean(axis=1)
+        assert abs(np.median(grey[(a > 26) & (a < 90)]) - SCLERA_LEVEL) < 3
+        iris = a < 18
+        assert np.array_equal(texture[rows[iris], cols[iris]], raw[rows[iris], cols[iris]])  # iris and pupil as photographed
+        assert np.median(raw[rows, cols][(a > 26) & (a < 90)].mean(axis=1)) < 140  # it was dim

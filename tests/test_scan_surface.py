@@ -109,13 +109,12 @@ def test_james_gets_eyeballs_and_lips_that_part(shared_data, tmp_path):
     eyes[ys, xs] = True
     eyes &= lum["default", "neutral"] > lum["scan", "neutral"] - 30  # not the lashes drawn over the lids
     # the eyeballs show sclera beside a dark iris that looks into the lens: the changed eye pixels
-    # span from pupil-dark to sclera about as light as the skin above the eyes (measured: 10th
-    # percentile 48, 90th 115, skin 116). Known limit: in the London photographs the sclera is
-    # lighter than the skin; the painted eyes' brighter 75th percentile came from that, and before
-    # the eyes were aimed, white above a low iris lifted ours too
+    # span from pupil-dark to sclera lighter than the skin above the eyes (measured: 10th
+    # percentile 48, 90th 123, skin 116; with the template's dim sclera it was 115, and the old
+    # comparison with the painted eyes' 75th percentile had been lifted by white above a low iris)
     skin = float(np.median(lum["default", "neutral"][ys.min() - 20:ys.min() - 5, xs.min():xs.max() + 1]))
     assert np.percentile(lum["default", "neutral"][eyes], 10) < 0.6 * skin
-    assert np.percentile(lum["default", "neutral"][eyes], 90) >= 0.9 * skin
+    assert np.percentile(lum["default", "neutral"][eyes], 90) > skin
     # surprised: a dark open mouth below the eyes
     dark = (lum["default", "surprise"] < 40) & (lum["scan", "surprise"] > 60)
     dy, dx = np.nonzero(dark)

@@ -268,7 +268,34 @@ def eyeball_asset() -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], np
         ball_uv = uv[idx].astype(np.float64)
         pupil = min(pupils, key=lambda p: float(np.linalg.norm(ball_uv - p, axis=1).min()))
         balls.append((_rotate_onto(unit, _uv_direction(unit, ball_uv, pupil), np.array([0.0, 0.0, 1.0])), faces, ball_uv))
+    texture = _lit_sclera(texture, balls)
+    texture.setflags(write=False)
     return balls, texture
+
+
+#: The sclera's median grey level (sRGB) in the eyeball texture. The photograph behind MakeHuman's
+#: texture was taken in dim light: its sclera's median is 120-130, as dark as the skin around a
+#: rendered eye (a grey, "dead" eye); in the London photographs the sclera is far lighter than
+#: the skin.
+SCLERA_LEVEL = 200.0
+
+
+def _lit_sclera(texture: np.ndarray, balls: list) -> np.ndarray:
+    """The texture with each ball's sclera (beyond 26 degrees from the pupil; blended in from
+    18) brightened to :data:`SCLERA_LEVEL`, its veins and shading kept as relative variation."""
+    from stimulus_engine.geometry.uv_raster import rasterize_uv
+
+    out = np.asarray(texture, np.float64).copy()
+    h, w = out.shape[:2]
+    for unit, faces, uv in balls:
+        angle = np.degrees(np.arccos(np.clip(unit[:, 2], -1.0, 1.0)))
+        rows, cols, fid, bary = rasterize_uv(uv, faces, w, h)
+        a = np.einsum("nk,nk->n", bary, angle[faces[fid]])
+        sclera = (a > 26) & (a < 90)
+        gain = SCLERA_LEVEL / max(float(np.median(out[rows[sclera], cols[sclera]].mean(axis=1))), 1.0)
+        t = np.clip((a - 18.0) / 8.0, 0.0, 1.0)
+        out[rows, cols] *= (1 + (gain - 1) * t * t * (3 - 2 * t))[:, None]
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
 def painted_pupils(texture: np.ndarray, dark: float = 40.0) -> list[np.ndarray]:
