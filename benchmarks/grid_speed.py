@@ -1,0 +1,70 @@
+"""A shipped grid's wall time now against another revision of the project (default: the one
+before the complete-character work of issue 27), in the same run, alternating.
+
+Each run is a whole ``appeal stimuli grid GRID --out DIR --force`` in its own process, with a
+cold cache (the output folder is new every time): characters, materials, geometry, the mouth's
+visibility and every image. The other revision runs from a ``git worktree`` of this checkout,
+with the same virtual environment and data. Prints each run's seconds, the medians and the
+ratio now / then (machines are noisy: alternate, and read the median).
+
+Run:  .venv/bin/python benchmarks/grid_speed.py [--grid protocols/grids/exp2_stylisation.yaml]
+          [--base e309ec3] [--repeats 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+#: The last revision before issue 27's eyes, mouth, lashes and hair (the stimulus engine re-layout).
+BASE = "e309ec3"
+
+
+def _run(code_root: Path, grid: Path, out: Path, env: dict) -> float:
+    """Seconds of one cold grid render with the project at ``code_root``."""
+    cmd = [sys.executable, "-m", "appeal_cli", "stimuli", "grid", str(grid), "--out", str(out), "--force"]
+    t = time.perf_counter()
+    res = subprocess.run(cmd, cwd=code_root, env={**env, "PYTHONPATH": str(code_root)}, capture_output=True, text=True)
+    seconds = time.perf_counter() - t
+    if res.returncode != 0:
+        raise SystemExit(f"grid_speed: {code_root}: the grid failed: {res.stderr.strip().splitlines()[-1:]}")
+    return seconds
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--grid", type=Path, default=ROOT / "protocols" / "grids" / "exp2_stylisation.yaml")
+    ap.add_argument("--base", default=BASE, help="the revision to compare with (default: %(default)s)")
+    ap.add_argument("--repeats", type=int, default=2)
+    args = ap.parse_args()
+    grid = args.grid.resolve()
+    data = os.environ.get("APPEAL_DATA") or str((ROOT.parent / "shared" / "data").resolve())
+    env = {**os.environ, "APPEAL_DATA": data, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "osmesa"),
+           "MPLBACKEND": "Agg"}
+    tmp = Path(tempfile.mkdtemp(prefix="grid_speed_"))
+    base_root = tmp / "base"
+    subprocess.run(["git", "worktree", "add", "--detach", "-q", str(base_root), args.base], cwd=ROOT, check=True)
+    times: dict[str, list[float]] = {"then": [], "now": []}
+    try:
+        for i in range(args.repeats):
+            for label, root in (("then", base_root), ("now", ROOT)):
+                s = _run(root, grid, tmp / f"{label}{i}", env)
+                times[label].append(s)
+                print(f"{label:>4} ({args.base if label == 'then' else 'this checkout'}) run {i + 1}: {s:.1f} s", flush=True)
+    finally:
+        subprocess.run(["git", "worktree", "remove", "--force", str(base_root)], cwd=ROOT, check=False)
+        shutil.rmtree(tmp, ignore_errors=True)
+    then, now = statistics.median(times["then"]), statistics.median(times["now"])
+    print(f"{grid.name}: median {now:.1f} s now, {then:.1f} s at {args.base}: ratio {now / then:.2f}")
+
+
+if __name__ == "__main__":
+    main()
