@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from stimulus_engine.geometry.rotation import rotation_onto
+
 __all__ = ["SIDES", "aim_eyes", "lines_of_sight", "pupil_ring", "sight_misses"]
 
 #: The two eyes, as landmark names say them (the subject's right first).
@@ -86,17 +88,6 @@ def lines_of_sight(landmarks: dict[str, np.ndarray], vertices: np.ndarray) -> di
     return out
 
 
-def _rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit direction ``a`` onto unit direction ``b``."""
-    v, c = np.cross(a, b), float(a @ b)
-    if c < -1 + 1e-12:  # opposite: half a turn about any axis across a
-        p = np.eye(3)[np.argmin(np.abs(a))]
-        k = np.cross(a, p) / np.linalg.norm(np.cross(a, p))
-        return 2 * np.outer(k, k) - np.eye(3)
-    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + k + k @ k / (1.0 + c)
-
-
 def aim_eyes(landmarks: dict[str, np.ndarray], vertices: np.ndarray, target: np.ndarray) -> np.ndarray:
     """``vertices`` with each eyeball turned about its centre to look at ``target``.
 
@@ -129,7 +120,7 @@ def aim_eyes(landmarks: dict[str, np.ndarray], vertices: np.ndarray, target: np.
     target = np.asarray(target, np.float64)
     for side, (c, a) in lines_of_sight(landmarks, out).items():
         want = target - c
-        r = _rotation(a, want / np.linalg.norm(want))
+        r = rotation_onto(a, want / np.linalg.norm(want))
         ball = landmarks[f"eye_{side}"]
         out[ball] = c + (out[ball] - c) @ r.T
     return out

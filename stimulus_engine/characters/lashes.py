@@ -57,16 +57,15 @@ def seat_lashes(rig: FaceRig, v0: np.ndarray, new_v: np.ndarray) -> np.ndarray:
     hit = SurfaceIndex(v0, skin).query(v0[lash])
     tri0, tri1 = v0[skin[hit.face]], new_v[skin[hit.face]]
     scale = np.ones(len(lash))
-    for side in ("right", "left"):
-        corners = [f"eye_{side}_outer", f"eye_{side}_inner"]
-        if all(c in rig.landmarks for c in corners):
-            w0, w1 = (float(np.linalg.norm(np.subtract(*[v[rig.landmarks[c]].mean(axis=0) for c in corners])))
-                      for v in (v0, new_v))
-            centre = v0[rig.landmarks[corners[0]]].mean(axis=0)
-            other = "left" if side == "right" else "right"
-            far = v0[rig.landmarks[f"eye_{other}_outer"]].mean(axis=0) if f"eye_{other}_outer" in rig.landmarks else centre
-            mine = np.linalg.norm(v0[lash] - centre, axis=1) < np.linalg.norm(v0[lash] - far, axis=1)
-            scale[mine] = w1 / w0
+    sides = [s for s in ("right", "left") if all(f"eye_{s}{k}" in rig.landmarks for k in ("", "_outer", "_inner"))]
+    if sides:  # each lash grows with the width of the eye it is nearer to
+        lm0, lm1 = rig.landmark_points(v0), rig.landmark_points(new_v)
+
+        def width(lm: dict, s: str) -> float:
+            return float(np.linalg.norm(lm[f"eye_{s}_outer"] - lm[f"eye_{s}_inner"]))
+
+        nearer = np.argmin([np.linalg.norm(v0[lash] - lm0[f"eye_{s}"], axis=1) for s in sides], axis=0)
+        scale = np.array([width(lm1, s) / width(lm0, s) for s in sides])[nearer]
     local = np.einsum("nij,nj->ni", _frames(tri0), v0[lash] - hit.points)
     new_v[lash] = np.einsum("nk,nkd->nd", hit.bary, tri1) + scale[:, None] * np.einsum("nij,ni->nj", _frames(tri1), local)
     return new_v

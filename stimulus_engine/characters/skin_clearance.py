@@ -39,13 +39,14 @@ def behind_skin(vertices: np.ndarray, faces: np.ndarray, face_part: np.ndarray, 
     """
     import trimesh
 
+    from stimulus_engine.geometry.mesh_ops import face_normals
+
     v = np.array(vertices, np.float64, copy=True)
     moving = np.asarray(moving, np.int64)
     if "skin" not in part_names or not len(moving):
         return v
     skin = faces[face_part == part_names.index("skin")]
-    facing = trimesh.Trimesh(v, skin, process=False).face_normals[:, 2] > 0
-    front = trimesh.Trimesh(v, skin[facing], process=False)
+    front = trimesh.Trimesh(v, skin[face_normals(v, skin)[0][:, 2] > 0], process=False)
     loc, ray, _ = front.ray.intersects_location(v[moving], np.tile([0.0, 0.0, -1.0], (len(moving), 1)),
                                                 multiple_hits=False)
     if len(ray):

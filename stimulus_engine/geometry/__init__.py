@@ -21,6 +21,8 @@ catmull_rom, inside_polygon, closest_on_polygon
     2-D polylines for cut lines and contours (module ``polyline2d``).
 ICT_GEOMETRY_RANGES, ict_regions
     Named vertex sets of the ICT Face Model topology (module ``ict_topology``).
+rotation_onto
+    The smallest rotation taking one direction onto another (module ``rotation``).
 """
 
 from stimulus_engine.geometry.closest import SurfaceIndex
@@ -34,6 +36,7 @@ from stimulus_engine.geometry.mesh_ops import (
     vertex_normals,
 )
 from stimulus_engine.geometry.polyline2d import catmull_rom, closest_on_polygon, inside_polygon
+from stimulus_engine.geometry.rotation import rotation_onto
 from stimulus_engine.geometry.sampling import sample_bilinear, sample_points
 from stimulus_engine.geometry.uv_raster import rasterize_uv
 
@@ -51,6 +54,7 @@ __all__ = [
     "load_parts",
     "mesh_uv_layout",
     "rasterize_uv",
+    "rotation_onto",
     "sample_bilinear",
     "sample_points",
     "save_mesh",

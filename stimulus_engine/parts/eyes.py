@@ -338,9 +338,7 @@ def _uv_direction(unit: np.ndarray, uv: np.ndarray, at: np.ndarray, radius: floa
 
 def _rotate_onto(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``points`` rotated by the smallest rotation taking direction ``a`` onto ``b``."""
-    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
-    v, c = np.cross(a, b), float(a @ b)
-    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    r = np.eye(3) + k + k @ k / (1.0 + c)
-    return points @ r.T
+    from stimulus_engine.geometry.rotation import rotation_onto
+
+    return points @ rotation_onto(a / np.linalg.norm(a), b / np.linalg.norm(b)).T
 
