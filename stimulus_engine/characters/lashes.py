@@ -3,8 +3,8 @@
 Lash cards are a part of their own, moved neither as skin nor rigidly: carried along with the
 smooth displacement that fits the ICT rig onto a mesh, Lee Perry-Smith's upper lashes floated a
 few millimetres above the lid, and a stylised shape or an expression lifted them up to 1.3 mm
-off. :func:`seat_lashes` puts every lash vertex back at its offset from the lid, in the frame of
-the skin triangle under it.
+off. :func:`seat_lashes` puts every lash card back at its offset from the lid point under its
+root, in a smooth frame there (the skin's normal, the eye's corner-to-corner axis).
 """
 
 from __future__ import annotations
@@ -16,20 +16,21 @@ from stimulus_engine.characters.rig import FaceRig
 __all__ = ["seat_lashes"]
 
 
-def _frames(tri: np.ndarray) -> np.ndarray:
-    """Per triangle (T, 3, 3) an orthonormal frame as rows: first edge, across, normal."""
-    e1 = tri[:, 1] - tri[:, 0]
-    n = np.cross(e1, tri[:, 2] - tri[:, 0])
-    e1 /= np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-12)
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    return np.stack([e1, np.cross(n, e1), n], axis=1)
+def _frames(normals: np.ndarray, across: np.ndarray) -> np.ndarray:
+    """Per point (P, 3, 3) an orthonormal frame as rows: ``across`` in the tangent plane, the
+    third axis, the normal."""
+    n = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    t = across - np.einsum("pk,pk->p", across, n)[:, None] * n
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
+    return np.stack([t, np.cross(n, t), n], axis=1)
 
 
 def seat_lashes(rig: FaceRig, v0: np.ndarray, new_v: np.ndarray) -> np.ndarray:
     """``new_v`` with the rig's lash cards seated on its lids as they sit on ``v0``'s.
 
-    Each lash vertex keeps its offset from its closest point on the rig's skin in ``v0``, in
-    that skin triangle's frame and scaled with the eye's width.
+    Each lash vertex keeps its offset from the lid point under its root (the nearest lash vertex
+    lying on the skin in ``v0``), in the frame of the skin's smooth normal there and the nearer
+    eye's corner-to-corner axis, scaled with that eye's width.
 
     Parameters
     ----------
@@ -45,7 +46,10 @@ def seat_lashes(rig: FaceRig, v0: np.ndarray, new_v: np.ndarray) -> np.ndarray:
     (N, 3) array
         A copy with the lash vertices re-seated (``new_v`` itself without lashes).
     """
+    from scipy.spatial import cKDTree
+
     from stimulus_engine.geometry.closest import SurfaceIndex
+    from stimulus_engine.geometry.mesh_ops import vertex_normals
 
     new_v = np.array(new_v, np.float64, copy=True)
     if "lashes" not in rig.part_names or "skin" not in rig.part_names:
@@ -55,17 +59,27 @@ def seat_lashes(rig: FaceRig, v0: np.ndarray, new_v: np.ndarray) -> np.ndarray:
     if not len(lash):
         return new_v
     hit = SurfaceIndex(v0, skin).query(v0[lash])
-    tri0, tri1 = v0[skin[hit.face]], new_v[skin[hit.face]]
-    scale = np.ones(len(lash))
+    # each lash follows its root (the lash vertex nearest it that lies on the lid): one card,
+    # one lid point and frame; bound vertex by vertex, a card's tips followed other triangles
+    # than its root and came apart where a stylised lid shears
+    roots = np.flatnonzero(hit.distance <= max(float(np.percentile(hit.distance, 10)), 1e-9))
+    own = roots[cKDTree(v0[lash[roots]]).query(v0[lash])[1]]
+    hit_face, hit_bary, hit_point = hit.face[own], hit.bary[own], hit.points[own]
     sides = [s for s in ("right", "left") if all(f"eye_{s}{k}" in rig.landmarks for k in ("", "_outer", "_inner"))]
-    if sides:  # each lash grows with the width of the eye it is nearer to
+    scale = np.ones(len(lash))
+    across0 = across1 = np.tile([1.0, 0.0, 0.0], (len(lash), 1))  # without eye landmarks: the rig's x axis
+    if sides:  # each lash grows and turns with the eye it is nearer to
         lm0, lm1 = rig.landmark_points(v0), rig.landmark_points(new_v)
-
-        def width(lm: dict, s: str) -> float:
-            return float(np.linalg.norm(lm[f"eye_{s}_outer"] - lm[f"eye_{s}_inner"]))
-
         nearer = np.argmin([np.linalg.norm(v0[lash] - lm0[f"eye_{s}"], axis=1) for s in sides], axis=0)
-        scale = np.array([width(lm1, s) / width(lm0, s) for s in sides])[nearer]
-    local = np.einsum("nij,nj->ni", _frames(tri0), v0[lash] - hit.points)
-    new_v[lash] = np.einsum("nk,nkd->nd", hit.bary, tri1) + scale[:, None] * np.einsum("nij,ni->nj", _frames(tri1), local)
+        axis0 = np.array([lm0[f"eye_{s}_outer"] - lm0[f"eye_{s}_inner"] for s in sides])
+        axis1 = np.array([lm1[f"eye_{s}_outer"] - lm1[f"eye_{s}_inner"] for s in sides])
+        scale = (np.linalg.norm(axis1, axis=1) / np.linalg.norm(axis0, axis=1))[nearer]
+        across0, across1 = axis0[nearer], axis1[nearer]
+    # smooth frames (interpolated vertex normals, the eye's corner-to-corner axis): a frame from
+    # one triangle's edge turned with every shear of a stylised lid, flinging the tips over the eye
+    normal0 = np.einsum("nk,nkd->nd", hit_bary, vertex_normals(v0, skin)[skin[hit_face]])
+    normal1 = np.einsum("nk,nkd->nd", hit_bary, vertex_normals(new_v, skin)[skin[hit_face]])
+    local = np.einsum("nij,nj->ni", _frames(normal0, across0), v0[lash] - hit_point)
+    root = np.einsum("nk,nkd->nd", hit_bary, new_v[skin[hit_face]])
+    new_v[lash] = root + scale[:, None] * np.einsum("nij,ni->nj", _frames(normal1, across1), local)
     return new_v
