@@ -167,7 +167,7 @@ materials: {materials}
 expressions: [neutral]
 lighting: [direct_hard]
 shading: {shading}
-render: {{width: 96, height: 72}}
+render: {{width: 96, height: 72, framing: head}}
 """
 
 

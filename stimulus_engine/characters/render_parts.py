@@ -21,9 +21,10 @@ import numpy as np
 import trimesh
 
 from stimulus_engine.characters.rig import FaceRig
+from stimulus_engine.parts.body import Body
 from stimulus_engine.parts.hair import Hair
 
-__all__ = ["INSIDE_PARTS", "SHADINGS", "hair_render_part", "rig_occlusion", "rig_render_parts"]
+__all__ = ["INSIDE_PARTS", "SHADINGS", "body_render_parts", "hair_render_part", "rig_occlusion", "rig_render_parts"]
 
 #: Shading models: ``pbr`` (metallic-roughness), ``phong`` (specular-glossiness, Blinn-Phong: the
 #: thesis's contrast to PBR) and ``skin`` (PBR with scattering-softened skin, wet eyes and a filmic
@@ -209,8 +210,73 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
                         inside=name in INSIDE_PARTS and occlusion is not None)
         occ = None if occlusion is None else np.asarray(occlusion)[uniq[:, 0]]
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name, occlusion=occ))
+    if rig.body is not None:
+        parts += body_render_parts(rig.body, v, albedo, shading=shading, normal_map=normal_map, specular_map=specular_map)
     if rig.hair is not None:
         parts.append(hair_render_part(rig.hair, v, shading))
+    return parts
+
+
+#: Roughness of the garment (matte knit).
+GARMENT_ROUGHNESS = 0.9
+_GARMENT_TEXTURES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _garment_texture(body: Body) -> np.ndarray:
+    """The body's grey knit times its colour, as an sRGB texture (one array per knit and colour)."""
+    key = (id(body.texture), tuple(body.colour))
+    hit = _GARMENT_TEXTURES.get(key)
+    if hit is not None and hit[0] is body.texture:
+        return hit[1]
+    lin = (np.asarray(body.texture, np.float64) / 255.0) ** 2.2
+    rgb = (lin[..., None] * np.asarray(body.colour)) ** (1 / 2.2)
+    out = np.rint(255 * np.clip(rgb, 0, 1)).astype(np.uint8)
+    _GARMENT_TEXTURES.clear()
+    _GARMENT_TEXTURES[key] = (body.texture, out)
+    return out
+
+
+_NECK_TEXTURES: dict[tuple, tuple[tuple, np.ndarray]] = {}
+
+
+def _neck_texture(body: Body, albedo: np.ndarray) -> np.ndarray:
+    """:meth:`Body.neck_texture` of ``albedo``, one array per (body, albedo) in this process."""
+    key = (id(body.ring_uv), id(albedo))
+    hit = _NECK_TEXTURES.get(key)
+    if hit is not None and hit[0][0] is body.ring_uv and hit[0][1] is albedo:
+        return hit[1]
+    out = body.neck_texture(albedo)
+    if len(_NECK_TEXTURES) > 16:
+        _NECK_TEXTURES.clear()
+    _NECK_TEXTURES[key] = ((body.ring_uv, albedo), out)
+    return out
+
+
+def body_render_parts(body: Body, vertices: np.ndarray, albedo: np.ndarray | None, *, shading: str = "pbr",
+                      normal_map: np.ndarray | None = None, specular_map: np.ndarray | None = None) -> list:
+    """The bust under the head (:mod:`stimulus_engine.parts.body`), posed on ``vertices``: the
+    neck (``neck``) in the colour of the skin above it (from ``albedo``), the garment
+    (``garment``) in its knit."""
+    from stimulus_engine.render.renderer import RenderPart
+
+    bv = body.pose(vertices)
+    normals = trimesh.Trimesh(bv, body.faces, process=False).vertex_normals
+    parts = []
+    for k, name in enumerate(("neck", "garment")):
+        f = body.faces[body.face_part == k]
+        if not len(f):
+            continue
+        used, tri = np.unique(f, return_inverse=True)
+        mesh = trimesh.Trimesh(bv[used], tri.reshape(-1, 3), vertex_normals=normals[used], process=False)
+        if name == "neck":
+            tex = None if albedo is None else _neck_texture(body, albedo)
+            if tex is not None:
+                mesh.visual = trimesh.visual.TextureVisuals(uv=body.uv[used])
+            mat = _material(shading, _PART_COLOURS["skin"], tex, _PART_ROUGHNESS.get("skin", 0.62), scatter=True)
+        else:
+            mesh.visual = trimesh.visual.TextureVisuals(uv=body.uv[used])
+            mat = _material(shading, (1.0, 1.0, 1.0, 1.0), _garment_texture(body), GARMENT_ROUGHNESS)
+        parts.append(RenderPart(mesh, material=mat, smooth=True, name=name))
     return parts
 
 

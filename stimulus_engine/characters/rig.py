@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from stimulus_engine.parts.body import Body
     from stimulus_engine.parts.hair import Hair
 
 __all__ = ["LANDMARK_NAMES", "IBUG_LANDMARKS", "FaceRig"]
@@ -85,6 +86,9 @@ class FaceRig:
     hair : Hair or None
         Hair bound to the skin (:func:`stimulus_engine.parts.hair.fit_hair`); drawn posed with the
         skin, whatever the vertices (an expression, a stylised shape).
+    body : Body or None
+        Neck, shoulders and garment bound to the skin (:func:`stimulus_engine.parts.body.fit_body`),
+        drawn posed with it like the hair.
     """
 
     name: str
@@ -103,6 +107,7 @@ class FaceRig:
     part_textures: dict[str, np.ndarray] = field(default_factory=dict)
     texture_maps: dict[str, np.ndarray] = field(default_factory=dict)
     hair: Hair | None = None
+    body: Body | None = None
 
     def landmark_points(self, vertices: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Landmark positions (mean of each vertex set) on ``vertices`` (default: the neutral)."""

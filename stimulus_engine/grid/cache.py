@@ -19,13 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from appeal.atomic import atomic_write_bytes
+from stimulus_engine.parts.body import body_arrays, body_from_arrays
 from stimulus_engine.parts.hair import hair_arrays, hair_from_arrays
 from stimulus_engine.characters.rig import FaceRig
 
 __all__ = ["GRID_VERSION", "file_sha", "load_rig", "npz_cached", "save_npy", "save_npz", "save_png_once", "save_rig", "sha"]
 
 #: Bumped when the rendering code changes what pixels come out (part of every input hash).
-GRID_VERSION = "grid-19"  # 19: lash cards follow their roots; 18: eyeball sclera lit to SCLERA_LEVEL; 17: a mesh character's lashes seated on its lids; 16: painted-eye remnants inpainted on scan lids; 15: eyeballs kept behind the lids; 14: teeth, gums and tongue behind a scan's lips, the mouth lit through its opening, glossy corneas; 13: eyes aimed at the gaze target, scan eyeballs by their painted pupils; 12: render engine, samples and seed in the hash; skin shading
+GRID_VERSION = "grid-20"  # 20: a bust (neck, shoulders, garment) under every head, head-and-shoulders framing; 19: lash cards follow their roots; 18: eyeball sclera lit to SCLERA_LEVEL; 17: a mesh character's lashes seated on its lids; 16: painted-eye remnants inpainted on scan lids; 15: eyeballs kept behind the lids; 14: teeth, gums and tongue behind a scan's lips, the mouth lit through its opening, glossy corneas; 13: eyes aimed at the gaze target, scan eyeballs by their painted pupils; 12: render engine, samples and seed in the hash; skin shading
 
 
 def sha(*parts: object) -> str:
@@ -87,7 +88,8 @@ def save_rig(path: Path, rig: FaceRig) -> None:
         buf, faces=rig.faces, face_part=rig.face_part, part_names=np.array(rig.part_names),
         uv=rig.uv if rig.uv is not None else np.zeros((0, 2)),
         face_uv=rig.face_uv if rig.face_uv is not None else np.zeros((0, 3), np.int64),
-        **{f"part_texture_{k}": t for k, t in rig.part_textures.items()}, **hair_arrays(rig.hair)))
+        **{f"part_texture_{k}": t for k, t in rig.part_textures.items()}, **hair_arrays(rig.hair),
+        **body_arrays(rig.body)))
 
 
 @functools.lru_cache(maxsize=8)
@@ -99,4 +101,4 @@ def load_rig(path: str) -> FaceRig:
     textures = {k[len("part_texture_"):]: d[k] for k in d.files if k.startswith("part_texture_")}
     return FaceRig(name=Path(path).stem, vertices=np.zeros((0, 3)), faces=d["faces"], uv=uv, face_uv=fuv,
                    face_part=d["face_part"], part_names=tuple(str(x) for x in d["part_names"]), landmarks={},
-                   part_textures=textures, hair=hair_from_arrays(d))
+                   part_textures=textures, hair=hair_from_arrays(d), body=body_from_arrays(d))

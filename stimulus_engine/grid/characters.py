@@ -103,11 +103,47 @@ def _with_hair(c: CharacterSpec, rig: FaceRig, rig_hash: str) -> tuple[FaceRig, 
     return replace(rig, hair=fit_hair(rig, style, colour)), sha(rig_hash, "hair", style, c.hair_colour)
 
 
+def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | None = None) -> tuple[FaceRig, str]:
+    """``rig`` with the character's bust under its head (``body: bust``) and the hash of both;
+    the eye centres are ``eyes``' (a rig in the same frame; default ``rig`` itself)."""
+    from stimulus_engine.parts.body import clothes_faces, fit_body, neck_cut
+    from stimulus_engine.parts.hair import linear_rgb
+
+    if c.body == "none":
+        return rig, rig_hash
+    skin = rig.face_part == rig.part_names.index("skin")
+    lm = (eyes or rig).landmark_points()
+    hide = neck_cut(rig.vertices, rig.faces, skin, lm["eye_right"], lm["eye_left"])
+    if "other" in rig.texture_masks and rig.uv is not None:  # a scan's own collar
+        hide |= clothes_faces(rig.vertices, rig.faces, skin, rig.uv, rig.face_uv, rig.texture_masks["other"],
+                              lm["eye_right"], lm["eye_left"])
+    rig = _hide_faces(rig, hide)
+    skin = rig.face_part == rig.part_names.index("skin")
+    colour = None if c.garment_colour is None else linear_rgb(c.garment_colour)
+    body = fit_body(rig.vertices, rig.faces[skin], rig.uv, rig.face_uv[skin], lm["eye_right"], lm["eye_left"], colour)
+    return replace(rig, body=body), sha(rig_hash, "body", c.body, c.garment_colour)
+
+
+def _hide_faces(rig: FaceRig, hide: np.ndarray) -> FaceRig:
+    """``rig`` with the faces of mask ``hide`` moved to a part named ``hidden`` (not drawn)."""
+    if not hide.any():
+        return rig
+    names = rig.part_names if "hidden" in rig.part_names else (*rig.part_names, "hidden")
+    part = rig.face_part.copy()
+    part[hide] = names.index("hidden")
+    return replace(rig, face_part=part, part_names=names)
+
+
+def _dressed(c: CharacterSpec, rig: FaceRig, rig_hash: str) -> tuple[FaceRig, str]:
+    """``rig`` with the character's hair and bust."""
+    return _with_body(c, *_with_hair(c, rig, rig_hash))
+
+
 def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
     """The character of ``c``; a ``mesh`` is corresponded once and kept in ``cache/mesh``."""
     base, base_hash = base_rig(c)
     if c.mesh is None:
-        return Character(c, *_with_hair(c, base, base_hash), base)
+        return Character(c, *_dressed(c, base, base_hash), base)
     m = c.mesh
     files = {"file": m.file, "texture": m.texture, "normal_map": m.normal_map, "specular_map": m.specular_map}
     h = sha(GRID_VERSION, "mesh", base_hash, *[file_sha(f) if f else None for f in files.values()],
@@ -134,8 +170,11 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
                      "align_rotation": alignment.rotation, "align_translation": alignment.translation})
     if _needs_ibug(m) and ibug is None:
         ibug = _scan_landmarks(c, mesh, source).points
-    scan = _scan_surface(c, rig, mesh, alignment, source, ibug) if m.topology == "scan" else None
-    return Character(c, *_with_hair(c, rig, h), base, scan)
+    if m.topology != "scan":
+        return Character(c, *_dressed(c, rig, h), base)
+    scan = _scan_surface(c, rig, mesh, alignment, source, ibug)
+    drawn, h = _with_body(c, scan.topology, sha(h, "scan"), eyes=rig)
+    return Character(c, *_with_hair(c, rig, h), base, replace(scan, topology=drawn))
 
 
 def _needs_ibug(m: MeshSpec) -> bool:

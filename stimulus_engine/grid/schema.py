@@ -115,6 +115,10 @@ class CharacterSpec(StudyModel):
     for an ICT identity drawn as itself, which is bald; none for a procedural head, whose hair
     is painted, and for a mesh, which brings its own). ``hair_colour``: sRGB hex, e.g.
     ``"#3a2a1f"`` (default dark brown).
+
+    ``body``: ``bust`` (the default: a neck, shoulders and a plain crew-neck garment joined under
+    the head, :mod:`stimulus_engine.parts.body`) or ``none`` (the head alone, as modelled).
+    ``garment_colour``: sRGB hex (default a muted slate blue).
     """
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
@@ -126,6 +130,8 @@ class CharacterSpec(StudyModel):
     texture_seed: int = 0
     hair: Literal["auto", "short", "none"] = "auto"
     hair_colour: str | None = Field(None, pattern=r"^#[0-9A-Fa-f]{6}$")
+    body: Literal["bust", "none"] = "bust"
+    garment_colour: str | None = Field(None, pattern=r"^#[0-9A-Fa-f]{6}$")
 
     @property
     def hair_style(self) -> str | None:
@@ -177,6 +183,10 @@ class PhotoSpec(StudyModel):
     files: dict[str, InputFile]
 
 
+#: Camera framings: (eye row from the top, face length as a fraction of the image height).
+FRAMINGS: dict[str, tuple[float, float]] = {"head_and_shoulders": (0.36, 0.42), "head": (0.45, 0.70)}
+
+
 class RenderSettings(StudyModel):
     """Image size, framing, shadows and the render engine.
 
@@ -191,6 +201,11 @@ class RenderSettings(StudyModel):
     ``camera`` (default: both lines of sight meet at the camera, the face looks at the viewer),
     ``model`` (as the rig and its expressions leave the eyeballs), or a point ``[x, y, z]`` in the
     scene's frame (centimetres, the frame of the manifest's ``camera`` column).
+
+    ``framing``: ``head_and_shoulders`` (default: the eyes at ``eye_row`` 0.36 of the height from
+    the top, the face (forehead to chin) ``face_fraction`` 0.42 of it, so the neck, shoulders
+    and garment show; a portrait) or ``head`` (0.45 and 0.70: the face fills the frame, as in the
+    thesis's ERP study). ``eye_row`` and ``face_fraction`` given explicitly override the framing's.
     """
 
     engine: Literal["pyrender", "cycles"] = "pyrender"
@@ -199,12 +214,22 @@ class RenderSettings(StudyModel):
     width: int = Field(1024, ge=16, le=8192)
     height: int = Field(768, ge=16, le=8192)
     yfov_deg: float = Field(20.0, gt=1, lt=120)
-    eye_row: float = Field(0.45, gt=0, lt=1)
-    face_fraction: float = Field(0.70, gt=0, le=2)
+    framing: Literal["head_and_shoulders", "head"] = "head_and_shoulders"
+    eye_row: float = Field(None, gt=0, lt=1, validate_default=False)
+    face_fraction: float = Field(None, gt=0, le=2, validate_default=False)
     shadows: bool = True
     background: tuple[float, float, float] = (0.5, 0.5, 0.5)
     intensity: float = Field(1.0, ge=0, le=2)
     gaze: Literal["camera", "model"] | tuple[float, float, float] = "camera"
+
+    @model_validator(mode="before")
+    @classmethod
+    def _framing_defaults(cls, data: object) -> object:
+        if isinstance(data, dict):
+            eye_row, face_fraction = FRAMINGS[data.get("framing", "head_and_shoulders")] \
+                if data.get("framing", "head_and_shoulders") in FRAMINGS else (0.45, 0.70)
+            data = {"eye_row": eye_row, "face_fraction": face_fraction, **data}
+        return data
 
     @field_validator("engine")
     @classmethod

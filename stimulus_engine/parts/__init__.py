@@ -1,5 +1,5 @@
-"""The parts a character wears, each fitted to any head: eyeballs, eyelashes and hair (the
-teeth, tongue and clothes to come). Imports only ``geometry`` and the shipped ``data``.
+"""The parts a character wears, each fitted to any head: eyeballs, eyelashes, hair, and a
+neck with shoulders in a garment. Imports only ``geometry`` and the shipped ``data``.
 
 Public API
 ----------
@@ -10,8 +10,12 @@ lash_strip, lash_texture
     Eyelashes as a textured strip along a lid contour (module ``eyelashes``).
 Hair, fit_hair, hair_asset, HAIR_STYLES
     Card hair fitted to a head by its landmarks (module ``hair``; MakeHuman's CC0 ``short02``).
+Body, fit_body, bust_asset, neck_cut
+    A neck, shoulders and a crew-neck garment joined under any head's neck (module ``body``;
+    MakeHuman's CC0 base mesh).
 """
 
+from stimulus_engine.parts.body import Body, bust_asset, fit_body, neck_cut
 from stimulus_engine.parts.eyelashes import lash_strip, lash_texture
 from stimulus_engine.parts.eyes import (
     eye_texture,
@@ -24,16 +28,20 @@ from stimulus_engine.parts.eyes import (
 from stimulus_engine.parts.hair import HAIR_STYLES, Hair, fit_hair, hair_asset
 
 __all__ = [
+    "Body",
     "HAIR_STYLES",
     "Hair",
+    "bust_asset",
     "eye_texture",
     "eyeball_asset",
     "eyeball_uv",
+    "fit_body",
     "fit_hair",
     "fit_sphere",
     "hair_asset",
     "lash_strip",
     "lash_texture",
+    "neck_cut",
     "photographic_eye_texture",
     "tint_iris",
 ]

@@ -90,7 +90,7 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
         links.new(clear.outputs["BSDF"], mix.inputs[2])
         links.new(mix.outputs["Shader"], out.inputs["Surface"])
     mm = 1.0 / mm_per_unit  # scene units per millimetre
-    if name == "skin" and not rec.get("phong"):
+    if name in ("skin", "neck") and not rec.get("phong"):
         # random-walk SSS driven by the albedo; skin's mean free paths ~ 1.0 / 0.4 / 0.2 mm (R, G, B)
         bsdf.subsurface_method = "RANDOM_WALK"
         bsdf.inputs["Subsurface Weight"].default_value = 1.0
@@ -98,7 +98,7 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
         bsdf.inputs["Subsurface Scale"].default_value = 1.5 * mm
         bsdf.inputs["Specular IOR Level"].default_value = 0.45
         bsdf.inputs["IOR"].default_value = 1.4
-    elif name == "skin":  # the thesis's Phong contrast: no scattering, a plain specular lobe
+    elif name in ("skin", "neck"):  # the thesis's Phong contrast: no scattering, a plain specular lobe
         bsdf.inputs["Specular IOR Level"].default_value = 0.5
     elif name in ("eyes", "eye", "sclera", "iris", "cornea"):
         bsdf.inputs["Roughness"].default_value = 0.05
