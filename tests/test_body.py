@@ -46,6 +46,14 @@ def _ring(rig):
     return border[rig.vertices[border, 1] < (lm["eye_left"][1] + lm["eye_right"][1]) / 2 - 1.6 * iod]
 
 
+def _asset_script():
+    """``scripts/make_body_asset.py`` as a module."""
+    spec = importlib.util.spec_from_file_location("make_body_asset", ROOT / "scripts" / "make_body_asset.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
 def test_the_shipped_asset_is_consistent():
     a = bust_asset()
     assert a.faces.max() == len(a.vertices) - 1 and a.cloth.shape == (len(a.vertices),)
@@ -56,9 +64,7 @@ def test_the_shipped_asset_is_consistent():
 
 
 def test_the_asset_script_rebuilds_the_shipped_files(shared_data, tmp_path):
-    spec = importlib.util.spec_from_file_location("make_body_asset", ROOT / "scripts" / "make_body_asset.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _asset_script()
     mod.main(shared_data / "meshes" / "makehuman-cc0", tmp_path)
     new, old = np.load(tmp_path / "bust.npz"), np.load(ROOT / "stimulus_engine" / "data" / "body" / "bust.npz")
     for k in old.files:
@@ -66,9 +72,7 @@ def test_the_asset_script_rebuilds_the_shipped_files(shared_data, tmp_path):
 
 
 def test_split_at_zero_cuts_faces_along_the_line():
-    spec = importlib.util.spec_from_file_location("make_body_asset", ROOT / "scripts" / "make_body_asset.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _asset_script()
     v = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
     verts, faces, below = mod.split_at_zero(v, np.array([[0, 1, 2]]), v[:, 1] - 1.0)
     assert len(faces) == 3 and below.sum() == 2
