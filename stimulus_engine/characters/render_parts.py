@@ -80,17 +80,19 @@ def _inside(material: object, inside: bool) -> object:
     return material
 
 
-def _cached(key: tuple, arrays: tuple, make) -> object:
-    """``make()``'s material, kept per ``key`` and the identity of ``arrays`` (see :func:`_material`)."""
+def _cached(key: tuple, arrays: tuple, make, store: dict | None = None) -> object:
+    """``make()``'s material (or texture), kept in ``store`` (default: the materials) per ``key``
+    and the identity of ``arrays`` (see :func:`_material`)."""
+    store = _MATERIALS if store is None else store
     key = key + tuple(None if a is None else id(a) for a in arrays)
-    hit = _MATERIALS.get(key)
+    hit = store.get(key)
     if hit is not None and all(x is a for x, a in zip(hit[0], arrays)):
         return hit[1]
-    mat = make()
-    if len(_MATERIALS) > 32:
-        _MATERIALS.clear()
-    _MATERIALS[key] = (arrays, mat)
-    return mat
+    made = make()
+    if len(store) > 32:
+        store.clear()
+    store[key] = (arrays, made)
+    return made
 
 
 def _shader_defines(material: object, shading: str, scatter: bool) -> object:
@@ -219,37 +221,18 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
 
 #: Roughness of the garment (matte knit).
 GARMENT_ROUGHNESS = 0.9
-_GARMENT_TEXTURES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+#: Textures made per albedo or colour (the neck's, the garment's), kept like the materials.
+_TEXTURES: dict[tuple, tuple[tuple, np.ndarray]] = {}
 
 
 def _garment_texture(body: Body) -> np.ndarray:
     """The body's grey knit times its colour, as an sRGB texture (one array per knit and colour)."""
-    key = (id(body.texture), tuple(body.colour))
-    hit = _GARMENT_TEXTURES.get(key)
-    if hit is not None and hit[0] is body.texture:
-        return hit[1]
-    lin = (np.asarray(body.texture, np.float64) / 255.0) ** 2.2
-    rgb = (lin[..., None] * np.asarray(body.colour)) ** (1 / 2.2)
-    out = np.rint(255 * np.clip(rgb, 0, 1)).astype(np.uint8)
-    _GARMENT_TEXTURES.clear()
-    _GARMENT_TEXTURES[key] = (body.texture, out)
-    return out
+    def make() -> np.ndarray:
+        lin = (np.asarray(body.texture, np.float64) / 255.0) ** 2.2
+        rgb = (lin[..., None] * np.asarray(body.colour)) ** (1 / 2.2)
+        return np.rint(255 * np.clip(rgb, 0, 1)).astype(np.uint8)
 
-
-_NECK_TEXTURES: dict[tuple, tuple[tuple, np.ndarray]] = {}
-
-
-def _neck_texture(body: Body, albedo: np.ndarray) -> np.ndarray:
-    """:meth:`Body.neck_texture` of ``albedo``, one array per (body, albedo) in this process."""
-    key = (id(body.ring_uv), id(albedo))
-    hit = _NECK_TEXTURES.get(key)
-    if hit is not None and hit[0][0] is body.ring_uv and hit[0][1] is albedo:
-        return hit[1]
-    out = body.neck_texture(albedo)
-    if len(_NECK_TEXTURES) > 16:
-        _NECK_TEXTURES.clear()
-    _NECK_TEXTURES[key] = ((body.ring_uv, albedo), out)
-    return out
+    return _cached(("garment", tuple(body.colour)), (body.texture,), make, _TEXTURES)
 
 
 def body_render_parts(body: Body, vertices: np.ndarray, albedo: np.ndarray | None, *, shading: str = "pbr",
@@ -269,7 +252,8 @@ def body_render_parts(body: Body, vertices: np.ndarray, albedo: np.ndarray | Non
         used, tri = np.unique(f, return_inverse=True)
         mesh = trimesh.Trimesh(bv[used], tri.reshape(-1, 3), vertex_normals=normals[used], process=False)
         if name == "neck":
-            tex = None if albedo is None else _neck_texture(body, albedo)
+            tex = None if albedo is None else _cached(("neck",), (body.ring_uv, albedo),
+                                                      lambda: body.neck_texture(albedo), _TEXTURES)
             if tex is not None:
                 mesh.visual = trimesh.visual.TextureVisuals(uv=body.uv[used])
             mat = _material(shading, _PART_COLOURS["skin"], tex, _PART_ROUGHNESS.get("skin", 0.62), scatter=True)

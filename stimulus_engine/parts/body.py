@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stimulus_engine.data import DATA_DIR
+from stimulus_engine.parts.stored import part_arrays, part_from_arrays
 
 __all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "NECK_CUT_IOD", "body_arrays", "body_from_arrays", "bust_asset", "clothes_faces",
            "fit_body", "neck_cut"]
@@ -142,11 +143,7 @@ class Body:
         (the mean per angle bin, empty bins filled around the circle, smoothed)."""
         from scipy.ndimage import gaussian_filter1d
 
-        a = np.asarray(albedo)
-        h, w = a.shape[:2]
-        col = np.clip(np.rint(self.ring_uv[:, 0] * (w - 1)), 0, w - 1).astype(np.int64)
-        row = np.clip(np.rint((1 - self.ring_uv[:, 1]) * (h - 1)), 0, h - 1).astype(np.int64)
-        colours = a[row, col, :3].astype(np.float64)
+        colours = _texels(np.asarray(albedo)[..., :3], self.ring_uv).astype(np.float64)
         j = np.floor((self.ring_angle / (2 * np.pi) + 0.5) * bins).astype(np.int64) % bins
         total, count = np.zeros((bins, 3)), np.bincount(j, minlength=bins).astype(np.float64)
         np.add.at(total, j, colours)
@@ -170,9 +167,7 @@ def neck_cut(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, eye_righ
     """Skin faces (a mask over ``faces``; ``skin`` marks the skin faces) wholly lower than
     ``below_iod`` inter-ocular distances under the eyes: the character's neck ends there."""
     v = np.asarray(vertices, np.float64)
-    er, el = np.asarray(eye_right, np.float64), np.asarray(eye_left, np.float64)
-    level = (er[1] + el[1]) / 2 - below_iod * float(np.linalg.norm(el - er))
-    return skin & (v[faces, 1] < level).all(axis=1)
+    return skin & (v[faces, 1] < _level(eye_right, eye_left, below_iod)).all(axis=1)
 
 
 def clothes_faces(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, uv: np.ndarray, face_uv: np.ndarray,
@@ -182,13 +177,23 @@ def clothes_faces(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, uv:
     their UV centre is clothing (``clothes``: a soft mask over the texture, > 0.5): a scan's own
     collar, which the bust's garment replaces."""
     v = np.asarray(vertices, np.float64)
+    low = v[faces, 1].max(axis=1) < _level(eye_right, eye_left, below_iod)
+    return skin & low & (_texels(clothes, uv[face_uv].mean(axis=1)) > 0.5)
+
+
+def _level(eye_right: np.ndarray, eye_left: np.ndarray, below_iod: float) -> float:
+    """The height ``below_iod`` inter-ocular distances under the eye centres."""
     er, el = np.asarray(eye_right, np.float64), np.asarray(eye_left, np.float64)
-    level = (er[1] + el[1]) / 2 - below_iod * float(np.linalg.norm(el - er))
-    centre = uv[face_uv].mean(axis=1)
-    h, w = clothes.shape[:2]
-    col = np.clip(np.rint(centre[:, 0] * (w - 1)), 0, w - 1).astype(np.int64)
-    row = np.clip(np.rint((1 - centre[:, 1]) * (h - 1)), 0, h - 1).astype(np.int64)
-    return skin & (v[faces, 1].max(axis=1) < level) & (clothes[row, col] > 0.5)
+    return float((er[1] + el[1]) / 2 - below_iod * np.linalg.norm(el - er))
+
+
+def _texels(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """The texel of ``image`` nearest each texture coordinate (OBJ convention, v up; u = 0 and 1
+    at the first and last texel's centre, as :mod:`stimulus_engine.characters.scan_eyes` samples)."""
+    h, w = image.shape[:2]
+    col = np.clip(np.rint(uv[:, 0] * (w - 1)), 0, w - 1).astype(np.int64)
+    row = np.clip(np.rint((1 - uv[:, 1]) * (h - 1)), 0, h - 1).astype(np.int64)
+    return image[row, col]
 
 
 def _ring(vertices: np.ndarray, faces: np.ndarray, below: float) -> np.ndarray:
@@ -253,7 +258,7 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     hit = index.query(p)
     covered = ~hit.on_boundary & ~cloth  # the garment is never bound to the skin: its shape is the bust's
     normals = vertex_normals(v, skin_faces)
-    ring = _ring(v, skin_faces, mid[1] - RING_BELOW_IOD * iod)
+    ring = _ring(v, skin_faces, _level(er, el, RING_BELOW_IOD))
 
     # the bust, with each ring point's gap to it (to the garment: the garment's height over the
     # skin) spread around the ring
@@ -276,25 +281,18 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     # anchors: ring vertices (free vertices) and skin triangles (covered ones)
     tri = skin_faces[hit.face]
     anchors = np.unique(np.concatenate([ring, tri[covered].ravel()])).astype(np.int64)
-    col = {int(a): i for i, a in enumerate(anchors)}
     weights = np.zeros((len(p), len(anchors)))
-    ring_col = np.array([col[int(r)] for r in ring], np.int64)
     offset = np.zeros_like(p)
-    n_hit = np.einsum("mk,mkd->md", hit.bary, normals[tri])
-    n_hit /= np.linalg.norm(n_hit, axis=1, keepdims=True)
-    for m in range(len(p)):
-        if covered[m]:
-            for k in range(3):
-                weights[m, col[int(tri[m, k])]] += hit.bary[m, k]
-            offset[m] = -SINK_IOD * iod * n_hit[m]
-        elif len(ring):
-            w = join[m] * 1.0
-            weights[m, ring_col] += w
-            weights[m, ring_col] += (1.0 - w.sum()) / len(ring)  # the rest follows the ring's centre
-    if len(ring):
-        offset[~covered] = (placed - weights @ v[anchors])[~covered]
-    else:  # a closed head: the bust stands still under it
-        offset[~covered] = placed[~covered]
+    # covered neck corners: on their skin triangle, sunk under it
+    rows = np.flatnonzero(covered)
+    np.add.at(weights, (rows[:, None], np.searchsorted(anchors, tri[rows])), hit.bary[rows])
+    n_hit = np.einsum("mk,mkd->md", hit.bary[rows], normals[tri[rows]])
+    offset[rows] = -SINK_IOD * iod * n_hit / np.linalg.norm(n_hit, axis=1, keepdims=True)
+    if len(ring):  # the rest: the join's weights on the ring, what they leave on the ring's centre
+        free = np.flatnonzero(~covered)
+        w = join[free] + (1.0 - join[free].sum(axis=1, keepdims=True)) / len(ring)
+        weights[np.ix_(free, np.searchsorted(anchors, ring))] += w
+    offset[~covered] = (placed - weights @ v[anchors])[~covered]  # no ring: the bust stands still
 
     # the neck's colour: the skin a little above the ring, by angle around the neck
     uvs = _garment_uv(placed, mid, iod)
@@ -316,20 +314,11 @@ def _angle(points: np.ndarray, axis_point: np.ndarray) -> np.ndarray:
     return np.arctan2(rel[:, 0], rel[:, 2])
 
 
-_FIELDS = ("anchors", "weights", "offset", "faces", "face_part", "uv", "texture", "ring_uv", "ring_angle", "colour")
-
-
 def body_arrays(body: Body | None, prefix: str = "body_") -> dict[str, np.ndarray]:
     """``body`` as named arrays (for an ``.npz``; empty for none); see :func:`body_from_arrays`."""
-    if body is None:
-        return {}
-    return {prefix + k: np.asarray(getattr(body, k)) for k in _FIELDS}
+    return part_arrays(body, prefix)
 
 
 def body_from_arrays(arrays, prefix: str = "body_") -> Body | None:
     """The :class:`Body` stored by :func:`body_arrays` in ``arrays`` (a mapping or an npz), or None."""
-    if prefix + "anchors" not in arrays:
-        return None
-    d = {k: arrays[prefix + k] for k in _FIELDS}
-    d["colour"] = tuple(float(c) for c in d["colour"])
-    return Body(**d)
+    return part_from_arrays(Body, arrays, prefix)

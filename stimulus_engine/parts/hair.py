@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stimulus_engine.data import DATA_DIR
+from stimulus_engine.parts.stored import part_arrays, part_from_arrays
 
 __all__ = ["HAIR_STYLES", "Hair", "HairAsset", "fit_hair", "hair_arrays", "hair_asset", "hair_from_arrays", "head_points", "linear_rgb"]
 
@@ -191,20 +192,11 @@ def fit_hair(rig, style: str = "short", colour: tuple[float, float, float] | Non
                 tuple(float(c) for c in (colour or DEFAULT_COLOUR)))
 
 
-_FIELDS = ("corners", "bary", "offset", "faces", "uv", "texture", "colour")
-
-
 def hair_arrays(hair: Hair | None, prefix: str = "hair_") -> dict[str, np.ndarray]:
-    """``hair`` as named arrays (for an ``.npz``; empty for no hair); see :func:`hair_from_arrays`."""
-    if hair is None:
-        return {}
-    return {prefix + k: np.asarray(getattr(hair, k)) for k in _FIELDS}
+    """``hair`` as named arrays (for an ``.npz``; empty for none); see :func:`hair_from_arrays`."""
+    return part_arrays(hair, prefix)
 
 
 def hair_from_arrays(arrays, prefix: str = "hair_") -> Hair | None:
     """The :class:`Hair` stored by :func:`hair_arrays` in ``arrays`` (a mapping or an npz), or None."""
-    if prefix + "corners" not in arrays:
-        return None
-    d = {k: arrays[prefix + k] for k in _FIELDS}
-    d["colour"] = tuple(float(c) for c in d["colour"])
-    return Hair(**d)
+    return part_from_arrays(Hair, arrays, prefix)
