@@ -5,8 +5,8 @@ The base mesh stands in MakeHuman's A pose (arms 40 degrees from the body); its 
 down about the shoulder joints by :data:`ARM_DROP_DEG` (a smooth weight across the shoulder, so
 the deltoid bends instead of breaking), and the mesh is cut to the part a head-and-shoulders
 portrait shows: from under the jaw (the back of the neck up to the skull) down to
-:data:`Y_LOW`. Its triangles are cut along a crew neckline (:func:`neckline`, lower in front
-than at the back; :func:`split_at_zero`), so the garment's edge is a smooth line, and every face
+:data:`Y_LOW`. Its triangles are cut along a crew neckline (:func:`stimulus_engine.parts.body.neckline`,
+lower in front than at the back; :func:`split_at_zero`), so the garment's edge is a smooth line, and every face
 is marked neck skin or garment. The garment's
 texture (``jersey.png``: a fine knit, grey, multiplied by the garment colour) is synthesised
 here. :func:`stimulus_engine.parts.body.fit_body` joins the bust to any character's neck.
@@ -26,6 +26,7 @@ from PIL import Image
 from scipy import ndimage
 
 from stimulus_engine.geometry.obj_format import parse_obj
+from stimulus_engine.parts.body import neck_axis, neckline
 
 OUT = Path(__file__).resolve().parents[1] / "stimulus_engine" / "data" / "body"
 #: Lowest height kept (base-mesh units, decimetres; the eyes are at 7.28, the shoulders at 5.25).
@@ -54,16 +55,6 @@ def drop_arms(v: np.ndarray, shoulder_r: np.ndarray, shoulder_l: np.ndarray, deg
         out[side, 0] = (joint[0] + c * dx - s * dy)[side]
         out[side, 1] = (joint[1] + s * dx + c * dy)[side]
     return out
-
-
-def neckline(v: np.ndarray, neck: np.ndarray) -> np.ndarray:
-    """Signed distance of each vertex inside a crew neckline (negative: under the garment): the
-    line runs 0.24 lower in front than at the back, and the garment covers everything further
-    than 0.62 from the neck's axis (the shoulders)."""
-    rel = v - neck
-    r = np.hypot(rel[:, 0], rel[:, 2])
-    front = np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1, 1)  # cos of the angle from the front
-    return np.minimum(v[:, 1] - (neck[1] - 0.22 - 0.12 * (1 + front)), 0.62 - r)
 
 
 def split_at_zero(v: np.ndarray, faces: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -114,18 +105,19 @@ def main(src: Path, out: Path = OUT) -> None:
     neck = _joint(base, "joint-neck")
     v = drop_arms(base.vertices, _joint(base, "joint-r-shoulder"), _joint(base, "joint-l-shoulder"), ARM_DROP_DEG)
     # under the jaw in front, up to the skull at the back of the neck
-    keep = (v[:, 1] > Y_LOW) & (np.abs(v[:, 0]) < X_MAX) & ((v[:, 1] < neck[1] + 0.15) | ((v[:, 2] < 0.3) & (v[:, 1] < 6.6)))
+    keep = (v[:, 1] > Y_LOW) & (np.abs(v[:, 0]) < X_MAX) & ((v[:, 1] < neck[1] + 0.3) | ((v[:, 2] < 0.3) & (v[:, 1] < 6.6)))
     faces = body[keep[body].all(axis=1)]
     used, faces = np.unique(faces, return_inverse=True)
     faces = faces.reshape(-1, 3)
-    verts, faces, cloth_face = split_at_zero(v[used], faces, neckline(v[used], neck))
+    axis = neck_axis(v, body, *eyes)
+    verts, faces, cloth_face = split_at_zero(v[used], faces, neckline(v[used], axis, *eyes))
     # a vertex is garment when any face of it is (the neckline's own vertices wear the garment's
     # edge); the neck skin's faces are those above the line
     cloth = np.zeros(len(verts), bool)
     cloth[faces[cloth_face].ravel()] = True
     out.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out / "bust.npz", vertices=verts.astype(np.float32), faces=faces.astype(np.int32),
-                        cloth=cloth, cloth_face=cloth_face, eyes=np.array(eyes, np.float32), neck=neck.astype(np.float32))
+                        cloth=cloth, cloth_face=cloth_face, eyes=np.array(eyes, np.float32), axis=axis.astype(np.float32))
     Image.fromarray(jersey_texture()).save(out / "jersey.png", optimize=True)
     print(f"{out}: {len(verts)} vertices, {len(faces)} faces, {int(cloth.sum())} in the garment")
 

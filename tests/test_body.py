@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from stimulus_engine.parts.body import (
-    GARMENT_LIFT_IOD, NECK_CUT_IOD, body_arrays, body_from_arrays, bust_asset, fit_body, neck_cut,
+    GARMENT_LIFT_IOD, UNDER_GARMENT_IOD, body_arrays, body_from_arrays, bust_asset, clothes_faces, fit_body,
+    neck_axis, neckline, under_garment,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -24,13 +25,15 @@ def ict(shared_data):
     return load_ict_rig(shared_data / "meshes" / "ict-facekit", "identity000")
 
 
-def _dressed(rig):
-    """The rig with its neck cut and the bust fitted (as the grid does), the bust, the ring's iod."""
+def _dressed(rig, hide=None):
+    """The rig with its neck cut (under the garment, or by ``hide(rig, skin, landmarks)``) and
+    the bust fitted (as the grid does), and its inter-ocular distance."""
     from stimulus_engine.grid.characters import _hide_faces
 
     lm = rig.landmark_points()
     skin = rig.face_part == rig.part_names.index("skin")
-    rig = _hide_faces(rig, neck_cut(rig.vertices, rig.faces, skin, lm["eye_right"], lm["eye_left"]))
+    cut = under_garment if hide is None else hide
+    rig = _hide_faces(rig, cut(rig.vertices, rig.faces, skin, lm["eye_right"], lm["eye_left"]))
     skin = rig.face_part == rig.part_names.index("skin")
     body = fit_body(rig.vertices, rig.faces[skin], rig.uv, rig.face_uv[skin], lm["eye_right"], lm["eye_left"])
     return replace(rig, body=body), float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
@@ -82,30 +85,96 @@ def test_split_at_zero_cuts_faces_along_the_line():
     assert np.allclose(verts[3:, 1], 1.0)
 
 
-def test_the_bust_meets_the_neck_without_a_gap(ict):
+@pytest.mark.parametrize("cut", ["under the garment", "above the neckline"])
+def test_the_bust_meets_the_neck_without_a_gap(ict, cut):
     """Every vertex of the character's lower border lies on the bust's surface (garment or neck),
-    in the rest pose, in an expression and on the most stylised shape."""
+    in the rest pose, in an expression and on the most stylised shape: a border above the
+    neckline (a scan's) exactly, one under the garment's edge (a rig's whole neck) within
+    a few millimetres, under the cloth."""
     from stimulus_engine.characters.expressions import apply_expression
     from stimulus_engine.geometry.closest import SurfaceIndex
     from stimulus_engine.stylisation.shape import stylise
 
-    rig, iod = _dressed(ict)
+    rig, iod = _dressed(ict, None if cut == "under the garment" else _cut_at(2.3))
     ring = _ring(rig)
     assert len(ring) > 20
     cartoon = stylise(rig, 1.0)
+    # the garment stands GARMENT_LIFT_IOD off the skin; nothing further (< 0.6 cm; < 1.2 cm under it)
+    tolerance = (GARMENT_LIFT_IOD + (0.05 if cut == "above the neckline" else 0.15)) * iod
     for v in (rig.vertices, apply_expression(rig, "surprise", 1.0), apply_expression(rig, "anger", 1.0, target=cartoon)):
         gap = SurfaceIndex(rig.body.pose(v), rig.body.faces).distance(np.asarray(v)[ring])
-        # the garment stands GARMENT_LIFT_IOD off the skin; nothing further (< 0.6 cm)
-        assert gap.max() < GARMENT_LIFT_IOD * iod + 0.05 * iod, gap.max() / iod
+        assert gap.max() < tolerance, gap.max() / iod
 
 
-def test_the_character_neck_ends_at_the_cut(ict):
+def test_a_whole_neck_goes_on_under_the_garment(ict):
+    """A rig's own neck is drawn down to the garment and ends under it (no bust neck over it),
+    and the garment's neckline is the crew neck's: lower in front than at the back."""
     rig, iod = _dressed(ict)
     lm = rig.landmark_points()
-    level = (lm["eye_left"][1] + lm["eye_right"][1]) / 2 - NECK_CUT_IOD * iod
     skin = rig.faces[rig.face_part == rig.part_names.index("skin")]
-    assert rig.vertices[skin, 1].max(axis=1).min() >= level - 1e-9  # no skin face wholly below it
-    assert "hidden" in rig.part_names
+    ring = _ring(rig)
+    axis = neck_axis(rig.vertices, skin, lm["eye_right"], lm["eye_left"])
+    inside = neckline(rig.vertices[ring], axis, lm["eye_right"], lm["eye_left"])
+    assert inside.max() < -UNDER_GARMENT_IOD * 0.5  # the border is under the garment all round
+    assert inside.min() > -UNDER_GARMENT_IOD - 0.6  # ... just under it: the neck is not cut short
+    assert (rig.body.face_part == 0).sum() == 0  # the rig's neck, not the bust's, is drawn
+    a = bust_asset()
+    edge = np.intersect1d(np.unique(a.faces[~a.cloth_face]), np.unique(a.faces[a.cloth_face]))
+    ey = a.eyes[:, 1].mean()
+    biod = float(np.linalg.norm(a.eyes[1] - a.eyes[0]))
+    front, back = edge[np.argmax(a.vertices[edge, 2])], edge[np.argmin(a.vertices[edge, 2])]
+    assert (ey - a.vertices[front, 1]) / biod == pytest.approx(3.05, abs=0.05)
+    assert (ey - a.vertices[back, 1]) / biod == pytest.approx(2.45, abs=0.1)
+
+
+def _cut_at(below_iod):
+    """A neck cut: skin faces wholly ``below_iod`` under the eyes, as a scan ends."""
+    def cut(v, faces, skin, er, el):
+        level = (er[1] + el[1]) / 2 - below_iod * np.linalg.norm(el - er)
+        return skin & (v[faces, 1] < level).all(axis=1)
+    return cut
+
+
+def test_a_neck_that_ends_above_the_neckline_is_continued_by_the_bust(ict):
+    """A scan's neck ending 2.3 iod under the eyes (above the neckline): the bust's neck shows
+    below it, down to the garment."""
+    rig, iod = _dressed(ict, _cut_at(2.3))
+    neck = np.unique(rig.body.faces[rig.body.face_part == 0])
+    assert len(neck) > 50
+    posed = rig.body.pose(rig.vertices)
+    assert posed[neck, 1].min() < rig.vertices[_ring(rig), 1].min() - 0.4 * iod
+
+
+def test_a_ragged_collar_is_cut_in_a_clean_line(ict):
+    """A scan's collar outline torn in and out by +-0.3 iod is hidden with everything under its
+    top edge: the border left is smooth around the neck."""
+    rig = ict
+    lm = rig.landmark_points()
+    er, el = lm["eye_right"], lm["eye_left"]
+    iod = float(np.linalg.norm(el - er))
+    skin = rig.face_part == rig.part_names.index("skin")
+    v = rig.vertices
+    centre = neck_axis(v, rig.faces[skin], er, el)
+    angle = np.arctan2(v[:, 0] - centre[0], v[:, 2] - centre[2])
+    torn = (el[1] + er[1]) / 2 - (2.4 + 0.3 * np.sign(np.sin(9 * angle))) * iod  # a square wave round the neck
+    collar_v = v[:, 1] < torn
+    # the mask over the texture: the UV centres of collar faces painted, at 256 x 256
+    mask = np.zeros((256, 256))
+    uv = rig.uv / rig.uv.max(axis=0).round()  # the ICT layout's tiles side by side in one texture
+    uvc = uv[rig.face_uv].mean(axis=1)
+    is_collar = collar_v[rig.faces].all(axis=1) & skin
+    mask[np.rint((1 - uvc[is_collar, 1]) * 255).astype(int), np.rint(uvc[is_collar, 0] * 255).astype(int)] = 1.0
+    hide = clothes_faces(v, rig.faces, skin, uv, rig.face_uv, mask, er, el)
+    kept = rig.faces[skin & ~hide]
+    from stimulus_engine.geometry.mesh_ops import boundary_vertex_mask
+
+    border = np.flatnonzero(boundary_vertex_mask(kept, len(v)))
+    border = border[v[border, 1] < (el[1] + er[1]) / 2 - 1.6 * iod]
+    front = border[(np.abs(v[border, 0] - centre[0]) < 0.8 * iod) & (v[border, 2] > centre[2])]
+    assert len(front) > 5
+    # the torn outline spans 0.6 iod; the cut, its top edge (+ a margin), much less
+    assert np.ptp(v[front, 1]) / iod < 0.3, np.ptp(v[front, 1]) / iod
+    assert v[front, 1].min() > torn[front].max() - 0.3 * iod  # at the collar's top, not below it
 
 
 def test_the_bust_follows_the_head(ict):

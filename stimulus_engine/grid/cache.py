@@ -26,7 +26,7 @@ from stimulus_engine.characters.rig import FaceRig
 __all__ = ["GRID_VERSION", "file_sha", "load_rig", "npz_cached", "save_npy", "save_npz", "save_png_once", "save_rig", "sha"]
 
 #: Bumped when the rendering code changes what pixels come out (part of every input hash).
-GRID_VERSION = "grid-20"  # 20: a bust (neck, shoulders, garment) under every head, head-and-shoulders framing; 19: lash cards follow their roots; 18: eyeball sclera lit to SCLERA_LEVEL; 17: a mesh character's lashes seated on its lids; 16: painted-eye remnants inpainted on scan lids; 15: eyeballs kept behind the lids; 14: teeth, gums and tongue behind a scan's lips, the mouth lit through its opening, glossy corneas; 13: eyes aimed at the gaze target, scan eyeballs by their painted pupils; 12: render engine, samples and seed in the hash; skin shading
+GRID_VERSION = "grid-21"  # 21: a crew neckline at the base of the neck, the character's neck on under the garment, a scan's collar cut in a clean line; 20: a bust (neck, shoulders, garment) under every head, head-and-shoulders framing; 19: lash cards follow their roots; 18: eyeball sclera lit to SCLERA_LEVEL; 17: a mesh character's lashes seated on its lids; 16: painted-eye remnants inpainted on scan lids; 15: eyeballs kept behind the lids; 14: teeth, gums and tongue behind a scan's lips, the mouth lit through its opening, glossy corneas; 13: eyes aimed at the gaze target, scan eyeballs by their painted pupils; 12: render engine, samples and seed in the hash; skin shading
 
 
 def sha(*parts: object) -> str:

@@ -106,14 +106,14 @@ def _with_hair(c: CharacterSpec, rig: FaceRig, rig_hash: str) -> tuple[FaceRig, 
 def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | None = None) -> tuple[FaceRig, str]:
     """``rig`` with the character's bust under its head (``body: bust``) and the hash of both;
     the eye centres are ``eyes``' (a rig in the same frame; default ``rig`` itself)."""
-    from stimulus_engine.parts.body import clothes_faces, fit_body, neck_cut
+    from stimulus_engine.parts.body import clothes_faces, fit_body, under_garment
     from stimulus_engine.parts.hair import linear_rgb
 
     if c.body == "none":
         return rig, rig_hash
     skin = rig.face_part == rig.part_names.index("skin")
     lm = (eyes or rig).landmark_points()
-    hide = neck_cut(rig.vertices, rig.faces, skin, lm["eye_right"], lm["eye_left"])
+    hide = under_garment(rig.vertices, rig.faces, skin, lm["eye_right"], lm["eye_left"])
     if "other" in rig.texture_masks and rig.uv is not None:  # a scan's own collar
         hide |= clothes_faces(rig.vertices, rig.faces, skin, rig.uv, rig.face_uv, rig.texture_masks["other"],
                               lm["eye_right"], lm["eye_left"])

@@ -10,12 +10,12 @@ lash_strip, lash_texture
     Eyelashes as a textured strip along a lid contour (module ``eyelashes``).
 Hair, fit_hair, hair_asset, HAIR_STYLES
     Card hair fitted to a head by its landmarks (module ``hair``; MakeHuman's CC0 ``short02``).
-Body, fit_body, bust_asset, neck_cut
+Body, fit_body, bust_asset, under_garment
     A neck, shoulders and a crew-neck garment joined under any head's neck (module ``body``;
     MakeHuman's CC0 base mesh).
 """
 
-from stimulus_engine.parts.body import Body, bust_asset, fit_body, neck_cut
+from stimulus_engine.parts.body import Body, bust_asset, fit_body, under_garment
 from stimulus_engine.parts.eyelashes import lash_strip, lash_texture
 from stimulus_engine.parts.eyes import (
     eye_texture,
@@ -41,7 +41,7 @@ __all__ = [
     "hair_asset",
     "lash_strip",
     "lash_texture",
-    "neck_cut",
+    "under_garment",
     "photographic_eye_texture",
     "tint_iris",
 ]

@@ -7,16 +7,25 @@ neck skin or garment (a crew neck). :func:`fit_body` puts it under a character:
 
 1. **Placed** by the eyes: scaled by the ratio of the inter-ocular distances and moved so the
    eye midpoints meet.
-2. **Covered or free.** Each neck-skin vertex of the bust is projected onto the character's
-   skin. One whose closest skin point is inside the skin (not on its border) lies where the
-   character already has a surface, and is dropped (the character's neck is drawn instead).
-   The character's own skin below :data:`NECK_CUT_IOD` is hidden beforehand (:func:`neck_cut`),
-   so the bust's garment, kept whole, is what shows below the neck.
+2. **Covered or free.** A neck-skin vertex of the bust higher than the character's lower
+   border reaches around it (the highest border point within :data:`COLLAR_WINDOW_DEG`;
+   :data:`FREE_BELOW_IOD` lower where that border is under the garment) lies
+   where the character already has a neck, and is dropped (the character's neck is drawn
+   instead): only below a character's border (a scan that ends above the neckline) does the
+   bust's neck show, behind the scan's own neck where that goes on lower.
+   The character's own skin under the garment, more than :data:`UNDER_GARMENT_IOD` inside its
+   neckline, is hidden beforehand (:func:`under_garment`): the character's neck goes on a little
+   under the garment's edge, so where it ends is never seen, and the garment, kept whole, is what
+   shows below the neck. A scan's own collar is hidden with everything below its top edge
+   (:func:`clothes_faces`), so the scan ends in a clean line there and the bust's neck
+   continues it down to the garment.
 3. **Joined.** The character's lower border (the *ring*: border vertices more than
-   :data:`RING_BELOW_IOD` below the eyes) and the bust rarely meet. Each ring vertex's gap to
-   the bust surface is spread over the free bust vertices by distance-weighted interpolation,
-   fading out :data:`JOIN_REACH_IOD` below the ring, so the bust's surface passes through the
-   ring: no gap, no step. Neck-skin faces that straddle the ring are kept, their covered
+   :data:`RING_BELOW_IOD` below the eyes) and the bust rarely meet, nor does the garment's
+   neckline sit on a character's own neck. Each ring vertex's gap to the bust surface, and each
+   neckline vertex's gap to the neck beside it (within :data:`HUG_REACH_IOD`), is spread over
+   the free bust vertices by distance-weighted interpolation, fading out
+   :data:`JOIN_REACH_IOD` away, so the bust's surface passes through the ring and the collar
+   hugs the neck: no gap, no step. Neck-skin faces that straddle the ring are kept, their covered
    corners sunk :data:`SINK_IOD` under the character's skin, so the join has no crack.
 
 The result, :class:`Body`, is bound to the character's skin like the hair is: every vertex is a
@@ -37,22 +46,39 @@ import numpy as np
 from stimulus_engine.data import DATA_DIR
 from stimulus_engine.parts.stored import part_arrays, part_from_arrays
 
-__all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "NECK_CUT_IOD", "body_arrays", "body_from_arrays", "bust_asset", "clothes_faces",
-           "fit_body", "neck_cut"]
+__all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "UNDER_GARMENT_IOD", "body_arrays", "body_from_arrays", "bust_asset", "clothes_faces",
+           "fit_body", "neck_axis", "neckline", "placed_bust", "under_garment"]
 
 _DATA = DATA_DIR / "body"
 #: Default garment colour (linear RGB; multiplies the grey knit texture): a muted slate blue.
 DEFAULT_GARMENT: tuple[float, float, float] = (0.09, 0.11, 0.15)
-#: Where a character's own neck ends (inter-ocular distances below the eye centres; about 16 cm,
-#: the middle of the neck): skin below it (an ICT rig's chest and shoulders, a scan's collar) is
-#: hidden, and the bust's neck and garment take over.
-NECK_CUT_IOD = 2.6
+#: The crew neckline, in inter-ocular distances (iod) below the eye centres: lowest in front
+#: (just above the sternal notch), highest at the back (the seventh vertebra); and its radius
+#: from the neck's axis, where it crosses the slope of the shoulders at the sides.
+NECKLINE_FRONT_IOD, NECKLINE_BACK_IOD, NECKLINE_RADIUS_IOD = 3.05, 2.45, 1.3
+#: The neck's axis is found at this depth below the eyes, half a neck's depth behind its front
+#: (iod; MakeHuman's base neck: 11 cm deep).
+NECK_AXIS_IOD, NECK_HALF_DEPTH_IOD = 2.6, 0.9
+#: How far under the garment a character's own skin goes on before it is hidden (inter-ocular
+#: distances inside the neckline; about 1.3 cm).
+UNDER_GARMENT_IOD = 0.2
+#: A scan's collar is hidden with everything under its top edge, taken as the highest collar
+#: point within this angle around the neck (the bust's neck likewise shows below the highest
+#: border point within it), plus this margin (inter-ocular distances).
+COLLAR_WINDOW_DEG, COLLAR_MARGIN_IOD = 25.0, 0.05
 #: Border vertices at least this far below the eye centres form the ring (inter-ocular distances).
 RING_BELOW_IOD = 1.6
 #: Height of the garment over a character's own skin (inter-ocular distances; about 3 mm).
 GARMENT_LIFT_IOD = 0.05
 #: How far below the ring the join fades out.
 JOIN_REACH_IOD = 1.5
+#: The bust's neck shows from this far below a border under the garment (iod).
+FREE_BELOW_IOD = 0.15
+#: The collar's rib: its edge stands this much further off the neck than the garment elsewhere
+#: (iod; with it, the collar's edge closes over the neck's sides where they meet the shoulders).
+COLLAR_RIB_IOD = 0.05
+#: The garment's neckline hugs the character's neck where the neck is within this distance of it.
+HUG_REACH_IOD = 0.8
 #: Depth under the character's skin of the neck-skin corners it covers (hides the join's edge).
 SINK_IOD = 0.04
 
@@ -73,6 +99,8 @@ class BustAsset:
         The base mesh's right and left eye centres.
     texture : (H, W) uint8 array
         The garment's knit, grey.
+    axis : (3,) array
+        A point on the neck's axis (:func:`neck_axis`).
     """
 
     vertices: np.ndarray
@@ -81,6 +109,7 @@ class BustAsset:
     cloth_face: np.ndarray
     eyes: np.ndarray
     texture: np.ndarray
+    axis: np.ndarray
 
 
 @functools.lru_cache(maxsize=1)
@@ -92,7 +121,7 @@ def bust_asset() -> BustAsset:
     with Image.open(_DATA / "jersey.png") as im:
         tex = np.asarray(im.convert("L"))
     arrays = [d["vertices"].astype(np.float64), d["faces"].astype(np.int64), d["cloth"].astype(bool),
-              d["cloth_face"].astype(bool), d["eyes"].astype(np.float64), tex]
+              d["cloth_face"].astype(bool), d["eyes"].astype(np.float64), tex, d["axis"].astype(np.float64)]
     for a in arrays:
         a.setflags(write=False)
     return BustAsset(*arrays)
@@ -153,7 +182,7 @@ class Body:
         centres = np.flatnonzero(have)
         filled = np.stack([np.interp(np.arange(bins), centres, total[have, c] / count[have], period=bins)
                            for c in range(3)], axis=1)
-        filled = gaussian_filter1d(filled, bins / 32, axis=0, mode="wrap")
+        filled = gaussian_filter1d(filled, bins / 12, axis=0, mode="wrap")  # no streaks down the neck
         return np.repeat(np.rint(filled).astype(np.uint8)[None], 2, axis=0)
 
     def pose(self, rig_vertices: np.ndarray) -> np.ndarray:
@@ -162,23 +191,107 @@ class Body:
         return self.offset + self.weights.astype(np.float64) @ rv
 
 
-def neck_cut(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, eye_right: np.ndarray,
-             eye_left: np.ndarray, below_iod: float = NECK_CUT_IOD) -> np.ndarray:
-    """Skin faces (a mask over ``faces``; ``skin`` marks the skin faces) wholly lower than
-    ``below_iod`` inter-ocular distances under the eyes: the character's neck ends there."""
-    v = np.asarray(vertices, np.float64)
-    return skin & (v[faces, 1] < _level(eye_right, eye_left, below_iod)).all(axis=1)
-
-
 def clothes_faces(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, uv: np.ndarray, face_uv: np.ndarray,
                   clothes: np.ndarray, eye_right: np.ndarray, eye_left: np.ndarray,
-                  below_iod: float = RING_BELOW_IOD) -> np.ndarray:
-    """Skin faces (a mask over ``faces``) lower than ``below_iod`` under the eyes whose texel at
-    their UV centre is clothing (``clothes``: a soft mask over the texture, > 0.5): a scan's own
-    collar, which the bust's garment replaces."""
+                  below_iod: float = RING_BELOW_IOD, margin_iod: float = COLLAR_MARGIN_IOD) -> np.ndarray:
+    """Skin faces (a mask over ``faces``) of a scan's own collar and below it.
+
+    The collar: faces lower than ``below_iod`` under the eyes whose texel at their UV centre is
+    clothing (``clothes``: a soft mask over the texture, > 0.5). Its top edge, per angle around
+    the neck, is smoothed into a clean line (the highest collar face within
+    :data:`COLLAR_WINDOW_DEG` of each angle), and every low skin face wholly under that line
+    plus ``margin_iod`` is hidden: the scan then ends in a smooth line, not along the collar's
+    ragged outline, and the texels of the collar's blurred edge go with it.
+    """
     v = np.asarray(vertices, np.float64)
-    low = v[faces, 1].max(axis=1) < _level(eye_right, eye_left, below_iod)
-    return skin & low & (_texels(clothes, uv[face_uv].mean(axis=1)) > 0.5)
+    low = skin & (v[faces, 1].max(axis=1) < _level(eye_right, eye_left, below_iod))
+    collar = low & (_texels(clothes, uv[face_uv].mean(axis=1)) > 0.5)
+    if not collar.any():
+        return collar
+    centre = v[np.unique(faces[low])].mean(axis=0)
+    top = _envelope(_angle(v[faces[collar]].mean(axis=1), centre), v[faces[collar], 1].max(axis=1))
+    iod = float(np.linalg.norm(np.asarray(eye_left, np.float64) - np.asarray(eye_right, np.float64)))
+    corner_top = top(_angle(v, centre)) + margin_iod * iod
+    return collar | (low & (v[faces, 1] < corner_top[faces]).all(axis=1))
+
+
+def _envelope(angles: np.ndarray, heights: np.ndarray, bins: int = 72):
+    """The highest of ``heights`` within :data:`COLLAR_WINDOW_DEG` of each angle, as a function
+    of angle (-inf where none is near)."""
+    j = np.floor((angles / (2 * np.pi) + 0.5) * bins).astype(np.int64) % bins
+    peak = np.full(bins, -np.inf)
+    np.maximum.at(peak, j, heights)
+    reach = int(round(COLLAR_WINDOW_DEG / 360 * bins))
+    peak = np.max([np.roll(peak, k) for k in range(-reach, reach + 1)], axis=0)
+
+    def at(a: np.ndarray) -> np.ndarray:
+        return peak[np.floor((a / (2 * np.pi) + 0.5) * bins).astype(np.int64) % bins]
+
+    return at
+
+
+def placed_bust(eye_right: np.ndarray, eye_left: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
+    """The shipped bust's vertices (or ``points`` in its frame) placed under eyes at
+    ``eye_right``/``eye_left``: scaled by the ratio of the inter-ocular distances, the eye
+    midpoints met."""
+    asset = bust_asset()
+    er, el = np.asarray(eye_right, np.float64), np.asarray(eye_left, np.float64)
+    bmid, biod = asset.eyes.mean(axis=0), float(np.linalg.norm(asset.eyes[1] - asset.eyes[0]))
+    p = asset.vertices if points is None else np.asarray(points, np.float64)
+    return (p - bmid) * (float(np.linalg.norm(el - er)) / biod) + (er + el) / 2
+
+
+def neck_axis(vertices: np.ndarray, faces: np.ndarray, eye_right: np.ndarray, eye_left: np.ndarray) -> np.ndarray | None:
+    """A point on the neck's vertical axis, :data:`NECK_AXIS_IOD` inter-ocular distances (iod)
+    below the eyes, on the eyes' midline, :data:`NECK_HALF_DEPTH_IOD` behind the front of the
+    neck there (the front of the surface's plane section at that height); None where the surface
+    does not reach that low. Only the front is used: a scan's or a rig's back of the neck is
+    often missing or part of the skull."""
+    import trimesh
+
+    er, el = np.asarray(eye_right, np.float64), np.asarray(eye_left, np.float64)
+    mid, iod = (er + el) / 2, float(np.linalg.norm(el - er))
+    y = mid[1] - NECK_AXIS_IOD * iod
+    sec = trimesh.Trimesh(vertices, faces, process=False).section(plane_origin=[0.0, y, 0.0], plane_normal=[0.0, 1.0, 0.0])
+    pts = np.zeros((0, 3)) if sec is None else np.asarray(sec.vertices)
+    pts = pts[np.abs(pts[:, 0] - mid[0]) < 0.4 * iod]  # the front of the neck, not the arms
+    if not len(pts):
+        return None
+    return np.array([mid[0], y, pts[:, 2].max() - NECK_HALF_DEPTH_IOD * iod])
+
+
+def neckline(vertices: np.ndarray, axis: np.ndarray, eye_right: np.ndarray, eye_left: np.ndarray) -> np.ndarray:
+    """Signed distance of each vertex inside the crew neckline, in iod (negative: under the
+    garment): below a line running from :data:`NECKLINE_FRONT_IOD` under the eyes in front to
+    :data:`NECKLINE_BACK_IOD` at the back (by the cosine of the angle around the neck's
+    ``axis``), or, lower than the back's line, further than :data:`NECKLINE_RADIUS_IOD` from
+    that axis (the shoulders; the jaw, above, is never inside)."""
+    er, el = np.asarray(eye_right, np.float64), np.asarray(eye_left, np.float64)
+    eye_y, iod = (er[1] + el[1]) / 2, float(np.linalg.norm(el - er))
+    rel = np.asarray(vertices, np.float64) - axis
+    r = np.hypot(rel[:, 0], rel[:, 2])
+    front = np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1, 1)  # cos of the angle from the front
+    depth = (NECKLINE_FRONT_IOD + NECKLINE_BACK_IOD) / 2 + (NECKLINE_FRONT_IOD - NECKLINE_BACK_IOD) / 2 * front
+    y = rel[:, 1] + axis[1]
+    shoulders = np.maximum(NECKLINE_RADIUS_IOD - r / iod, (y - (eye_y - NECKLINE_BACK_IOD * iod)) / iod)
+    return np.minimum((y - (eye_y - depth * iod)) / iod, shoulders)
+
+
+def under_garment(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, eye_right: np.ndarray,
+                  eye_left: np.ndarray, depth_iod: float = UNDER_GARMENT_IOD) -> np.ndarray:
+    """Skin faces (a mask over ``faces``; ``skin`` marks the skin faces) that the garment
+    covers: every corner more than ``depth_iod`` iod inside the :func:`neckline` around the
+    character's own neck axis (the bust's, placed by the eyes, where the character has no
+    whole neck). The character's neck goes on under the garment's edge, so the border where it
+    ends is hidden (an ICT rig's chest and shoulders, the end of a scan)."""
+    v = np.asarray(vertices, np.float64)
+    axis = neck_axis(v, faces[skin], eye_right, eye_left)
+    if axis is None:
+        asset = bust_asset()
+        axis = placed_bust(eye_right, eye_left, asset.axis[None])[0]
+    low = v[:, 1] < _level(eye_right, eye_left, RING_BELOW_IOD)
+    inside = low & (neckline(v, axis, eye_right, eye_left) < -depth_iod)
+    return skin & inside[faces].all(axis=1)
 
 
 def _level(eye_right: np.ndarray, eye_left: np.ndarray, below_iod: float) -> float:
@@ -251,36 +364,54 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     v = np.asarray(vertices, np.float64)
     er, el = np.asarray(eye_right, np.float64), np.asarray(eye_left, np.float64)
     mid, iod = (er + el) / 2, float(np.linalg.norm(el - er))
-    bmid, biod = asset.eyes.mean(axis=0), float(np.linalg.norm(asset.eyes[1] - asset.eyes[0]))
-    p = (asset.vertices - bmid) * (iod / biod) + mid
+    p = placed_bust(er, el)
     cloth = asset.cloth
     index = SurfaceIndex(v, skin_faces)
     hit = index.query(p)
-    covered = ~hit.on_boundary & ~cloth  # the garment is never bound to the skin: its shape is the bust's
     normals = vertex_normals(v, skin_faces)
     ring = _ring(v, skin_faces, _level(er, el, RING_BELOW_IOD))
+    axis = neck_axis(v, skin_faces, er, el)
+    axis = placed_bust(er, el, asset.axis[None])[0] if axis is None else axis
+    # a neck vertex is free (drawn where it is) only below the highest the character's border
+    # reaches around it: where the character's own neck goes on, down under the garment, the
+    # bust's neck is not drawn; below a scan's ragged border it is, behind the scan's own neck
+    # where that goes on lower. The garment is never bound to the skin (its shape is the bust's).
+    # (a border under the garment counts FREE_BELOW_IOD lower: no bust neck beside the neckline)
+    under = neckline(v[ring], axis, er, el) < 0
+    ring_top = _envelope(_angle(v[ring], axis), v[ring, 1] - under * FREE_BELOW_IOD * iod)
+    covered = ~cloth & (p[:, 1] > ring_top(_angle(p, axis)))
 
-    # the bust, with each ring point's gap to it (to the garment: the garment's height over the
-    # skin) spread around the ring
-    if len(ring):
-        bust_hit = SurfaceIndex(p, asset.faces).query(v[ring])
-        near_cloth = cloth[asset.faces[bust_hit.face]].mean(axis=1) > 0.5
-        lift = np.where(near_cloth, GARMENT_LIFT_IOD * iod, 0.0)[:, None] * normals[ring]
-        gaps = v[ring] + lift - bust_hit.points
-        join = _join_weights(p, bust_hit.points, JOIN_REACH_IOD * iod)
-    else:
-        gaps, join = np.zeros((0, 3)), np.zeros((len(p), 0))
-    placed = p + join @ gaps
-
-    # faces: garment everywhere; neck skin where not wholly covered by the character's skin
-    fc = asset.cloth_face
-    keep = fc | ~covered[asset.faces].all(axis=1)
-    faces = asset.faces[keep]
+    # faces: garment everywhere; neck skin with a free corner (the neckline's own corners, on
+    # the garment's edge, do not count: a face from there up to the character's skin is a flap)
+    fc, f = asset.cloth_face, asset.faces
+    keep = fc | ~(covered | cloth)[f].all(axis=1)
+    faces = f[keep]
     face_part = fc[keep].astype(np.int8)
 
-    # anchors: ring vertices (free vertices) and skin triangles (covered ones)
+    # the join's sources, each a skin point (corners and weights) with the bust point it pulls:
+    # the ring's vertices (to the bust's surface beside them) and, where the character's neck goes
+    # on under the garment, the neckline's vertices (to the skin beside them: the collar hugs it)
+    edge = np.zeros(len(p), bool)
+    edge[f[~fc].ravel()] = True
+    hug, hug_tri, hug_bary = _hug(v, skin_faces, p, np.flatnonzero(edge & cloth), axis, HUG_REACH_IOD * iod)
     tri = skin_faces[hit.face]
-    anchors = np.unique(np.concatenate([ring, tri[covered].ravel()])).astype(np.int64)
+    bust_hit = SurfaceIndex(p, f[keep]).query(v[ring]) if len(ring) else None  # the part drawn
+    corners = np.concatenate([np.repeat(ring[:, None], 3, axis=1), hug_tri]).astype(np.int64)
+    bary = np.concatenate([np.tile([1.0, 0.0, 0.0], (len(ring), 1)), hug_bary])
+    targets = np.concatenate([p[:0] if bust_hit is None else bust_hit.points, p[hug]])
+    on_cloth = np.concatenate([np.zeros(0, bool) if bust_hit is None
+                               else fc[keep][bust_hit.face], np.ones(len(hug), bool)])
+    skin_n = np.einsum("kc,kcd->kd", bary, normals[corners])
+    skin_n /= np.maximum(np.linalg.norm(skin_n, axis=1, keepdims=True), 1e-12)
+    # each source's gap (to the garment: the garment's height over the skin), spread over the bust
+    lift = np.where(on_cloth, GARMENT_LIFT_IOD, 0.0) + np.r_[np.zeros(len(ring)), np.full(len(hug), COLLAR_RIB_IOD)]
+    gaps = np.einsum("kc,kcd->kd", bary, v[corners]) + lift[:, None] * iod * skin_n - targets
+    join = _join_weights(p, targets, JOIN_REACH_IOD * iod) if len(targets) else np.zeros((len(p), 0))
+    placed = p + join @ gaps
+    placed[cloth] = _outside(placed[cloth], index, normals, skin_faces, GARMENT_LIFT_IOD * iod, HUG_REACH_IOD * iod)
+
+    # anchors: the sources' corners (free vertices) and skin triangles (covered ones)
+    anchors = np.unique(np.concatenate([corners.ravel(), tri[covered].ravel()])).astype(np.int64)
     weights = np.zeros((len(p), len(anchors)))
     offset = np.zeros_like(p)
     # covered neck corners: on their skin triangle, sunk under it
@@ -288,16 +419,18 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     np.add.at(weights, (rows[:, None], np.searchsorted(anchors, tri[rows])), hit.bary[rows])
     n_hit = np.einsum("mk,mkd->md", hit.bary[rows], normals[tri[rows]])
     offset[rows] = -SINK_IOD * iod * n_hit / np.linalg.norm(n_hit, axis=1, keepdims=True)
-    if len(ring):  # the rest: the join's weights on the ring, what they leave on the ring's centre
+    if len(targets):  # the rest: the join's weights on the sources, what they leave on their centre
         free = np.flatnonzero(~covered)
-        w = join[free] + (1.0 - join[free].sum(axis=1, keepdims=True)) / len(ring)
-        weights[np.ix_(free, np.searchsorted(anchors, ring))] += w
-    offset[~covered] = (placed - weights @ v[anchors])[~covered]  # no ring: the bust stands still
+        spread = np.zeros((len(targets), len(anchors)))
+        np.add.at(spread, (np.arange(len(targets))[:, None], np.searchsorted(anchors, corners)), bary)
+        w = join[free] + (1.0 - join[free].sum(axis=1, keepdims=True)) / len(targets)
+        weights[free] += w @ spread
+    offset[~covered] = (placed - weights @ v[anchors])[~covered]  # no sources: the bust stands still
 
     # the neck's colour: the skin a little above the ring, by angle around the neck
     uvs = _garment_uv(placed, mid, iod)
-    neck_axis = placed[~cloth].mean(axis=0) if (~cloth).any() else mid
-    uvs[~cloth] = np.stack([_angle(placed[~cloth], neck_axis) / (2 * np.pi) + 0.5,
+    centre = placed[~cloth].mean(axis=0) if (~cloth).any() else mid
+    uvs[~cloth] = np.stack([_angle(placed[~cloth], centre) / (2 * np.pi) + 0.5,
                             np.full(int((~cloth).sum()), 0.5)], axis=1)
     if len(ring):
         above = index.query(v[ring] + np.array([0.0, 0.15 * iod, 0.0]))
@@ -305,7 +438,47 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     else:
         ring_uv = np.zeros((0, 2))
     return Body(anchors, weights.astype(np.float32), offset, faces, face_part, uvs, asset.texture, ring_uv,
-                _angle(v[ring], neck_axis), tuple(float(c) for c in (colour or DEFAULT_GARMENT)))
+                _angle(v[ring], centre), tuple(float(c) for c in (colour or DEFAULT_GARMENT)))
+
+
+def _outside(points: np.ndarray, index, normals: np.ndarray, skin_faces: np.ndarray, lift: float,
+             reach: float) -> np.ndarray:
+    """``points`` (garment vertices) moved out to ``lift`` over the skin where they are nearer
+    the skin's outside than that, or under it (within ``reach`` of it): the character's neck and
+    chest, where drawn, never come through the cloth."""
+    hit = index.query(points)
+    n = np.einsum("mk,mkd->md", hit.bary, normals[skin_faces[hit.face]])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    height = np.einsum("md,md->m", points - hit.points, n)
+    push = (height < lift) & (hit.distance < reach)
+    out = points.copy()
+    out[push] += (lift - height[push])[:, None] * n[push]
+    return out
+
+
+def _hug(vertices: np.ndarray, skin_faces: np.ndarray, points: np.ndarray, candidates: np.ndarray,
+         axis: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``candidates`` (rows of ``points``) with skin straight inwards of them, level, toward
+    the vertical ``axis`` within ``reach`` (a ray cast from each): those rows, the hit skin
+    triangles' corners (K, 3) and barycentric weights (K, 3)."""
+    import trimesh
+
+    if not len(candidates) or not len(skin_faces):
+        return np.zeros(0, np.int64), np.zeros((0, 3), np.int64), np.zeros((0, 3))
+    inward = axis - points[candidates]
+    inward[:, 1] = 0.0
+    inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-12)
+    origins = points[candidates] - reach * inward  # from outside too: a neck wider than the collar
+    mesh = trimesh.Trimesh(vertices, skin_faces, process=False)
+    loc, ray, tri = mesh.ray.intersects_location(origins, inward, multiple_hits=True)
+    d = np.einsum("kd,kd->k", loc - points[candidates][ray], inward[ray])
+    ok = np.abs(d) < reach
+    loc, ray, tri, d = loc[ok], ray[ok], tri[ok], np.abs(d[ok])
+    order = np.lexsort((d, ray))  # per ray, the nearest hit to the collar
+    first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]] if len(order) else order
+    corners = skin_faces[tri[first]]
+    bary = trimesh.triangles.points_to_barycentric(vertices[corners], loc[first])
+    return candidates[ray[first]], corners, bary
 
 
 def _angle(points: np.ndarray, axis_point: np.ndarray) -> np.ndarray:
