@@ -1,12 +1,13 @@
-"""Rebuild ``stimulus_engine/data/hair/`` from MakeHuman's CC0 ``short02`` hair.
+"""Rebuild ``stimulus_engine/data/hair/`` from MakeHuman's CC0 hair styles (:data:`STYLES`).
 
-The hair mesh is placed on MakeHuman's base mesh by its ``.mhclo`` fitting file (each hair
+Each hair mesh is placed on MakeHuman's base mesh by its ``.mhclo`` fitting file (each hair
 vertex a barycentric combination of three base vertices plus an offset scaled by the base's
 proportions). Every hair vertex is then stored as its *anchor* (the closest point of the base's
-head) and its *lift* above it along the head's normal, with seven head points of the base (eye
-centres, top, back and the two sides of the cranium): :func:`stimulus_engine.parts.hair.fit_hair`
-puts the same anchors on any rig's head. MakeHuman's hair texture is not in the CC0 release, so
-the strand texture (``short02.png``: grey strands, alpha = hair) is synthesised here: noise
+head, above the neck), its *lift* above it along the head's normal and its whole *offset* from
+it (for locks that hang away from the head), with seven head points of the base (eye centres,
+top, back and the two sides of the cranium): :func:`stimulus_engine.parts.hair.fit_hair` puts
+the same anchors on any rig's head. MakeHuman's hair textures are not in the CC0 release, so
+each strand texture (``STYLE.png``: grey strands, alpha = hair) is synthesised here: noise
 smeared along the combing direction (line-integral convolution along the gradient of the
 distance to the hairline), with strand tips of varied length at the hairline.
 
@@ -32,6 +33,8 @@ from stimulus_engine.geometry.uv_raster import rasterize_uv
 
 OUT = Path(__file__).resolve().parents[1] / "stimulus_engine" / "data" / "hair"
 SIZE = 512
+#: The styles built (MakeHuman's CC0 hair proxies).
+STYLES = ("short01", "short02", "short03", "short04", "bob02", "long01", "afro01", "ponytail01")
 
 
 def mhclo_vertices(base: np.ndarray, mhclo: Path) -> np.ndarray:
@@ -49,7 +52,7 @@ def mhclo_vertices(base: np.ndarray, mhclo: Path) -> np.ndarray:
             rows.append([float(x) for x in w])
         elif inside and len(w) == 1:
             rows.append([float(w[0])] * 3 + [1, 0, 0, 0, 0, 0])
-        elif inside:
+        elif inside and rows:  # the verts section ends (lines such as 'material' may come before it starts)
             break
     r = np.array(rows)
     s = np.array([abs(base[scale[a][0], i] - base[scale[a][1], i]) / scale[a][2] for i, a in enumerate("xyz")])
@@ -57,9 +60,10 @@ def mhclo_vertices(base: np.ndarray, mhclo: Path) -> np.ndarray:
     return np.einsum("nk,nkd->nd", r[:, 3:6], base[idx]) + r[:, 6:9] * s
 
 
-#: Where the fringe is cut, in inter-ocular distances above the eye centres (short02's fringe
-#: hangs to 0.41, onto the brows of a rig: it read as a bowl cut over painted eyebrows).
-FRINGE_CUT_IOD = 0.8
+#: Where a fringe is cut, in inter-ocular distances above the eye centres, between the temples
+#: (short02's fringe hangs to 0.41, onto the brows of a rig: it read as a bowl cut over painted
+#: eyebrows); hair beside the face (further than FRINGE_HALF_WIDTH_IOD from the midline) hangs on.
+FRINGE_CUT_IOD, FRINGE_HALF_WIDTH_IOD = 0.8, 1.0
 
 
 def strand_texture(faces: np.ndarray, face_uv: np.ndarray, uv: np.ndarray, vertices: np.ndarray,
@@ -73,7 +77,7 @@ def strand_texture(faces: np.ndarray, face_uv: np.ndarray, uv: np.ndarray, verti
     rim = np.unique(uniq[count == 1])  # the hairline: the mesh's boundary in 3D
     dist = np.linalg.norm(vertices[:, None, :] - vertices[rim][None, :, :], axis=2).min(axis=1)
     mid, iod = (eyes[0] + eyes[1]) / 2, float(np.linalg.norm(eyes[1] - eyes[0]))
-    front = vertices[:, 2] > mid[2] - 0.4 * iod
+    front = (vertices[:, 2] > mid[2] - 0.4 * iod) & (np.abs(vertices[:, 0] - mid[0]) < FRINGE_HALF_WIDTH_IOD * iod)
     dist = np.where(front, np.minimum(dist, vertices[:, 1] - (mid[1] + FRINGE_CUT_IOD * iod)), dist)
     rows, cols, face, bary = rasterize_uv(uv, face_uv, SIZE, SIZE)
     inside = np.zeros((SIZE, SIZE), bool)
@@ -110,28 +114,42 @@ def strand_texture(faces: np.ndarray, face_uv: np.ndarray, uv: np.ndarray, verti
     return rgba[near[0], near[1]]
 
 
-def main(src: Path, out: Path = OUT) -> None:
+def build_style(style: str, src: Path, out: Path, base, head_faces: np.ndarray, eyes: list[np.ndarray],
+                head: np.ndarray) -> None:
+    """Write ``out/STYLE.npz`` and ``out/STYLE.png`` for one hair style."""
+    v = base.vertices
+    hair = parse_obj(src / "proxies" / f"{style}.obj")
+    p = mhclo_vertices(v, src / "proxies" / f"{style}.mhclo")
+    hit = SurfaceIndex(v, head_faces).query(p)
+    anchors = np.einsum("nk,nkd->nd", hit.bary, v[head_faces[hit.face]])
+    normals = trimesh.Trimesh(v, head_faces, process=False).vertex_normals
+    n = np.einsum("nk,nkd->nd", hit.bary, normals[head_faces[hit.face]])
+    lift = np.einsum("nd,nd->n", p - anchors, n / np.linalg.norm(n, axis=1, keepdims=True))
+    # one render vertex per (vertex, uv) pair: the texture's seams stay sharp
+    pairs, inv = np.unique(np.stack([hair.faces.ravel(), hair.face_uv.ravel()], axis=1), axis=0, return_inverse=True)
+    np.savez_compressed(out / f"{style}.npz", anchors=anchors[pairs[:, 0]].astype(np.float32),
+                        lift=lift[pairs[:, 0]].astype(np.float32), offset=(p - anchors)[pairs[:, 0]].astype(np.float32),
+                        head=head.astype(np.float32), faces=inv.reshape(-1, 3).astype(np.int32),
+                        uv=hair.uv_coords[pairs[:, 1]].astype(np.float32))
+    rgba = strand_texture(hair.faces, hair.face_uv, hair.uv_coords, p, eyes)
+    Image.fromarray(rgba).convert("LA").save(out / f"{style}.png", optimize=True)  # grey strands and alpha
+    print(f"{out / style}: {len(pairs)} vertices, {len(hair.faces)} faces")
+
+
+def main(src: Path, out: Path = OUT, styles: tuple[str, ...] = STYLES) -> None:
     base = parse_obj(src / "base.obj")
     body = base.faces[base.face_group == base.groups.index("body")]
     v = base.vertices
-    hair = parse_obj(src / "proxies" / "short02.obj")
-    p = mhclo_vertices(v, src / "proxies" / "short02.mhclo")
-    hit = SurfaceIndex(v, body).query(p)
-    anchors = np.einsum("nk,nkd->nd", hit.bary, v[body[hit.face]])
-    normals = trimesh.Trimesh(v, body, process=False).vertex_normals
-    n = np.einsum("nk,nkd->nd", hit.bary, normals[body[hit.face]])
-    lift = np.einsum("nd,nd->n", p - anchors, n / np.linalg.norm(n, axis=1, keepdims=True))
     eyes = [v[np.unique(base.faces[base.face_group == base.groups.index(f"joint-{s}-eye")])].mean(axis=0)
             for s in ("r", "l")]
+    # anchors on the head only (above the neck's joint): a lock hanging to the shoulders is
+    # carried by the head it grows from, not by the shoulder it lies on
+    neck_y = v[np.unique(base.faces[base.face_group == base.groups.index("joint-neck")])].mean(axis=0)[1]
+    head_faces = body[(v[body, 1] > neck_y).all(axis=1)]
     head = head_points(v[np.unique(body)], *eyes)
-    # one render vertex per (vertex, uv) pair: the texture's seams stay sharp
-    pairs, inv = np.unique(np.stack([hair.faces.ravel(), hair.face_uv.ravel()], axis=1), axis=0, return_inverse=True)
     out.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out / "short02.npz", anchors=anchors[pairs[:, 0]].astype(np.float32),
-                        lift=lift[pairs[:, 0]].astype(np.float32), head=head.astype(np.float32),
-                        faces=inv.reshape(-1, 3).astype(np.int32), uv=hair.uv_coords[pairs[:, 1]].astype(np.float32))
-    Image.fromarray(strand_texture(hair.faces, hair.face_uv, hair.uv_coords, p, eyes)).save(out / "short02.png", optimize=True)
-    print(f"{out}: {len(pairs)} vertices, {len(hair.faces)} faces")
+    for style in styles:
+        build_style(style, src, out, base, head_faces, eyes, head)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 from stimulus_engine.parts.hair import (
-    MIN_LIFT_IOD, Hair, fit_hair, hair_arrays, hair_asset, hair_from_arrays, head_points, linear_rgb,
+    HAIR_STYLES, MIN_LIFT_IOD, Hair, fit_hair, hair_arrays, hair_asset, hair_from_arrays, head_points, linear_rgb,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,28 +28,36 @@ def _skin(rig) -> trimesh.Trimesh:
     return trimesh.Trimesh(rig.vertices, rig.faces[rig.face_part == rig.part_names.index("skin")], process=False)
 
 
-def test_the_shipped_asset_is_consistent():
-    a = hair_asset("short")
+@pytest.mark.parametrize("style", sorted(HAIR_STYLES))
+def test_the_shipped_assets_are_consistent(style):
+    a = hair_asset(style)
     assert a.anchors.shape == (len(a.uv), 3) and a.lift.shape == (len(a.uv),) and a.head.shape == (7, 3)
+    assert a.offset.shape == (len(a.uv), 3)
+    np.testing.assert_allclose(np.abs(a.lift), np.minimum(np.linalg.norm(a.offset, axis=1), np.abs(a.lift)))
     assert a.faces.max() == len(a.uv) - 1 and a.texture.shape == (512, 512, 4)
     alpha = a.texture[..., 3]
     assert set(np.unique(alpha)) == {0, 255}  # alpha-tested: hair or nothing
-    assert 0.3 < (alpha == 255).mean() < 0.95
-    with pytest.raises(ValueError, match="unknown hair style 'long'"):
+    assert 0.1 < (alpha == 255).mean() < 0.97
+
+
+def test_an_unknown_style_is_named():
+    with pytest.raises(ValueError, match="unknown hair style 'long'.*long01"):
         hair_asset("long")
 
 
 def test_the_asset_script_rebuilds_the_shipped_files(shared_data, tmp_path):
+    from PIL import Image
+
     spec = importlib.util.spec_from_file_location("make_hair_asset", ROOT / "scripts" / "make_hair_asset.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     mod.main(shared_data / "meshes" / "makehuman-cc0", tmp_path)
-    new, old = np.load(tmp_path / "short02.npz"), np.load(ROOT / "stimulus_engine" / "data" / "hair" / "short02.npz")
-    for k in old.files:
-        np.testing.assert_allclose(new[k], old[k], atol=1e-6, err_msg=k)
-    from PIL import Image
-
-    assert np.array_equal(np.asarray(Image.open(tmp_path / "short02.png")), hair_asset("short").texture)
+    assert set(mod.STYLES) == set(HAIR_STYLES.values())
+    for style in mod.STYLES:
+        new, old = np.load(tmp_path / f"{style}.npz"), np.load(ROOT / "stimulus_engine" / "data" / "hair" / f"{style}.npz")
+        for k in old.files:
+            np.testing.assert_allclose(new[k], old[k], atol=1e-6, err_msg=f"{style} {k}")
+        assert np.array_equal(np.asarray(Image.open(tmp_path / f"{style}.png").convert("RGBA")), hair_asset(style).texture)
 
 
 def test_head_points_find_top_back_front_and_sides_of_a_sphere():
@@ -96,6 +104,35 @@ def test_hair_follows_the_skin_through_stylisation_and_identities(shared_data, i
     other = load_ict_rig(shared_data / "meshes" / "ict-facekit", "identity001")
     _, dist, _ = trimesh.proximity.closest_point(_skin(other), hair.pose(other.vertices))
     assert dist.min() > 0  # fitted on one identity, still outside another's skin
+
+
+@pytest.mark.parametrize("style", ["short01", "short03", "short04", "bob02", "long01", "afro01", "ponytail01"])
+def test_every_style_is_worn_on_the_head_and_hangs_as_cut(ict, style):
+    """Each style on an ICT head: the hair near the scalp sits outside the skin; the crown is
+    covered; long styles hang below the chin and a ponytail behind the head, not stuck to the
+    skin they are nearest; the hair grows with a stylised cranium."""
+    from stimulus_engine.stylisation.shape import stylise
+
+    hair = fit_hair(ict, style)
+    v = hair.pose(ict.vertices)
+    lm = ict.landmark_points()
+    iod = float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
+    eye_y = (lm["eye_left"][1] + lm["eye_right"][1]) / 2
+    skin = _skin(ict)
+    near, dist, tri = trimesh.proximity.closest_point(skin, v)
+    above = v[:, 1] > eye_y + 0.5 * iod
+    height = np.einsum("nd,nd->n", v - near, skin.face_normals[tri])
+    assert (height[above] > 0).all()  # outside the cranium
+    top = ict.vertices[ict.skin][np.argmax(ict.vertices[ict.skin, 1])]
+    assert np.linalg.norm(v - top, axis=1).min() < 0.4 * iod
+    chin = ict.vertices[ict.skin][:, 1][ict.vertices[ict.skin][:, 2] > lm["eye_right"][2] - 0.5 * iod].min()
+    if style == "long01":
+        assert v[:, 1].min() < chin - 0.5 * iod and dist.max() > 0.5 * iod
+    if style == "ponytail01":
+        back = ict.vertices[ict.skin, 2].min()
+        assert v[:, 2].min() < back - 0.5 * iod
+    rise = stylise(ict, 1.0)[ict.skin, 1].max() - ict.vertices[ict.skin, 1].max()
+    assert hair.pose(stylise(ict, 1.0))[:, 1].max() - v[:, 1].max() == pytest.approx(rise, rel=0.3)
 
 
 def test_hair_arrays_round_trip(ict):
@@ -177,10 +214,17 @@ def test_the_hair_field_of_a_character():
     assert CharacterSpec.model_validate({"name": "p", "procedural": {}, "hair": "short"}).hair_style == "short"
     mesh = {**ict, "mesh": {"file": str(ROOT / "README.md")}}
     assert CharacterSpec.model_validate(mesh).hair_style is None
-    with pytest.raises(ValueError, match="shows its own hair"):
-        CharacterSpec.model_validate({**mesh, "mesh": {**mesh["mesh"], "topology": "scan"}, "hair": "short"})
+    scan = {**mesh, "mesh": {**mesh["mesh"], "topology": "scan"}}
+    assert CharacterSpec.model_validate(scan).hair_style is None  # a scan shows its own ...
+    assert CharacterSpec.model_validate({**scan, "hair": "short04"}).hair_style == "short04"  # ... or a style over it
     with pytest.raises(ValueError, match="hair_colour"):
         CharacterSpec.model_validate({**ict, "hair_colour": "brown"})
+    # the field takes every shipped style, and only those
+    import typing
+
+    field = typing.get_args(CharacterSpec.model_fields["hair"].annotation)
+    assert set(field) == {"auto", "none", *HAIR_STYLES}
+    assert CharacterSpec.model_validate({**ict, "hair": "long01"}).hair_style == "long01"
 
 
 def test_a_rig_with_hair_survives_the_render_cache(ict, tmp_path):

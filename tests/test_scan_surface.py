@@ -124,3 +124,44 @@ def test_james_gets_eyeballs_and_lips_that_part(shared_data, tmp_path):
     dark = (lum["default", "surprise"] < 40) & (lum["scan", "surprise"] > 60)
     dy, dx = np.nonzero(dark)
     assert dark.sum() > 40 and dy.mean() > ys.mean() + 0.1 * 384 and abs(dx.mean() - xs.mean()) < 0.05 * 512
+
+
+def test_a_scan_wears_a_hair_style_over_its_own_hair():
+    """A style fitted to the rig and laid over a scan's sculpted hair cap: outside the cap, and
+    posed with the drawn scan exactly as on the rig (the rig vertices it is bound to travel with
+    the drawn topology)."""
+    import trimesh
+
+    from stimulus_engine.characters.scan_surface import wear_rig_hair
+    from stimulus_engine.parts.hair import OVER_LIFT_IOD, fit_hair
+
+    rig = procedural_head(0, texture_size=64, resolution=48)
+    lm = rig.landmark_points()
+    iod = float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
+    skin = rig.faces[rig.face_part == rig.part_names.index("skin")]
+    normals = trimesh.Trimesh(rig.vertices, skin, process=False).vertex_normals
+    # the "scan": the whole skin, its cranium thickened by 0.3 iod of sculpted hair
+    cap = rig.vertices[:, 1] > lm["eye_right"][1] + 0.4 * iod
+    pts = rig.vertices + (0.3 * iod * cap)[:, None] * normals
+    used, inv = np.unique(skin, return_inverse=True)
+    faces = inv.reshape(-1, 3)
+    scan = bind_scan(rig, pts[used], faces, np.zeros((len(used), 2)), faces)
+    hair = fit_hair(rig, "short01", over=(scan.topology.vertices, faces))
+    worn = wear_rig_hair(scan, hair)
+    drawn = worn.pose(rig.vertices)
+    np.testing.assert_allclose(drawn[:len(used)], pts[used], atol=1e-12)  # the scan is unchanged
+    hv = worn.topology.hair.pose(drawn)
+    np.testing.assert_allclose(hv, hair.pose(rig.vertices), atol=1e-12)
+    shell = trimesh.Trimesh(pts[used], faces, process=False)
+    near, _, tri = trimesh.proximity.closest_point(shell, hv)
+    height = np.einsum("nd,nd->n", hv - near, shell.face_normals[tri])
+    from stimulus_engine.geometry.closest import SurfaceIndex
+
+    core = rig.vertices[used, 1] > lm["eye_right"][1] + 0.7 * iod  # away from the cap's step
+    seam = SurfaceIndex(pts[used], faces).query(hv).on_boundary  # the head's UV seam: an open edge
+    over_cap = np.isin(tri, np.flatnonzero(core[faces].all(axis=1))) & ~seam
+    assert over_cap.sum() > 100 and (height[over_cap] > 0.5 * OVER_LIFT_IOD * iod).all()
+    # a pose of the rig moves the worn hair as it moves the rig's own
+    grown = rig.vertices * [1.0, 1.1, 1.0]
+    np.testing.assert_allclose(worn.topology.hair.pose(worn.pose(grown)), hair.pose(grown), atol=1e-9)
+    assert len(worn.topology.faces) == len(scan.topology.faces)  # nothing new is drawn but the hair

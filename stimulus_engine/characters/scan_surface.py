@@ -25,7 +25,7 @@ from stimulus_engine.parts.eyelashes import lash_texture
 from stimulus_engine.characters.rig import FaceRig
 from stimulus_engine.characters.scan_eyes import EyeGeometry
 
-__all__ = ["ScanSurface", "bind_scan"]
+__all__ = ["ScanSurface", "bind_scan", "wear_rig_hair"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,26 @@ class ScanSurface:
         for drawn, rig_vertices_of in self.follow:
             out[drawn] = rv[rig_vertices_of]
         return out
+
+
+def wear_rig_hair(scan: ScanSurface, hair) -> ScanSurface:
+    """``scan`` drawn with ``hair`` fitted to its rig (:func:`stimulus_engine.parts.hair.fit_hair`
+    on the corresponded rig, laid over the scan's own surface): the rig vertices the hair is bound
+    to are appended to the drawn topology as vertices of no face that follow the rig (like the
+    mouth's inside), and the hair is re-bound to them, so every pose of the rig moves the hair
+    as it moves the rig's whole head (a scan's own surface may not reach the back of the head)."""
+    from dataclasses import replace
+
+    used, inv = np.unique(hair.corners, return_inverse=True)
+    n = len(scan.neutral)
+    drawn = np.arange(n, n + len(used))
+    rig_at = scan.rig_neutral[used]
+    topology = replace(scan.topology, vertices=np.vstack([scan.topology.vertices, rig_at]),
+                       hair=replace(hair, corners=drawn[inv.reshape(-1, 3)]))
+    return replace(scan, topology=topology, neutral=np.vstack([scan.neutral, rig_at]),
+                   corners=np.vstack([scan.corners, np.repeat(used[:, None], 3, axis=1)]),
+                   bary=np.vstack([scan.bary, np.tile([1.0, 0.0, 0.0], (len(used), 1))]),
+                   follow=(*scan.follow, (drawn, used)))
 
 
 def _eye_pieces(eyes: EyeGeometry) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:

@@ -27,6 +27,7 @@ __all__ = [
     "SurfaceIndex",
     "ClosestPoints",
     "closest_point_on_triangles",
+    "lift_out",
     "project_to_triangles",
 ]
 
@@ -282,3 +283,36 @@ class SurfaceIndex:
         qm = q_idx[is_min]
         sel = is_min[np.concatenate([[True], qm[1:] != qm[:-1]])]
         return f_idx[sel], v[sel], w[sel]
+
+
+def lift_out(points: np.ndarray, index: SurfaceIndex, vertex_normals: np.ndarray, lift: float,
+             reach: float = np.inf, at_border: bool = False) -> np.ndarray:
+    """``points`` moved out along the surface's (interpolated) normal to ``lift`` over the
+    surface of ``index``, where they are lower than that over it or under it, within ``reach``
+    of it; points whose nearest surface point is on its border are left unless ``at_border``
+    (their side of an open surface is uncertain there).
+
+    Parameters
+    ----------
+    points : (Q, 3) array
+    index : SurfaceIndex
+        The surface (its current vertex positions).
+    vertex_normals : (N, 3) array
+        Unit normals at the surface's vertices (outward).
+    lift, reach : float
+        Clearance wanted, and the farthest surface that counts.
+    at_border : bool
+        Also move points nearest the surface's border.
+
+    Returns
+    -------
+    (Q, 3) array
+    """
+    hit = index.query(points)
+    n = np.einsum("qk,qkd->qd", hit.bary, vertex_normals[index.faces[hit.face]])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    height = np.einsum("qd,qd->q", points - hit.points, n)
+    push = (at_border | ~hit.on_boundary) & (height < lift) & (hit.distance < reach)
+    out = np.array(points, np.float64, copy=True)
+    out[push] += (lift - height[push])[:, None] * n[push]
+    return out

@@ -25,7 +25,7 @@ from stimulus_engine.grid.inputs import load_map, load_texture
 from stimulus_engine.grid.schema import CharacterSpec, MeshSpec
 from stimulus_engine.geometry.mesh_io import load_mesh
 from stimulus_engine.characters.rig import FaceRig
-from stimulus_engine.characters.scan_surface import ScanSurface
+from stimulus_engine.characters.scan_surface import ScanSurface, wear_rig_hair
 
 __all__ = ["CHARACTER_KINDS", "Character", "base_rig", "character_albedo", "character_kind", "load_character"]
 
@@ -92,15 +92,17 @@ class Character:
     scan: ScanSurface | None = None
 
 
-def _with_hair(c: CharacterSpec, rig: FaceRig, rig_hash: str) -> tuple[FaceRig, str]:
-    """``rig`` wearing the character's hair (if any) and the hash of both."""
+def _with_hair(c: CharacterSpec, rig: FaceRig, rig_hash: str, over: FaceRig | None = None) -> tuple[FaceRig, str]:
+    """``rig`` wearing the character's hair (if any; laid over ``over``'s skin, a scan drawn as
+    itself) and the hash of both."""
     from stimulus_engine.parts.hair import fit_hair, linear_rgb
 
     style = c.hair_style
     if style is None:
         return rig, rig_hash
     colour = None if c.hair_colour is None else linear_rgb(c.hair_colour)
-    return replace(rig, hair=fit_hair(rig, style, colour)), sha(rig_hash, "hair", style, c.hair_colour)
+    surface = None if over is None else (over.vertices, over.faces[over.face_part == over.part_names.index("skin")])
+    return replace(rig, hair=fit_hair(rig, style, colour, over=surface)), sha(rig_hash, "hair", style, c.hair_colour)
 
 
 def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | None = None) -> tuple[FaceRig, str]:
@@ -174,7 +176,9 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
         return Character(c, *_dressed(c, rig, h), base)
     scan = _scan_surface(c, rig, mesh, alignment, source, ibug)
     drawn, h = _with_body(c, scan.topology, sha(h, "scan"), eyes=rig)
-    return Character(c, *_with_hair(c, rig, h), base, replace(scan, topology=drawn))
+    scan = replace(scan, topology=drawn)
+    rig, h = _with_hair(c, rig, h, over=drawn)
+    return Character(c, rig, h, base, scan if rig.hair is None else wear_rig_hair(scan, rig.hair))
 
 
 def _needs_ibug(m: MeshSpec) -> bool:

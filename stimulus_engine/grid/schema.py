@@ -110,10 +110,13 @@ class CharacterSpec(StudyModel):
     corresponded onto a user ``mesh`` (then the ICT/procedural head is the rig that supplies
     topology and expressions, and the mesh supplies the shape and texture).
 
-    ``hair``: ``short`` (MakeHuman's CC0 short haircut, carried onto the character's head and
-    moving with it: :mod:`stimulus_engine.parts.hair`), ``none``, or ``auto`` (the default: ``short``
+    ``hair``: a hair style carried onto the character's head and moving with it
+    (:mod:`stimulus_engine.parts.hair`; MakeHuman's CC0 styles ``short01``-``short04``, ``bob02``,
+    ``long01``, ``afro01``, ``ponytail01``; ``short`` is ``short02``), ``none``, or ``auto`` (the default: ``short``
     for an ICT identity drawn as itself, which is bald; none for a procedural head, whose hair
-    is painted, and for a mesh, which brings its own). ``hair_colour``: sRGB hex, e.g.
+    is painted, and for a mesh, which brings its own). On a mesh drawn with ``topology: scan``
+    a style is fitted to the corresponded rig's whole head and laid over the scan's own
+    (sculpted) hair. ``hair_colour``: sRGB hex, e.g.
     ``"#3a2a1f"`` (default dark brown).
 
     ``body``: ``bust`` (the default: a neck, shoulders and a plain crew-neck garment joined under
@@ -128,7 +131,8 @@ class CharacterSpec(StudyModel):
     mesh: MeshSpec | None = None
     texture: InputFile | None = None
     texture_seed: int = 0
-    hair: Literal["auto", "short", "none"] = "auto"
+    hair: Literal["auto", "none", "short", "short01", "short02", "short03", "short04", "bob02", "long01", "afro01",
+                  "ponytail01"] = "auto"
     hair_colour: str | None = Field(None, pattern=r"^#[0-9A-Fa-f]{6}$")
     body: Literal["bust", "none"] = "bust"
     garment_colour: str | None = Field(None, pattern=r"^#[0-9A-Fa-f]{6}$")
@@ -151,9 +155,6 @@ class CharacterSpec(StudyModel):
         if self.mesh is not None and self.mesh.region not in (None, "front") and self.ict is None:
             raise ValueError(f"mesh.region '{self.mesh.region}': the procedural head has only the region 'front' "
                              "(ICT regions such as narrow_face need an ICT rig)")
-        if self.hair not in ("auto", "none") and self.mesh is not None and self.mesh.topology == "scan":
-            raise ValueError(f"hair: {self.hair}: a mesh drawn with topology: scan shows its own hair "
-                             "(use hair: none, or mesh.topology: rig)")
         return self
 
 

@@ -357,7 +357,7 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     -------
     Body
     """
-    from stimulus_engine.geometry.closest import SurfaceIndex
+    from stimulus_engine.geometry.closest import SurfaceIndex, lift_out
     from stimulus_engine.geometry.mesh_ops import vertex_normals
 
     asset = bust_asset()
@@ -408,7 +408,8 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     gaps = np.einsum("kc,kcd->kd", bary, v[corners]) + lift[:, None] * iod * skin_n - targets
     join = _join_weights(p, targets, JOIN_REACH_IOD * iod) if len(targets) else np.zeros((len(p), 0))
     placed = p + join @ gaps
-    placed[cloth] = _outside(placed[cloth], index, normals, skin_faces, GARMENT_LIFT_IOD * iod, HUG_REACH_IOD * iod)
+    # the character's neck and chest, where drawn, never come through the cloth
+    placed[cloth] = lift_out(placed[cloth], index, normals, GARMENT_LIFT_IOD * iod, HUG_REACH_IOD * iod, at_border=True)
 
     # anchors: the sources' corners (free vertices) and skin triangles (covered ones)
     anchors = np.unique(np.concatenate([corners.ravel(), tri[covered].ravel()])).astype(np.int64)
@@ -439,21 +440,6 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
         ring_uv = np.zeros((0, 2))
     return Body(anchors, weights.astype(np.float32), offset, faces, face_part, uvs, asset.texture, ring_uv,
                 _angle(v[ring], centre), tuple(float(c) for c in (colour or DEFAULT_GARMENT)))
-
-
-def _outside(points: np.ndarray, index, normals: np.ndarray, skin_faces: np.ndarray, lift: float,
-             reach: float) -> np.ndarray:
-    """``points`` (garment vertices) moved out to ``lift`` over the skin where they are nearer
-    the skin's outside than that, or under it (within ``reach`` of it): the character's neck and
-    chest, where drawn, never come through the cloth."""
-    hit = index.query(points)
-    n = np.einsum("mk,mkd->md", hit.bary, normals[skin_faces[hit.face]])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    height = np.einsum("md,md->m", points - hit.points, n)
-    push = (height < lift) & (hit.distance < reach)
-    out = points.copy()
-    out[push] += (lift - height[push])[:, None] * n[push]
-    return out
 
 
 def _hug(vertices: np.ndarray, skin_faces: np.ndarray, points: np.ndarray, candidates: np.ndarray,

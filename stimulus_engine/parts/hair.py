@@ -1,12 +1,16 @@
-"""Hair for bald rigs: MakeHuman's CC0 short haircut carried onto any rig's head.
+"""Hair on any head: MakeHuman's CC0 hair styles carried onto a rig's head.
 
-The shipped asset (``stimulus_engine/data/hair/``, rebuilt by ``scripts/make_hair_asset.py``)
-holds the hair mesh as *anchors* on MakeHuman's base head plus a *lift* above each anchor, seven
-head points of that head (:func:`head_points`: eye centres, top, back and sides of the
-cranium), and an alpha-tested strand texture. :func:`fit_hair` maps the anchors onto a rig by
-the per-axis scale and shift that best takes the seven points onto the rig's own, snaps each to
-the rig's skin (closest point: triangle and barycentric weights) and lifts it along the skin's
-normal by the scaled lift, so the hair hugs that rig's scalp whatever its proportions.
+The shipped assets (``stimulus_engine/data/hair/``, one per style of :data:`HAIR_STYLES`, rebuilt
+by ``scripts/make_hair_asset.py``) hold each hair mesh as *anchors* on MakeHuman's base head
+plus a *lift* above each anchor and its whole *offset* from it, seven head points of that head
+(:func:`head_points`: eye centres, top, back and sides of the cranium), and an alpha-tested
+strand texture. :func:`fit_hair` maps the anchors onto a rig by the per-axis scale and shift
+that best takes the seven points onto the rig's own, snaps each to the rig's skin (closest
+point: triangle and barycentric weights) and places the hair vertex from there: near the scalp
+by the scaled lift along the skin's normal, so the hair hugs that rig's scalp whatever its
+proportions; further out (a bob's ends, long hair, a ponytail) by the scaled offset, so a lock
+hangs as it does on the source head instead of following the normal of the skin it is nearest
+(:data:`HANG_IOD`).
 
 The result, :class:`Hair`, is bound to the skin: every pose of the rig (an identity of the same
 topology, an expression, a stylised shape) moves each hair vertex with its skin point, so the
@@ -27,12 +31,20 @@ from stimulus_engine.parts.stored import part_arrays, part_from_arrays
 __all__ = ["HAIR_STYLES", "Hair", "HairAsset", "fit_hair", "hair_arrays", "hair_asset", "hair_from_arrays", "head_points", "linear_rgb"]
 
 _DATA = DATA_DIR / "hair"
-#: Hair styles shipped with the package (name → asset file stem).
-HAIR_STYLES: dict[str, str] = {"short": "short02"}
+#: Hair styles shipped with the package (name → asset file stem): MakeHuman's CC0 proxies, and
+#: ``short`` (the default haircut, ``short02``).
+HAIR_STYLES: dict[str, str] = {"short": "short02", **{s: s for s in (
+    "short01", "short02", "short03", "short04", "bob02", "long01", "afro01", "ponytail01")}}
 #: Default hair colour (linear RGB, multiplies the grey strand texture): dark brown.
 DEFAULT_COLOUR: tuple[float, float, float] = (0.055, 0.036, 0.024)
 #: Smallest lift above the skin, in inter-ocular distances (no hair inside the scalp).
 MIN_LIFT_IOD = 0.02
+#: Hair laid over a scan's own surface stands this far above it, where that surface is within
+#: the reach (inter-ocular distances).
+OVER_LIFT_IOD, OVER_REACH_IOD = 0.04, 1.0
+#: Hair vertices up to the first distance from their anchor (source inter-ocular distances) are
+#: placed along the skin's normal, beyond the second by their offset, blended in between.
+HANG_IOD = (0.25, 0.6)
 
 
 @dataclass(frozen=True)
@@ -45,6 +57,8 @@ class HairAsset:
         Closest point of the source head to each hair vertex.
     lift : (M,) array
         Height of each hair vertex above its anchor, along the head's normal (source units).
+    offset : (M, 3) array
+        Each hair vertex minus its anchor (source units).
     head : (7, 3) array
         :func:`head_points` of the source head.
     faces : (K, 3) int array
@@ -55,6 +69,7 @@ class HairAsset:
 
     anchors: np.ndarray
     lift: np.ndarray
+    offset: np.ndarray
     head: np.ndarray
     faces: np.ndarray
     uv: np.ndarray
@@ -104,8 +119,8 @@ def hair_asset(style: str = "short") -> HairAsset:
     d = np.load(stem.with_suffix(".npz"))
     with Image.open(stem.with_suffix(".png")) as im:
         tex = np.asarray(im.convert("RGBA"))
-    arrays = [d["anchors"].astype(np.float64), d["lift"].astype(np.float64), d["head"].astype(np.float64),
-              d["faces"].astype(np.int64), d["uv"].astype(np.float64), tex]
+    arrays = [d["anchors"].astype(np.float64), d["lift"].astype(np.float64), d["offset"].astype(np.float64),
+              d["head"].astype(np.float64), d["faces"].astype(np.int64), d["uv"].astype(np.float64), tex]
     for a in arrays:
         a.setflags(write=False)
     return HairAsset(*arrays)
@@ -155,7 +170,8 @@ def _axis_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return scale, shift
 
 
-def fit_hair(rig, style: str = "short", colour: tuple[float, float, float] | None = None) -> Hair:
+def fit_hair(rig, style: str = "short", colour: tuple[float, float, float] | None = None,
+             over: tuple[np.ndarray, np.ndarray] | None = None) -> Hair:
     """Put the shipped hair ``style`` on ``rig``'s head (see the module docstring).
 
     Parameters
@@ -167,6 +183,10 @@ def fit_hair(rig, style: str = "short", colour: tuple[float, float, float] | Non
         A key of :data:`HAIR_STYLES`.
     colour : (3,) tuple of float, optional
         Linear RGB of the hair (default :data:`DEFAULT_COLOUR`).
+    over : (vertices, faces), optional
+        A surface in the rig's frame that the hair is laid over (:data:`OVER_LIFT_IOD` above it,
+        where it is within :data:`OVER_REACH_IOD`): a scan's own sculpted hair, which the rig
+        fitted to the scan lies under.
 
     Returns
     -------
@@ -174,21 +194,36 @@ def fit_hair(rig, style: str = "short", colour: tuple[float, float, float] | Non
     """
     import trimesh
 
-    from stimulus_engine.geometry.closest import SurfaceIndex
+    from stimulus_engine.geometry.closest import SurfaceIndex, lift_out
 
     asset = hair_asset(style)
     lm = rig.landmark_points()
     skin_faces = rig.faces[rig.face_part == rig.part_names.index("skin")]
     v = np.asarray(rig.vertices, np.float64)
     scale, shift = _axis_fit(asset.head, head_points(v[np.unique(skin_faces)], lm["eye_right"], lm["eye_left"]))
-    hit = SurfaceIndex(v, skin_faces).query(asset.anchors * scale + shift)
+    index = SurfaceIndex(v, skin_faces)
+    hit = index.query(asset.anchors * scale + shift)
     corners = skin_faces[hit.face]
     normals = trimesh.Trimesh(v, skin_faces, process=False).vertex_normals
     n = np.einsum("mk,mkd->md", hit.bary, normals[corners])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     iod = float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
     lift = np.maximum(asset.lift * float(np.mean(np.abs(scale))), MIN_LIFT_IOD * iod)
-    return Hair(corners, hit.bary, lift[:, None] * n, asset.faces, asset.uv, asset.texture,
+    source_iod = float(np.linalg.norm(asset.head[1] - asset.head[0]))
+    t = np.clip((np.linalg.norm(asset.offset, axis=1) / source_iod - HANG_IOD[0]) / (HANG_IOD[1] - HANG_IOD[0]), 0, 1)
+    hang = (t * t * (3 - 2 * t))[:, None]
+    offset = (1 - hang) * lift[:, None] * n + hang * asset.offset * scale
+    # a hanging lock placed by its offset can land inside a head shaped unlike the source (a
+    # fringe on a steeper forehead): out to the smallest lift over the skin it is in; and over
+    # an outer surface the hair must cover (a scan's own sculpted hair)
+    base = np.einsum("mk,mkd->md", hit.bary, v[corners])
+    pos = lift_out(base + offset, index, normals, MIN_LIFT_IOD * iod)
+    if over is not None:
+        ov, of = (np.asarray(a) for a in over)
+        pos = lift_out(pos, SurfaceIndex(ov, of), trimesh.Trimesh(ov, of, process=False).vertex_normals,
+                       OVER_LIFT_IOD * iod, OVER_REACH_IOD * iod)
+    offset = pos - base
+    return Hair(corners, hit.bary, offset, asset.faces, asset.uv, asset.texture,
                 tuple(float(c) for c in (colour or DEFAULT_COLOUR)))
 
 
