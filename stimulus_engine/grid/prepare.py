@@ -30,6 +30,7 @@ from stimulus_engine.grid.characters import Character, character_albedo, load_ch
 from stimulus_engine.grid.inputs import load_map
 from stimulus_engine.grid.plan import PlannedImage, material_sources, plan_images, plan_photos
 from stimulus_engine.grid.worker import RenderItem
+from stimulus_engine.render.vignette import face_oval
 from stimulus_engine.grid.schema import GridFile, MaterialSpec
 
 __all__ = ["PreparedMaterial", "prepare_grid"]
@@ -253,7 +254,8 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
         ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(), *extra)
         items.append(RenderItem(im.file, str(out), str(rig_files[im.character]), str(gp), look.albedo_png,
                                 im.lighting, im.shading, cam, r.width, r.height, r.shadows, tuple(r.background),
-                                look.normal_png, look.specular_png, r.engine, r.samples, r.seed))
+                                look.normal_png, look.specular_png, r.engine, r.samples, r.seed,
+                                face_oval(r.width, r.height, r.eye_row, r.face_fraction) if r.vignette else ()))
         rows.append({"file": im.file, "character": im.character, "shape": im.shape, "shape_label": im.shape_label,
                      "stylisation": im.stylisation, "material": im.material.name,
                      "material_style": im.material.style, "material_from": im.albedo_from,

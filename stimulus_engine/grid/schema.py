@@ -207,6 +207,9 @@ class RenderSettings(StudyModel):
     the top, the face (forehead to chin) ``face_fraction`` 0.42 of it, so the neck, shoulders
     and garment show; a portrait) or ``head`` (0.45 and 0.70: the face fills the frame, as in the
     thesis's ERP study). ``eye_row`` and ``face_fraction`` given explicitly override the framing's.
+    ``vignette``: fade the picture into the background outside a soft oval around the face
+    (:mod:`stimulus_engine.render.vignette`); on by default with the ``head`` framing (every
+    stimulus the same outline, no shoulders or hair ends), off with ``head_and_shoulders``.
     """
 
     engine: Literal["pyrender", "cycles"] = "pyrender"
@@ -218,6 +221,7 @@ class RenderSettings(StudyModel):
     framing: Literal["head_and_shoulders", "head"] = "head_and_shoulders"
     eye_row: float = Field(None, gt=0, lt=1, validate_default=False)
     face_fraction: float = Field(None, gt=0, le=2, validate_default=False)
+    vignette: bool = Field(None, validate_default=False)
     shadows: bool = True
     background: tuple[float, float, float] = (0.5, 0.5, 0.5)
     intensity: float = Field(1.0, ge=0, le=2)
@@ -229,7 +233,8 @@ class RenderSettings(StudyModel):
         if isinstance(data, dict):
             eye_row, face_fraction = FRAMINGS[data.get("framing", "head_and_shoulders")] \
                 if data.get("framing", "head_and_shoulders") in FRAMINGS else (0.45, 0.70)
-            data = {"eye_row": eye_row, "face_fraction": face_fraction, **data}
+            data = {"eye_row": eye_row, "face_fraction": face_fraction,
+                    "vignette": data.get("framing") == "head", **data}
         return data
 
     @field_validator("engine")

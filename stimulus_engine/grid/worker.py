@@ -43,6 +43,7 @@ class RenderItem:
     engine: str = "pyrender"
     samples: int = 16
     seed: int = 0
+    vignette: tuple = ()
 
 
 @functools.lru_cache(maxsize=16)
@@ -125,7 +126,12 @@ def render_item(item: RenderItem) -> float:
     from stimulus_engine.render import save_png
 
     t0 = time.perf_counter()
-    save_png(ENGINES[item.engine](item), Path(item.out_dir) / item.file)
+    image = ENGINES[item.engine](item)
+    if item.vignette:
+        from stimulus_engine.render.vignette import oval_vignette
+
+        image = oval_vignette(image, item.vignette, item.background)
+    save_png(image, Path(item.out_dir) / item.file)
     return time.perf_counter() - t0
 
 
