@@ -255,7 +255,7 @@ def body_render_parts(body: Body, vertices: np.ndarray, albedo: np.ndarray | Non
             tex = None if albedo is None else _cached(("neck",), (body.ring_uv, albedo),
                                                       lambda: body.neck_texture(albedo), _TEXTURES)
             if tex is not None:
-                mesh.visual = trimesh.visual.TextureVisuals(uv=body.uv[used])
+                mesh.visual = trimesh.visual.TextureVisuals(uv=body.neck_uv[used])
             mat = _material(shading, _PART_COLOURS["skin"], tex, _PART_ROUGHNESS.get("skin", 0.62), scatter=True)
         else:
             mesh.visual = trimesh.visual.TextureVisuals(uv=body.uv[used])

@@ -117,12 +117,15 @@ def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | No
     lm = (eyes or rig).landmark_points()
     hide = under_garment(rig.vertices, rig.faces, skin, lm["eye_right"], lm["eye_left"])
     if "other" in rig.texture_masks and rig.uv is not None:  # a scan's own collar
-        hide |= clothes_faces(rig.vertices, rig.faces, skin, rig.uv, rig.face_uv, rig.texture_masks["other"],
-                              lm["eye_right"], lm["eye_left"])
+        collar = clothes_faces(rig.vertices, rig.faces, skin, rig.uv, rig.face_uv, rig.texture_masks["other"],
+                               lm["eye_right"], lm["eye_left"])
+        skin, hide = skin & ~collar, hide | collar
+    whole = rig.faces[skin]  # the skin the collar may hug: all of it but a scan's own clothes
     rig = _hide_faces(rig, hide)
     skin = rig.face_part == rig.part_names.index("skin")
     colour = None if c.garment_colour is None else linear_rgb(c.garment_colour)
-    body = fit_body(rig.vertices, rig.faces[skin], rig.uv, rig.face_uv[skin], lm["eye_right"], lm["eye_left"], colour)
+    body = fit_body(rig.vertices, rig.faces[skin], rig.uv, rig.face_uv[skin], lm["eye_right"], lm["eye_left"], colour,
+                    neck_faces=whole)
     return replace(rig, body=body), sha(rig_hash, "body", c.body, c.garment_colour)
 
 

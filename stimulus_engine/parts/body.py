@@ -78,7 +78,7 @@ FREE_BELOW_IOD = 0.15
 #: (iod; with it, the collar's edge closes over the neck's sides where they meet the shoulders).
 COLLAR_RIB_IOD = 0.05
 #: The garment's neckline hugs the character's neck where the neck is within this distance of it.
-HUG_REACH_IOD = 0.8
+HUG_REACH_IOD = 1.1
 #: Depth under the character's skin of the neck-skin corners it covers (hides the join's edge).
 SINK_IOD = 0.04
 
@@ -143,8 +143,10 @@ class Body:
     face_part : (F,) int array
         0: neck skin, 1: garment.
     uv : (M, 2) array
-        Garment: coordinates in :attr:`texture`; neck skin: (angle around the neck / 2 pi, 0.5)
-        in the neck's texture (:meth:`neck_texture`).
+        Coordinates in the garment's :attr:`texture` (every vertex).
+    neck_uv : (M, 2) array
+        Coordinates in the neck's texture (:meth:`neck_texture`): (angle around the neck / 2 pi,
+        0.5), every vertex (the neckline's own vertices are corners of neck and garment faces).
     ring_uv : (K, 2) array
         Where the neck's colour is taken from in the character's albedo: the skin a little
         above each ring vertex ...
@@ -162,6 +164,7 @@ class Body:
     faces: np.ndarray
     face_part: np.ndarray
     uv: np.ndarray
+    neck_uv: np.ndarray
     texture: np.ndarray
     ring_uv: np.ndarray
     ring_angle: np.ndarray
@@ -336,7 +339,7 @@ def _garment_uv(points: np.ndarray, eye_mid: np.ndarray, iod: float) -> np.ndarr
 
 def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_uv: np.ndarray,
              eye_right: np.ndarray, eye_left: np.ndarray,
-             colour: tuple[float, float, float] | None = None) -> Body:
+             colour: tuple[float, float, float] | None = None, neck_faces: np.ndarray | None = None) -> Body:
     """Put the shipped bust under a character (see the module docstring).
 
     Parameters
@@ -352,6 +355,10 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
         Eye centres.
     colour : (3,) tuple of float, optional
         Linear RGB of the garment (default :data:`DEFAULT_GARMENT`).
+    neck_faces : (N, 3) int array, optional
+        The skin the collar hugs: the character's skin before :func:`under_garment` hid what
+        the garment covers (default ``skin_faces``); at the sides of a narrow neck the collar's
+        edge meets it only there.
 
     Returns
     -------
@@ -393,7 +400,8 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     # on under the garment, the neckline's vertices (to the skin beside them: the collar hugs it)
     edge = np.zeros(len(p), bool)
     edge[f[~fc].ravel()] = True
-    hug, hug_tri, hug_bary = _hug(v, skin_faces, p, np.flatnonzero(edge & cloth), axis, HUG_REACH_IOD * iod)
+    hug, hug_tri, hug_bary = _hug(v, skin_faces if neck_faces is None else neck_faces, p, np.flatnonzero(edge & cloth),
+                                  axis, HUG_REACH_IOD * iod)
     tri = skin_faces[hit.face]
     bust_hit = SurfaceIndex(p, f[keep]).query(v[ring]) if len(ring) else None  # the part drawn
     corners = np.concatenate([np.repeat(ring[:, None], 3, axis=1), hug_tri]).astype(np.int64)
@@ -429,16 +437,15 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     offset[~covered] = (placed - weights @ v[anchors])[~covered]  # no sources: the bust stands still
 
     # the neck's colour: the skin a little above the ring, by angle around the neck
-    uvs = _garment_uv(placed, mid, iod)
     centre = placed[~cloth].mean(axis=0) if (~cloth).any() else mid
-    uvs[~cloth] = np.stack([_angle(placed[~cloth], centre) / (2 * np.pi) + 0.5,
-                            np.full(int((~cloth).sum()), 0.5)], axis=1)
+    neck_uv = np.stack([_angle(placed, centre) / (2 * np.pi) + 0.5, np.full(len(placed), 0.5)], axis=1)
     if len(ring):
         above = index.query(v[ring] + np.array([0.0, 0.15 * iod, 0.0]))
         ring_uv = np.einsum("nk,nkd->nd", above.bary, uv[face_uv[above.face]])
     else:
         ring_uv = np.zeros((0, 2))
-    return Body(anchors, weights.astype(np.float32), offset, faces, face_part, uvs, asset.texture, ring_uv,
+    return Body(anchors, weights.astype(np.float32), offset, faces, face_part, _garment_uv(placed, mid, iod), neck_uv,
+                asset.texture, ring_uv,
                 _angle(v[ring], centre), tuple(float(c) for c in (colour or DEFAULT_GARMENT)))
 
 
