@@ -239,3 +239,13 @@ render: {{width: 256, height: 192, background: [0.0, 0.0, 1.0]}}
     # bare: the neck ends in the picture, the background below it -- no hole in a row, but no figure
     # either: the bust's rows reach the frame's bottom only when dressed
     assert all(fg_bottom[k] for k in fg_bottom if k[0] == "dressed") and not any(fg_bottom[k] for k in fg_bottom if k[0] == "bare")
+
+
+def test_the_garment_is_drawn_on_both_sides(ict):
+    """Through the collar's opening beside a narrow neck one sees the inside of the garment's
+    back; single-sided, that showed the background (about 300 px beside Lee Perry-Smith's neck)."""
+    from stimulus_engine.characters.render_parts import body_render_parts
+
+    rig, _ = _dressed(ict)
+    parts = {p.name: p for p in body_render_parts(rig.body, rig.vertices, None)}
+    assert parts["garment"].material.doubleSided

@@ -79,6 +79,22 @@ def test_scene_export_writes_parts_materials_and_camera(tmp_path):
     assert spec["camera"]["yfov_deg"] == cam.yfov_deg
 
 
+def test_alpha_tested_and_blended_cards_are_cut_out_in_cycles(tmp_path):
+    """Hair (alpha-tested, MASK) and lashes (BLEND) take their texture's alpha into the path
+    tracer; opaque parts do not (the hair had rendered as a solid dark cap)."""
+    from stimulus_engine.render._pyrender import pyrender
+    from stimulus_engine.render.scene_export import _material_record
+
+    rgba = np.zeros((4, 4, 4), np.uint8)
+    for mode, cut in (("MASK", True), ("BLEND", True), ("OPAQUE", False)):
+        mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=pyrender.Texture(source=rgba, source_channels="RGBA"),
+                                                 alphaMode=mode, doubleSided=True)
+        assert _material_record("hair", mat, tmp_path, 0)["alpha_blend"] is cut, mode
+    phong = pyrender.material.SpecularGlossinessMaterial(diffuseTexture=pyrender.Texture(source=rgba, source_channels="RGBA"),
+                                                alphaMode="MASK")
+    assert _material_record("hair", phong, tmp_path, 1)["alpha_blend"] is True
+
+
 @pytest.mark.parametrize("field, value, expected", [
     ("engine", "mitsuba", "render.engine"),
     ("samples", 0, "render.samples"),

@@ -260,6 +260,9 @@ def body_render_parts(body: Body, vertices: np.ndarray, albedo: np.ndarray | Non
         else:
             mesh.visual = trimesh.visual.TextureVisuals(uv=body.uv[used])
             mat = _material(shading, (1.0, 1.0, 1.0, 1.0), _garment_texture(body), GARMENT_ROUGHNESS)
+            # both sides: through the collar's opening beside a narrow neck one sees the inside
+            # of the garment's back, not the background behind it
+            mat.doubleSided = True
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name))
     return parts
 

@@ -9,7 +9,8 @@ neck skin or garment (a crew neck). :func:`fit_body` puts it under a character:
    eye midpoints meet.
 2. **Covered or free.** A neck-skin vertex of the bust higher than the character's lower
    border reaches around it (the highest border point within :data:`COLLAR_WINDOW_DEG`;
-   :data:`FREE_BELOW_IOD` lower where that border is under the garment) lies
+   :data:`FREE_BELOW_IOD` lower where that border is under the garment, :data:`TUCK_IOD` higher
+   where the bust's neck continues it, tucked behind the character's skin) lies
    where the character already has a neck, and is dropped (the character's neck is drawn
    instead): only below a character's border (a scan that ends above the neckline) does the
    bust's neck show, behind the scan's own neck where that goes on lower.
@@ -72,8 +73,10 @@ RING_BELOW_IOD = 1.6
 GARMENT_LIFT_IOD = 0.05
 #: How far below the ring the join fades out.
 JOIN_REACH_IOD = 1.5
-#: The bust's neck shows from this far below a border under the garment (iod).
-FREE_BELOW_IOD = 0.15
+#: The bust's neck shows from this far below a border under the garment, and goes on this far
+#: above a border it continues, tucked behind the character's skin, so no crack opens between
+#: the two (iod).
+FREE_BELOW_IOD, TUCK_IOD = 0.15, 0.3
 #: The collar's rib: its edge stands this much further off the neck than the garment elsewhere
 #: (iod; with it, the collar's edge closes over the neck's sides where they meet the shoulders).
 COLLAR_RIB_IOD = 0.05
@@ -385,7 +388,7 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     # where that goes on lower. The garment is never bound to the skin (its shape is the bust's).
     # (a border under the garment counts FREE_BELOW_IOD lower: no bust neck beside the neckline)
     under = neckline(v[ring], axis, er, el) < 0
-    ring_top = _envelope(_angle(v[ring], axis), v[ring, 1] - under * FREE_BELOW_IOD * iod)
+    ring_top = _envelope(_angle(v[ring], axis), v[ring, 1] + np.where(under, -FREE_BELOW_IOD, TUCK_IOD) * iod)
     covered = ~cloth & (p[:, 1] > ring_top(_angle(p, axis)))
 
     # faces: garment everywhere; neck skin with a free corner (the neckline's own corners, on

@@ -67,12 +67,14 @@ def _material_record(name: str, mat: Any, folder: Path, index: int) -> dict:
         mr = _texture_array(getattr(mat, "metallicRoughnessTexture", None))
         if mr is not None:  # pyrender reads roughness from R (× the factor)
             rec["roughness"] = float(np.mean(mr[..., 0]) / 255.0 * rec["roughness"])
-        rec["alpha_blend"] = getattr(mat, "alphaMode", "OPAQUE") == "BLEND"
     else:  # specular-glossiness (the thesis's Phong shading)
         rec["base_color"] = [float(v) for v in mat.diffuseFactor]
         rec["roughness"] = float(1.0 - (mat.glossinessFactor if mat.glossinessFactor is not None else 0.5))
         rec["phong"] = True
         tex = _texture_array(mat.diffuseTexture)
+    # the texture's alpha cuts the surface out: blended cards (lashes) and alpha-tested ones (hair;
+    # as an opaque card the hair rendered as a solid dark cap)
+    rec["alpha_blend"] = getattr(mat, "alphaMode", "OPAQUE") in ("BLEND", "MASK")
     if tex is not None:
         rec["texture"] = f"part{index}_albedo.png"
         Image.fromarray(np.ascontiguousarray(tex)).save(folder / rec["texture"])
