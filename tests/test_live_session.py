@@ -39,6 +39,10 @@ SEED = 5
 def display():
     """A private Xvfb screen (``:N``) for one session, answering before it is used.
 
+    ``-noreset``: an X server resets when its last client leaves (here the readiness probe),
+    and refuses connections while it does; the session's window was once refused so ("could not
+    connect to display :0").
+
     One per test, not per module: under pytest-xdist a module's tests are spread over workers
     and interleaved with other modules, and a module-wide server was seen gone (Qt: "could
     not connect to display") when a later test of the module reached it."""
@@ -46,7 +50,8 @@ def display():
         if shutil.which(tool) is None:
             pytest.fail(f"live-session tests need {tool} (bash scripts/system-deps.sh installs it)")
     read, write = os.pipe()
-    proc = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+    proc = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x1024x24", "-nolisten", "tcp",
+                             "-noreset"],
                             pass_fds=(write,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     os.close(write)
     number = b""
