@@ -67,6 +67,9 @@ UNDER_GARMENT_IOD = 0.2
 #: point within this angle around the neck (the bust's neck likewise shows below the highest
 #: border point within it), plus this margin (inter-ocular distances).
 COLLAR_WINDOW_DEG, COLLAR_MARGIN_IOD = 25.0, 0.05
+#: A face is the collar where the clothing mask at its centre exceeds this (the mask's blurred
+#: edge included: above 0.5 only, light collar-edge texels were left on james's neck).
+COLLAR_MASK_LEVEL = 0.2
 #: Border vertices at least this far below the eye centres form the ring (inter-ocular distances).
 RING_BELOW_IOD = 1.6
 #: Height of the garment over a character's own skin (inter-ocular distances; about 3 mm).
@@ -80,6 +83,9 @@ FREE_BELOW_IOD, TUCK_IOD = 0.15, 0.3
 #: The collar's rib: its edge stands this much further off the neck than the garment elsewhere
 #: (iod; with it, the collar's edge closes over the neck's sides where they meet the shoulders).
 COLLAR_RIB_IOD = 0.05
+#: The bust's neck takes its colour from the skin this far above the border it continues (iod;
+#: nearer, a scan's border still holds the blurred edge of its collar).
+NECK_COLOUR_ABOVE_IOD = 0.35
 #: The garment's neckline hugs the character's neck where the neck is within this distance of it.
 HUG_REACH_IOD = 1.1
 #: Depth under the character's skin of the neck-skin corners it covers (hides the join's edge).
@@ -203,7 +209,7 @@ def clothes_faces(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, uv:
     """Skin faces (a mask over ``faces``) of a scan's own collar and below it.
 
     The collar: faces lower than ``below_iod`` under the eyes whose texel at their UV centre is
-    clothing (``clothes``: a soft mask over the texture, > 0.5). Its top edge, per angle around
+    clothing (``clothes``: a soft mask over the texture, > :data:`COLLAR_MASK_LEVEL`). Its top edge, per angle around
     the neck, is smoothed into a clean line (the highest collar face within
     :data:`COLLAR_WINDOW_DEG` of each angle), and every low skin face wholly under that line
     plus ``margin_iod`` is hidden: the scan then ends in a smooth line, not along the collar's
@@ -211,7 +217,7 @@ def clothes_faces(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, uv:
     """
     v = np.asarray(vertices, np.float64)
     low = skin & (v[faces, 1].max(axis=1) < _level(eye_right, eye_left, below_iod))
-    collar = low & (_texels(clothes, uv[face_uv].mean(axis=1)) > 0.5)
+    collar = low & (_texels(clothes, uv[face_uv].mean(axis=1)) > COLLAR_MASK_LEVEL)
     if not collar.any():
         return collar
     centre = v[np.unique(faces[low])].mean(axis=0)
@@ -443,7 +449,7 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     centre = placed[~cloth].mean(axis=0) if (~cloth).any() else mid
     neck_uv = np.stack([_angle(placed, centre) / (2 * np.pi) + 0.5, np.full(len(placed), 0.5)], axis=1)
     if len(ring):
-        above = index.query(v[ring] + np.array([0.0, 0.15 * iod, 0.0]))
+        above = index.query(v[ring] + np.array([0.0, NECK_COLOUR_ABOVE_IOD * iod, 0.0]))
         ring_uv = np.einsum("nk,nkd->nd", above.bary, uv[face_uv[above.face]])
     else:
         ring_uv = np.zeros((0, 2))
