@@ -219,3 +219,24 @@ def test_framing_levels_the_eyes_of_a_tilted_head(roll_deg):
     assert rows[0] == pytest.approx(rows[1], abs=1e-12)
     tan_half = np.tan(np.radians(cam.yfov_deg) / 2)
     assert 0.5 - rows[0] / (2 * tan_half) == pytest.approx(0.4)
+
+
+def test_the_lids_wet_line_is_a_clear_glossy_film(ict, tmp_path):
+    """The ICT rig's lacrimal fluid is drawn as the lids' wet line: a thin strip along each eye
+    (between the corners, at the lid margins), alpha-blended and glossy in pyrender, and cut
+    out by its own alpha in the path tracer's export."""
+    from stimulus_engine.render.scene_export import _material_record
+
+    tear = ict.faces[ict.face_part == ict.part_names.index("tear")]
+    assert len(tear) == 2 * 2 * 163  # both sides' lacrimal fluid (ICT's table: 163 quads each)
+    lm = ict.landmark_points()
+    iod = float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
+    centres = ict.vertices[tear].mean(axis=1)
+    near_eye = np.minimum(*(np.linalg.norm(centres - ict.vertices[ict.landmarks[f"eye_{s}"]].mean(axis=0), axis=1)
+                            for s in ("left", "right")))
+    assert near_eye.max() < 0.5 * iod  # on the eyes, nowhere else
+    parts = {p.name: p for p in rig_render_parts(ict, ict.vertices, None)}
+    mat = parts["tear"].material
+    assert mat.alphaMode == "BLEND" and mat.baseColorFactor[3] < 0.5 and mat.roughnessFactor < 0.1
+    rec = _material_record("tear", mat, tmp_path, 0)
+    assert rec["alpha_blend"] and rec["base_color"][3] < 0.5 and "texture" not in rec

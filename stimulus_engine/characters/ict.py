@@ -33,9 +33,11 @@ _ICT_PART_OF_REGION = {
     "face": "skin", "head_and_neck": "skin", "eye_socket_left": "skin", "eye_socket_right": "skin",
     "mouth_socket": "mouth", "gums_and_tongue": "tongue", "teeth": "teeth",
     "eyeball_left": "eye", "eyeball_right": "eye", "eyelashes_left": "lashes", "eyelashes_right": "lashes",
+    "lacrimal_fluid_left": "tear", "lacrimal_fluid_right": "tear",
 }
-# lacrimal fluid, eye blend and eye occlusion shells (transparent helpers in Unreal) stay hidden
-_ICT_PARTS = ("skin", "eye", "teeth", "mouth", "tongue", "lashes", "hidden")
+# the lacrimal fluid is drawn as the lids' wet line ("tear": a clear, glossy film); the eye blend
+# and eye occlusion shells (transparent helpers in Unreal) stay hidden
+_ICT_PARTS = ("skin", "eye", "teeth", "mouth", "tongue", "lashes", "tear", "hidden")
 
 
 def _ict_eyes(v: np.ndarray, faces: np.ndarray, face_part: np.ndarray, uv: np.ndarray | None,

@@ -207,9 +207,9 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         skin = name == "skin" and textured
         rough = _SKIN_SHADING_ROUGHNESS.get(name) if shading == "skin" else None
         rough = _PART_ROUGHNESS.get(name, 0.62) if rough is None else rough
-        mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough,
-                        normal_map if skin else None, specular_map if skin else None, scatter=name == "skin",
-                        inside=name in INSIDE_PARTS and occlusion is not None)
+        mat = _tear_material(shading) if name == "tear" else _material(
+            shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough, normal_map if skin else None,
+            specular_map if skin else None, scatter=name == "skin", inside=name in INSIDE_PARTS and occlusion is not None)
         occ = None if occlusion is None else np.asarray(occlusion)[uniq[:, 0]]
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name, occlusion=occ))
     if rig.body is not None:
@@ -217,6 +217,20 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
     if rig.hair is not None:
         parts.append(hair_render_part(rig.hair, v, shading))
     return parts
+
+
+#: The lids' wet line (the rig's lacrimal fluid): a clear film, nearly colourless, that shows only
+#: the highlights of the lights on its wet surface.
+TEAR_COLOUR, TEAR_ROUGHNESS = (0.85, 0.8, 0.8, 0.18), 0.04
+
+
+def _tear_material(shading: str) -> object:
+    """The wet line's material: alpha-blended, glossy, both sides (one per shading)."""
+    from stimulus_engine.render._pyrender import pyrender
+
+    return _cached(("tear", shading), (), lambda: _shader_defines(pyrender.MetallicRoughnessMaterial(
+        baseColorFactor=TEAR_COLOUR, metallicFactor=0.0, roughnessFactor=TEAR_ROUGHNESS, alphaMode="BLEND",
+        doubleSided=True), shading, scatter=False))
 
 
 #: Roughness of the garment (matte knit).

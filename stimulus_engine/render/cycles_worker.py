@@ -60,6 +60,8 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
     base = rec["base_color"]
     bsdf.inputs["Base Color"].default_value = (*base[:3], 1.0)
     bsdf.inputs["Roughness"].default_value = float(np.clip(rec.get("roughness", 0.6), 0.02, 1.0))
+    if rec.get("alpha_blend") and "texture" not in rec:  # a clear film (the lids' wet line)
+        bsdf.inputs["Alpha"].default_value = float(base[3]) if len(base) > 3 else 1.0
     name = rec["name"]
     if "texture" in rec:
         tex = nodes.new("ShaderNodeTexImage")
