@@ -26,6 +26,7 @@ from PIL import Image
 from scipy import ndimage
 
 from stimulus_engine.geometry.obj_format import parse_obj
+from stimulus_engine.geometry.ramps import smoothstep
 from stimulus_engine.parts.body import neck_axis, neckline
 
 OUT = Path(__file__).resolve().parents[1] / "stimulus_engine" / "data" / "body"
@@ -46,8 +47,7 @@ def drop_arms(v: np.ndarray, shoulder_r: np.ndarray, shoulder_l: np.ndarray, deg
     1 on the arm: a smoothstep across the shoulder)."""
     out = v.copy()
     for joint, sign in ((shoulder_r, -1.0), (shoulder_l, 1.0)):
-        t = np.clip((sign * v[:, 0] - (abs(joint[0]) - 0.35)) / 0.7, 0, 1)
-        w = t * t * (3 - 2 * t)
+        w = smoothstep((sign * v[:, 0] - (abs(joint[0]) - 0.35)) / 0.7)
         side = sign * v[:, 0] > 0
         a = np.radians(-sign * degrees) * w
         dx, dy = v[:, 0] - joint[0], v[:, 1] - joint[1]

@@ -20,15 +20,11 @@ import numpy as np
 from stimulus_engine.characters.gaze import pupil_ring
 from stimulus_engine.characters.rig import FaceRig
 from stimulus_engine.parts.eyes import eyeball_uv, photographic_eye_texture, tint_iris
+from stimulus_engine.geometry.ramps import smoothstep
 
 __all__ = ["paint_albedo_at", "paint_detail_maps_at", "procedural_head"]
 
 _PARTS = ("skin", "eye", "teeth", "mouth", "lashes", "hidden")
-
-
-def _smoothstep(a: float, b: float, x: np.ndarray) -> np.ndarray:
-    t = np.clip((x - a) / (b - a), 0.0, 1.0)
-    return t * t * (3 - 2 * t)
 
 
 def _g(x: np.ndarray, y: np.ndarray, cx: float, cy: float, sx: float, sy: float) -> np.ndarray:
@@ -42,12 +38,12 @@ def _head_surface(theta: np.ndarray, phi: np.ndarray, p: dict[str, float]) -> np
     y = p["ry"] * ct
     z = p["rz"] * st * np.cos(phi)
     # jaw: narrow and flatten the lower head, pull the back of the lower head in
-    low = _smoothstep(0.5, -p["ry"], y)
+    low = smoothstep(y, 0.5, -p["ry"])
     x = x * (1 - p["jaw"] * low)
     z = np.where(z < 0, z * (1 - 0.45 * low), z * (1 - 0.12 * low))
-    front = _smoothstep(0.0, 0.5 * p["rz"], z)
+    front = smoothstep(z, 0.0, 0.5 * p["rz"])
     bump = (
-        p["nose"] * _g(x, y, 0, -0.9, 0.95, 1.3) * _smoothstep(-2.6, -0.4, y)
+        p["nose"] * _g(x, y, 0, -0.9, 0.95, 1.3) * smoothstep(y, -2.6, -0.4)
         + 0.9 * p["nose"] * _g(x, y, 0, 1.0, 0.7, 1.6)
         + 0.55 * _g(x, y, -3.0, 3.9, 1.6, 0.7) + 0.55 * _g(x, y, 3.0, 3.9, 1.6, 0.7)
         - 1.25 * _g(x, y, -3.1, 2.6, 1.25, 0.95) - 1.25 * _g(x, y, 3.1, 2.6, 1.25, 0.95)
@@ -108,18 +104,18 @@ def paint_albedo_at(pts: np.ndarray, anchors: dict[str, np.ndarray], colours: di
     mx, my = float(anchors["mouth"][0]), float(anchors["mouth"][1])
     mh = float(anchors["mouth_half"])
     lips = np.clip(_g(x, y, mx, my + 0.35, mh * 0.8, 0.33) + _g(x, y, mx, my - 0.4, mh * 0.72, 0.38), 0, 1)
-    lips = _smoothstep(0.35, 0.6, lips) * (z > 0)
+    lips = smoothstep(lips, 0.35, 0.6) * (z > 0)
     col = col * (1 - lips[..., None]) + np.array(colours["lips"]) * (1 + 0.04 * noise[..., None]) * lips[..., None]
     brows = np.zeros_like(x)
     for key in ("brow_right", "brow_left"):
         bx, by = float(anchors[key][0]), float(anchors[key][1])
         brows += _g(x, y, bx, by + 0.15 - 0.05 * (x - bx) ** 2, 1.45, 0.3)
-    brows = _smoothstep(0.3, 0.7, brows * (1 + 0.3 * noise)) * (z > 0)
+    brows = smoothstep(brows * (1 + 0.3 * noise), 0.3, 0.7) * (z > 0)
     hair_col = np.array(colours["hair"])
     col = col * (1 - brows[..., None]) + hair_col * brows[..., None]
     hl = float(anchors["hairline"])
-    hairline = hl - 3.2 * _smoothstep(2.0, -6.0, z)  # lower at the back of the head
-    hair = np.clip(_smoothstep(-0.25, 0.25, y - hairline) * (1 - _smoothstep(3.5, 6.5, z) * (y < hl + 2.3)), 0, 1)
+    hairline = hl - 3.2 * smoothstep(z, 2.0, -6.0)  # lower at the back of the head
+    hair = np.clip(smoothstep(y - hairline, -0.25, 0.25) * (1 - smoothstep(z, 3.5, 6.5) * (y < hl + 2.3)), 0, 1)
     strands = 1 + 0.12 * _value_noise((h, w), 160, rng)
     col = col * (1 - hair[..., None]) + hair_col * strands[..., None] * hair[..., None]
     if valid is not None:
@@ -184,7 +180,7 @@ def paint_detail_maps_at(pts: np.ndarray, valid: np.ndarray, landmarks: dict[str
     lips = np.clip(masks.get("lips", z), 0, 1)
     p = pts[valid]
     pores = np.zeros((h, w))
-    pores[valid] = (-_smoothstep(0.55, 0.85, _noise3(p, width / 140, seed))
+    pores[valid] = (-smoothstep(_noise3(p, width / 140, seed), 0.55, 0.85)
                     + 0.35 * _noise3(p, width / 45, seed + 1))
     pores *= (1 - hair) * (1 - 0.7 * lips)
     # world-space slopes along +u (columns) and +v (rows upwards): the tangent-space gradient
@@ -270,7 +266,7 @@ def _field(v: np.ndarray, centre: tuple[float, float], s: tuple[float, float], d
 def _blendshapes(v: np.ndarray, skin: np.ndarray, p: dict[str, float]) -> dict[str, np.ndarray]:
     """Displacement fields standing in for the ICT/ARKit shapes the FACS recipes use."""
     front = np.zeros(len(v))
-    front[skin] = _smoothstep(0.0, 4.0, v[skin, 2])
+    front[skin] = smoothstep(v[skin, 2], 0.0, 4.0)
     m = p["mouth"]
     spec: dict[str, list[tuple[tuple[float, float], tuple[float, float], tuple[float, float, float]]]] = {
         "browInnerUp": [((1.2, 4.0), (0.9, 0.7), (0, 0.55, 0))],
@@ -299,7 +295,7 @@ def _blendshapes(v: np.ndarray, skin: np.ndarray, p: dict[str, float]) -> dict[s
                 d += _field(v, (sgn * cx, cy), s, (sgn * dx, dy, dz), front)
             out[name + side] = d
     # jaw open: the lower face rotates down about a hinge in front of the ears; lips part a little
-    below = _smoothstep(-4.2, -4.9, v[:, 1]) * (v[:, 2] > -2)
+    below = smoothstep(v[:, 1], -4.2, -4.9) * (v[:, 2] > -2)
     out["jawOpen"] = below[:, None] * np.array([0.0, -1.3, -0.35])[None, :]
     return out
 

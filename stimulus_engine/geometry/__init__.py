@@ -23,6 +23,8 @@ ICT_GEOMETRY_RANGES, ict_regions
     Named vertex sets of the ICT Face Model topology (module ``ict_topology``).
 rotation_onto
     The smallest rotation taking one direction onto another (module ``rotation``).
+smoothstep
+    A smooth 0-to-1 ramp for fading weights (module ``ramps``).
 """
 
 from stimulus_engine.geometry.closest import SurfaceIndex
@@ -36,6 +38,7 @@ from stimulus_engine.geometry.mesh_ops import (
     vertex_normals,
 )
 from stimulus_engine.geometry.polyline2d import catmull_rom, closest_on_polygon, inside_polygon
+from stimulus_engine.geometry.ramps import smoothstep
 from stimulus_engine.geometry.rotation import rotation_onto
 from stimulus_engine.geometry.sampling import sample_bilinear, sample_points
 from stimulus_engine.geometry.uv_raster import rasterize_uv
@@ -59,6 +62,7 @@ __all__ = [
     "sample_points",
     "save_mesh",
     "select_region",
+    "smoothstep",
     "texture_image",
     "vertex_adjacency",
     "vertex_normals",

@@ -30,8 +30,8 @@ from stimulus_engine.grid.characters import Character, character_albedo, load_ch
 from stimulus_engine.grid.inputs import load_map
 from stimulus_engine.grid.plan import PlannedImage, material_sources, plan_images, plan_photos
 from stimulus_engine.grid.worker import RenderItem
-from stimulus_engine.render.vignette import face_oval
 from stimulus_engine.grid.schema import GridFile, MaterialSpec
+from stimulus_engine.render.vignette import face_oval
 
 __all__ = ["PreparedMaterial", "prepare_grid"]
 

@@ -185,7 +185,7 @@ class Body:
         from scipy.ndimage import gaussian_filter1d
 
         colours = _texels(np.asarray(albedo)[..., :3], self.ring_uv).astype(np.float64)
-        j = np.floor((self.ring_angle / (2 * np.pi) + 0.5) * bins).astype(np.int64) % bins
+        j = _angle_bin(self.ring_angle, bins)
         total, count = np.zeros((bins, 3)), np.bincount(j, minlength=bins).astype(np.float64)
         np.add.at(total, j, colours)
         have = count > 0
@@ -230,16 +230,21 @@ def clothes_faces(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, uv:
 def _envelope(angles: np.ndarray, heights: np.ndarray, bins: int = 72):
     """The highest of ``heights`` within :data:`COLLAR_WINDOW_DEG` of each angle, as a function
     of angle (-inf where none is near)."""
-    j = np.floor((angles / (2 * np.pi) + 0.5) * bins).astype(np.int64) % bins
+    j = _angle_bin(angles, bins)
     peak = np.full(bins, -np.inf)
     np.maximum.at(peak, j, heights)
     reach = int(round(COLLAR_WINDOW_DEG / 360 * bins))
     peak = np.max([np.roll(peak, k) for k in range(-reach, reach + 1)], axis=0)
 
     def at(a: np.ndarray) -> np.ndarray:
-        return peak[np.floor((a / (2 * np.pi) + 0.5) * bins).astype(np.int64) % bins]
+        return peak[_angle_bin(a, bins)]
 
     return at
+
+
+def _angle_bin(angles: np.ndarray, bins: int) -> np.ndarray:
+    """The bin of each angle (radians, -pi..pi) among ``bins`` equal bins around the circle."""
+    return np.floor((np.asarray(angles) / (2 * np.pi) + 0.5) * bins).astype(np.int64) % bins
 
 
 def placed_bust(eye_right: np.ndarray, eye_left: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
@@ -289,6 +294,14 @@ def neckline(vertices: np.ndarray, axis: np.ndarray, eye_right: np.ndarray, eye_
     return np.minimum((y - (eye_y - depth * iod)) / iod, shoulders)
 
 
+def _neck_axis_or_bust(vertices: np.ndarray, faces: np.ndarray, eye_right: np.ndarray,
+                       eye_left: np.ndarray) -> np.ndarray:
+    """The character's :func:`neck_axis`, or the bust's placed by the eyes where the character's
+    surface does not reach down the neck."""
+    axis = neck_axis(vertices, faces, eye_right, eye_left)
+    return placed_bust(eye_right, eye_left, bust_asset().axis[None])[0] if axis is None else axis
+
+
 def under_garment(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, eye_right: np.ndarray,
                   eye_left: np.ndarray, depth_iod: float = UNDER_GARMENT_IOD) -> np.ndarray:
     """Skin faces (a mask over ``faces``; ``skin`` marks the skin faces) that the garment
@@ -297,10 +310,7 @@ def under_garment(vertices: np.ndarray, faces: np.ndarray, skin: np.ndarray, eye
     whole neck). The character's neck goes on under the garment's edge, so the border where it
     ends is hidden (an ICT rig's chest and shoulders, the end of a scan)."""
     v = np.asarray(vertices, np.float64)
-    axis = neck_axis(v, faces[skin], eye_right, eye_left)
-    if axis is None:
-        asset = bust_asset()
-        axis = placed_bust(eye_right, eye_left, asset.axis[None])[0]
+    axis = _neck_axis_or_bust(v, faces[skin], eye_right, eye_left)
     low = v[:, 1] < _level(eye_right, eye_left, RING_BELOW_IOD)
     inside = low & (neckline(v, axis, eye_right, eye_left) < -depth_iod)
     return skin & inside[faces].all(axis=1)
@@ -332,11 +342,12 @@ def _ring(vertices: np.ndarray, faces: np.ndarray, below: float) -> np.ndarray:
 def _join_weights(points: np.ndarray, ring_points: np.ndarray, reach: float) -> np.ndarray:
     """(P, K) weights spreading each ring point's gap over ``points``: normalised inverse-square
     distance weights, times a smooth fade from 1 at the ring to 0 at ``reach`` from it."""
+    from stimulus_engine.geometry.ramps import smoothstep
+
     d = np.linalg.norm(points[:, None, :] - ring_points[None, :, :], axis=2)
     w = 1.0 / np.maximum(d, 1e-3 * reach) ** 2
     w /= w.sum(axis=1, keepdims=True)
-    t = np.clip(d.min(axis=1) / reach, 0, 1)
-    return w * (1 - t * t * (3 - 2 * t))[:, None]
+    return w * (1 - smoothstep(d.min(axis=1) / reach))[:, None]
 
 
 def _garment_uv(points: np.ndarray, eye_mid: np.ndarray, iod: float) -> np.ndarray:
@@ -383,11 +394,9 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     p = placed_bust(er, el)
     cloth = asset.cloth
     index = SurfaceIndex(v, skin_faces)
-    hit = index.query(p)
     normals = vertex_normals(v, skin_faces)
     ring = _ring(v, skin_faces, _level(er, el, RING_BELOW_IOD))
-    axis = neck_axis(v, skin_faces, er, el)
-    axis = placed_bust(er, el, asset.axis[None])[0] if axis is None else axis
+    axis = _neck_axis_or_bust(v, skin_faces, er, el)
     # a neck vertex is free (drawn where it is) only below the highest the character's border
     # reaches around it: where the character's own neck goes on, down under the garment, the
     # bust's neck is not drawn; below a scan's ragged border it is, behind the scan's own neck
@@ -411,7 +420,6 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     edge[f[~fc].ravel()] = True
     hug, hug_tri, hug_bary = _hug(v, skin_faces if neck_faces is None else neck_faces, p, np.flatnonzero(edge & cloth),
                                   axis, HUG_REACH_IOD * iod)
-    tri = skin_faces[hit.face]
     bust_hit = SurfaceIndex(p, f[keep]).query(v[ring]) if len(ring) else None  # the part drawn
     corners = np.concatenate([np.repeat(ring[:, None], 3, axis=1), hug_tri]).astype(np.int64)
     bary = np.concatenate([np.tile([1.0, 0.0, 0.0], (len(ring), 1)), hug_bary])
@@ -429,13 +437,15 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     placed[cloth] = lift_out(placed[cloth], index, normals, GARMENT_LIFT_IOD * iod, HUG_REACH_IOD * iod, at_border=True)
 
     # anchors: the sources' corners (free vertices) and skin triangles (covered ones)
-    anchors = np.unique(np.concatenate([corners.ravel(), tri[covered].ravel()])).astype(np.int64)
+    rows = np.flatnonzero(covered)
+    hit = index.query(p[rows])
+    tri = skin_faces[hit.face]
+    anchors = np.unique(np.concatenate([corners.ravel(), tri.ravel()])).astype(np.int64)
     weights = np.zeros((len(p), len(anchors)))
     offset = np.zeros_like(p)
     # covered neck corners: on their skin triangle, sunk under it
-    rows = np.flatnonzero(covered)
-    np.add.at(weights, (rows[:, None], np.searchsorted(anchors, tri[rows])), hit.bary[rows])
-    n_hit = np.einsum("mk,mkd->md", hit.bary[rows], normals[tri[rows]])
+    np.add.at(weights, (rows[:, None], np.searchsorted(anchors, tri)), hit.bary)
+    n_hit = np.einsum("mk,mkd->md", hit.bary, normals[tri])
     offset[rows] = -SINK_IOD * iod * n_hit / np.linalg.norm(n_hit, axis=1, keepdims=True)
     if len(targets):  # the rest: the join's weights on the sources, what they leave on their centre
         free = np.flatnonzero(~covered)

@@ -16,6 +16,7 @@ import functools
 import numpy as np
 
 from stimulus_engine.data import DATA_DIR
+from stimulus_engine.geometry.ramps import smoothstep
 
 __all__ = ["eye_texture", "eyeball_asset", "eyeball_uv", "fit_sphere", "painted_pupils", "photographic_eye_texture",
            "tint_iris"]
@@ -293,8 +294,7 @@ def _lit_sclera(texture: np.ndarray, balls: list) -> np.ndarray:
         a = np.einsum("nk,nk->n", bary, angle[faces[fid]])
         sclera = (a > 26) & (a < 90)
         gain = SCLERA_LEVEL / max(float(np.median(out[rows[sclera], cols[sclera]].mean(axis=1))), 1.0)
-        t = np.clip((a - 18.0) / 8.0, 0.0, 1.0)
-        out[rows, cols] *= (1 + (gain - 1) * t * t * (3 - 2 * t))[:, None]
+        out[rows, cols] *= (1 + (gain - 1) * smoothstep(a, 18.0, 26.0))[:, None]
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 

@@ -195,6 +195,7 @@ def fit_hair(rig, style: str = "short", colour: tuple[float, float, float] | Non
     import trimesh
 
     from stimulus_engine.geometry.closest import SurfaceIndex, lift_out
+    from stimulus_engine.geometry.ramps import smoothstep
 
     asset = hair_asset(style)
     lm = rig.landmark_points()
@@ -210,8 +211,7 @@ def fit_hair(rig, style: str = "short", colour: tuple[float, float, float] | Non
     iod = float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
     lift = np.maximum(asset.lift * float(np.mean(np.abs(scale))), MIN_LIFT_IOD * iod)
     source_iod = float(np.linalg.norm(asset.head[1] - asset.head[0]))
-    t = np.clip((np.linalg.norm(asset.offset, axis=1) / source_iod - HANG_IOD[0]) / (HANG_IOD[1] - HANG_IOD[0]), 0, 1)
-    hang = (t * t * (3 - 2 * t))[:, None]
+    hang = smoothstep((np.linalg.norm(asset.offset, axis=1) / source_iod - HANG_IOD[0]) / (HANG_IOD[1] - HANG_IOD[0]))[:, None]
     offset = (1 - hang) * lift[:, None] * n + hang * asset.offset * scale
     # a hanging lock placed by its offset can land inside a head shaped unlike the source (a
     # fringe on a steeper forehead): out to the smallest lift over the skin it is in; and over

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from stimulus_engine.geometry.ramps import smoothstep
+
 __all__ = ["face_oval", "oval_vignette"]
 
 #: The oval around a framed face, in face lengths (forehead to chin): its centre below the eye
@@ -36,8 +38,7 @@ def oval_vignette(image: np.ndarray, oval: tuple[float, float, float, float, flo
     h, w = image.shape[:2]
     y, x = np.mgrid[0:h, 0:w].astype(np.float64)
     r = np.hypot((x + 0.5 - cx) / rx, (y + 0.5 - cy) / ry)
-    t = np.clip((r - (1 - feather)) / feather, 0, 1)
-    keep = 1 - t * t * (3 - 2 * t)
+    keep = 1 - smoothstep((r - (1 - feather)) / feather)
     bg = np.asarray(background, np.float64) * 255
     out = image.astype(np.float64) * keep[..., None] + bg * (1 - keep[..., None])
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)

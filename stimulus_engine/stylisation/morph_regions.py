@@ -14,6 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from appeal.errors import AppealInputError
+from stimulus_engine.geometry.ramps import smoothstep
 
 __all__ = ["CORE", "FALLOFF", "REGIONS", "parse_regions", "part_morph_sheet", "read_ibug", "region_weights"]
 
@@ -57,11 +58,6 @@ def parse_regions(text: str, n_meshes: int, where: str = "--regions") -> dict[st
     return out
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3 - 2 * x)
-
-
 def region_weights(vertices: np.ndarray, ibug: np.ndarray, regions: Mapping[str, int], n_meshes: int,
                    core: float = CORE, falloff: float = FALLOFF) -> np.ndarray:
     """Per-vertex blend weights: each named region from its mesh, the rest from mesh 0.
@@ -92,7 +88,7 @@ def region_weights(vertices: np.ndarray, ibug: np.ndarray, regions: Mapping[str,
             c = pts.mean(axis=0)
             r = core * float(np.linalg.norm(pts - c, axis=1).max())
             d = np.linalg.norm(v - c, axis=1)
-            blob = np.maximum(blob, 1.0 - _smoothstep((d - r) / (falloff * r)))
+            blob = np.maximum(blob, 1.0 - smoothstep((d - r) / (falloff * r)))
         w[:, k] += blob
     total = w.sum(axis=1)
     over = total > 1

@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from stimulus_engine.characters.rig import FaceRig
+from stimulus_engine.geometry.ramps import smoothstep
 
 __all__ = ["StyliseParams", "stylise", "stylise_rig"]
 
@@ -43,16 +44,11 @@ class StyliseParams:
     smooth_steps: int = 12
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    t = np.clip(x, 0.0, 1.0)
-    return t * t * (3 - 2 * t)
-
-
 def _radial_scale(v: np.ndarray, centre: np.ndarray, factor: float, r0: float, r1: float) -> np.ndarray:
     """Scale about ``centre`` by ``factor`` inside ``r0``, blending to identity at ``r1``."""
     d = v - centre
     r = np.linalg.norm(d, axis=1)
-    w = 1 - _smoothstep((r - r0) / max(r1 - r0, 1e-9))
+    w = 1 - smoothstep((r - r0) / max(r1 - r0, 1e-9))
     return v + d * ((factor - 1) * w)[:, None]
 
 
@@ -135,14 +131,14 @@ def stylise(rig: FaceRig, level: float, params: StyliseParams | None = None,
     y0 = float(lm["subnasale"][1])
     chin_drop = y0 - float(lm["chin"][1])
     below = np.clip((y0 - v[:, 1]) / max(chin_drop, 1e-9), 0, None)
-    t = _smoothstep(below) * np.minimum(below, 1.0) + np.maximum(below - 1, 0)
+    t = smoothstep(below) * np.minimum(below, 1.0) + np.maximum(below - 1, 0)
     v[:, 1] += p.jaw_shorten * level * chin_drop * t
-    v[:, 0] *= 1 - 0.08 * level * _smoothstep(below)
+    v[:, 0] *= 1 - 0.08 * level * smoothstep(below)
     # 5. cranium: above the eyes, move up (and outwards a little)
     ye = float((eye_r[1] + eye_l[1]) / 2)
     above = np.clip((v[:, 1] - ye) / iod, 0, None)
     v[:, 1] += p.cranium_grow * level * iod * above
-    v[:, [0, 2]] *= (1 + 0.05 * level * _smoothstep(above))[:, None]
+    v[:, [0, 2]] *= (1 + 0.05 * level * smoothstep(above))[:, None]
     # 6. smoother skin
     return _taubin(v, rig.faces, rig.skin, p.smooth_steps * level)
 
