@@ -4,7 +4,9 @@ Each file is downloaded over HTTP(S) into ``FILE.part`` next to its place in the
 resumed with a ``Range`` request when a ``.part`` is left from an interrupted fetch, checked
 against the registry's sha256 and only then moved into place, so a data tree never holds a
 half-written or unchecked file under its real name. Files already there with the right content
-are not downloaded again; a corrupted one is fetched anew. Sources: the file's upstream URL,
+are not downloaded again; a corrupted one is fetched anew. Sources: the file's upstream URLs
+(a Draco-compressed glTF is decoded into the OBJ the registry checks, see
+:mod:`appeal.draco_glb`; a curator's few-byte file is written from the registry's own text),
 or a mirror of the whole data tree (``base_url``: ``BASE/FOLDER/FILE``, e.g. a lab's server or a
 test's loopback server).
 """
@@ -93,27 +95,50 @@ def _download(src: str, part: Path, bar: object | None) -> None:
                     bar.update(len(block))
 
 
-def _fetch_file(ds: Dataset, f: DataFile, dest: Path, base_url: str | None, bar: object | None) -> None:
-    src = _source(ds, f, base_url)
+class _SourceFailed(Exception):
+    """The source of a file failed; ``args[0]`` says how, ``offline`` when it could not be reached."""
+
+    def __init__(self, why: str, offline: bool = False) -> None:
+        super().__init__(why)
+        self.offline = offline
+
+
+def _decoded(f: DataFile, part: Path, src: str) -> Path:
+    """The file made from a downloaded upstream source (``f.decode``), next to ``part``."""
+    from appeal.draco_glb import ObjStyle, decode_draco_glb, obj_bytes
+
+    spec = dict(f.decode or {})
+    if spec.pop("from", None) != "draco-glb":
+        raise _SourceFailed(f"{f.path}: the registry names an unknown decoder {f.decode!r} (expected from: draco-glb)")
+    out = part.with_name(part.name.removesuffix(".part") + ".decoded-part")
+    try:
+        out.write_bytes(obj_bytes(decode_draco_glb(part.read_bytes(), name=src), ObjStyle(**spec)))
+    except AppealInputError as exc:
+        raise _SourceFailed(f"{f.path} from {exc}") from None
+    finally:
+        part.unlink(missing_ok=True)
+    return out
+
+
+def _fetch_from(ds: Dataset, f: DataFile, dest: Path, src: str, base_url: str | None, bar: object | None) -> None:
+    """Download ``f`` from ``src``, make it (decode, gzip) and check it; only then move it to ``dest``."""
     part = dest.with_name(dest.name + ".part")
-    dest.parent.mkdir(parents=True, exist_ok=True)
     try:
         _download(src, part, bar)
     except urllib.error.HTTPError as exc:
         if not (exc.code == 416 and part.exists()):  # 416: the partial file is already whole
-            raise AppealInputError(f"{ds.name}: cannot download {f.path} from {src} (HTTP {exc.code} {exc.reason}); "
-                                   f"retry: {ds.fetch_command}") from None
+            raise _SourceFailed(f"cannot download {f.path} from {src} (HTTP {exc.code} {exc.reason})") from None
     except (urllib.error.URLError, OSError, ValueError) as exc:
         reason = getattr(exc, "reason", None) or exc
-        raise AppealInputError(f"{ds.name}: cannot download {f.path} from {src} ({reason}); check the connection "
-                               f"and retry: {ds.fetch_command}") from None
+        raise _SourceFailed(f"cannot download {f.path} from {src} ({reason})", offline=True) from None
+    if f.decode and not base_url:
+        part = _decoded(f, part, src)
     upstream_raw = f.gzip and not base_url  # upstream serves the uncompressed file
     got = content_sha256(part, f.gzip and not upstream_raw) if part.is_file() else ""
     if got != f.sha256:
         part.unlink(missing_ok=True)
-        raise AppealInputError(f"{ds.name}: {f.path} from {src} has sha256 {got[:12]}..., expected "
-                               f"{f.sha256[:12]}... (a corrupted download, or the source changed); the partial "
-                               f"file was removed, retry: {ds.fetch_command}")
+        raise _SourceFailed(f"{f.path} from {src} has sha256 {got[:12]}..., expected {f.sha256[:12]}... (a corrupted "
+                            f"download, or the source changed); the partial file was removed")
     if upstream_raw:
         packed = dest.with_name(dest.name + ".gz-part")
         with open(part, "rb") as src_f, gzip.GzipFile(packed, "wb", mtime=0) as out:
@@ -121,6 +146,29 @@ def _fetch_file(ds: Dataset, f: DataFile, dest: Path, base_url: str | None, bar:
         part.unlink()
         part = packed
     os.replace(part, dest)
+
+
+def _write_text(ds: Dataset, f: DataFile, dest: Path) -> None:
+    """A file the registry holds whole (``f.text``), checked like a download."""
+    data = (f.text or "").encode("utf-8")
+    if hashlib.sha256(data).hexdigest() != f.sha256:
+        raise AppealInputError(f"{ds.name}: the registry's text of {f.path} does not match its sha256 "
+                               f"(expected {f.sha256[:12]}...); the registry is damaged, reinstall appeal-lab")
+    part = dest.with_name(dest.name + ".part")
+    part.write_bytes(data)
+    os.replace(part, dest)
+
+
+def _fetch_file(ds: Dataset, f: DataFile, dest: Path, base_url: str | None, bar: object | None) -> None:
+    """One file of ``ds`` into ``dest``, from the mirror, else upstream (or the registry's own text)."""
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    if f.text is not None and not base_url:
+        return _write_text(ds, f, dest)
+    try:
+        _fetch_from(ds, f, dest, _source(ds, f, base_url), base_url, bar)
+    except _SourceFailed as exc:
+        hint = "check the connection and " if exc.offline else ""
+        raise AppealInputError(f"{ds.name}: {exc}; {hint}retry: {ds.fetch_command}") from None
 
 
 def fetch_dataset(name: str, *, base_url: str | None = None, root: Path | None = None) -> FetchReport:
@@ -153,10 +201,12 @@ def fetch_dataset(name: str, *, base_url: str | None = None, root: Path | None =
     for f in ds.files:
         (present if _state(folder / f.path, f) == "ok" else todo).append(f)
     # documentation files without a source are skipped rather than failing the dataset
-    todo = [f for f in todo if not (f.docs and f.url is None and not base_url)]
+    todo = [f for f in todo if not (f.docs and not f.upstream and not base_url)]
     for f in todo:
-        _source(ds, f, base_url)  # every file has a source before anything is downloaded
-    raw = any(f.gzip for f in todo) and not base_url  # sizes are of the stored (compressed) files
+        if f.text is None or base_url:
+            _source(ds, f, base_url)  # every file has a source before anything is downloaded
+    # sizes are of the stored files: upstream serves some uncompressed or Draco-compressed
+    raw = any(f.gzip or f.decode for f in todo) and not base_url
     bar = tqdm(total=None if raw else sum(f.size for f in todo), unit="B", unit_scale=True, desc=name, file=sys.stderr,
                disable=not progress_enabled() or not todo, leave=False)
     try:

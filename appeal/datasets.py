@@ -3,7 +3,9 @@
 The registry (``appeal/assets/datasets.json``, rebuilt by ``scripts/make_data_registry.py``)
 lists, per dataset, its folder in the data tree, licence, credit, upstream and every file with
 its size, the sha256 of its content (``.gz`` files: of the decompressed bytes) and the URL of
-the same bytes upstream (pinned to a commit), where there is one.
+the same bytes upstream (pinned to a commit), where there is one. A file the curator converted
+names how it is made from its upstream source instead: decoded from a Draco-compressed glTF
+(``decode``), or written from the registry itself (``text``, a few bytes with no upstream copy).
 
 Data trees (each laid out like ``shared/data``), in the order they are searched:
 
@@ -52,6 +54,13 @@ class DataFile:
         Stored gzip-compressed (upstream serves it uncompressed).
     docs : bool
         Documentation only: not needed to use the dataset.
+    decode : dict or None
+        The upstream source is converted after download: ``{"from": "draco-glb", "comment",
+        "mtllib", "material"}`` decodes a Draco-compressed binary glTF into an OBJ
+        (:mod:`appeal.draco_glb`). The sha256 is of the decoded file.
+    text : str or None
+        The whole content, written by ``appeal data fetch`` itself (a curator's small file,
+        e.g. a material library, with no upstream copy).
     """
 
     path: str
@@ -60,6 +69,13 @@ class DataFile:
     url: str | None = None
     gzip: bool = False
     docs: bool = False
+    decode: dict | None = None
+    text: str | None = None
+
+    @property
+    def upstream(self) -> bool:
+        """Whether it can be fetched without a mirror."""
+        return self.url is not None or self.text is not None
 
 
 @dataclass(frozen=True)

@@ -70,7 +70,7 @@ Examples:
   appeal data fetch ict-facekit
   appeal data fetch --all
   appeal data fetch --for protocols/grids/exp2_stylisation.yaml
-  appeal data fetch leeperrysmith --url https://data.example.org/appeal   # a lab mirror""")
+  appeal data fetch --all --url https://data.example.org/appeal            # a lab mirror""")
 @click.argument("names", nargs=-1)
 @click.option("--all", "all_", is_flag=True, help="Every registered dataset.")
 @click.option("--for", "for_files", multiple=True, metavar="STUDY.yaml",

@@ -4,8 +4,12 @@ For every dataset below, each file of its folder in a data tree laid out like ``
 gets its size and the sha256 of its content (of the decompressed bytes for ``.gz`` files, which
 upstream serves uncompressed), and, when the same bytes are a file of a local snapshot of the
 upstream git repository (matched by git blob id), the URL of that file at the snapshot's commit
-on raw.githubusercontent.com. Files without such a match (a copy converted by the curator) can
-only be fetched from a mirror of the data tree (``appeal data fetch --url``).
+on raw.githubusercontent.com. A file the curator converted is registered with how to make it
+from upstream, after checking here that it makes exactly these bytes: ``decoded`` (a Draco
+glTF in a snapshot, decoded by :mod:`appeal.draco_glb`) or ``written`` (a few bytes the registry
+holds whole). Files without either can only be fetched from a mirror of the data tree
+(``appeal data fetch --url``). A file whose content is unchanged keeps the URL the registry
+already has when no snapshot given now holds it (so snapshots can be added one at a time).
 
 Usage::
 
@@ -50,17 +54,24 @@ DATASETS: dict[str, dict] = {
                        "normal map; eyes closed)",
         "licence": "CC-BY-3.0",
         "credit": "'Infinite, 3D Head Scan' by Lee Perry-Smith (Infinite-Realities), CC BY 3.0",
-        "upstream": "three.js examples, examples/models/gltf/LeePerrySmith/ (Draco-compressed GLB; "
-                    "the OBJ here is decoded from it, so it comes from a mirror only)",
+        "upstream": "three.js examples, examples/models/gltf/LeePerrySmith/ (uncompressed GLB, 396 KB); the "
+                    "textures as renamed in Bruno Simon's three.js-journey course; the OBJ decoded from the "
+                    "Draco-compressed copy in https://github.com/pooch1e/threeJsPortfolio (static/models/)",
+        "decoded": {"LeePerrySmith.obj": {
+            "repo": "pooch1e/threeJsPortfolio", "path": "static/models/LeePerrySmith/LeePerrySmith.glb",
+            "decode": {"from": "draco-glb", "mtllib": "LeePerrySmith.mtl", "material": "skin",
+                       "comment": "Lee Perry-Smith head scan (Infinite-Realities, CC BY 3.0), decoded from the "
+                                  "three.js example glb"}}},
+        "written": ["LeePerrySmith.mtl"],
     },
     "makehuman-cc0": {
         "folder": "meshes/makehuman-cc0",
-        "description": "MakeHuman base mesh with CC0 eyes, eyebrows, eyelashes and short hair proxies "
-                       "and their .mhclo fitting files",
+        "description": "MakeHuman base mesh with CC0 eyes, eyebrows, eyelashes, eight hair styles, teeth and "
+                       "tongue proxies and their .mhclo fitting files",
         "licence": "CC0-1.0",
         "credit": "MakeHuman assets, (c) 2020 Data Collection AB, Joel Palmius, Jonas Hauquier (released CC0)",
         "upstream": "https://github.com/makehumancommunity/makehuman and makehuman-assets",
-        "docs": ["README.md"],
+        "docs": ["README.md", "proxies/MORE.md", "proxies/SHA256SUMS-more"],
     },
     "mediapipe-canonical": {
         "folder": "meshes/mediapipe-canonical",
@@ -119,8 +130,33 @@ def _snapshots(mirrors: Path) -> dict[str, str]:
     return index
 
 
+def _decoded_source(mirrors: Path, spec: dict, sha256: str) -> dict:
+    """``url`` and ``decode`` of a converted file when the snapshot's source decodes to ``sha256``."""
+    from appeal.draco_glb import ObjStyle, decode_draco_glb, obj_bytes
+
+    repo = mirrors / spec["repo"].replace("/", "+") / "repo"
+    if not repo.exists():
+        return {}
+    git = ["git", "-C", str(repo)]
+    commit = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    glb = subprocess.run([*git, "show", f"HEAD:{spec['path']}"], capture_output=True, check=True).stdout
+    style = ObjStyle(**{k: v for k, v in spec["decode"].items() if k != "from"})
+    if hashlib.sha256(obj_bytes(decode_draco_glb(glb, name=spec["path"]), style)).hexdigest() != sha256:
+        print(f"  {spec['repo']}/{spec['path']} does not decode to the data tree's file: not registered")
+        return {}
+    return {"url": f"https://raw.githubusercontent.com/{spec['repo']}/{commit}/{spec['path']}", "decode": spec["decode"]}
+
+
+def _previous() -> dict[tuple[str, str], dict]:
+    """(dataset, path) -> the registry's entry now."""
+    if not OUT.exists():
+        return {}
+    return {(name, f["path"]): f for name, d in json.loads(OUT.read_text()).items() for f in d["files"]}
+
+
 def main(data: Path, mirrors: Path) -> None:
     index = _snapshots(mirrors)
+    before = _previous()
     out = {}
     for name, spec in DATASETS.items():
         folder = data / spec["folder"]
@@ -132,14 +168,21 @@ def main(data: Path, mirrors: Path) -> None:
             content = gzip.decompress(raw) if gz else raw
             entry = {"path": rel, "sha256": hashlib.sha256(content).hexdigest(), "size": len(raw),
                      "url": index.get(_blob(content))}
+            if rel in spec.get("decoded", {}):
+                entry |= _decoded_source(mirrors, spec["decoded"][rel], entry["sha256"])
+            if rel in spec.get("written", ()):
+                entry["text"] = content.decode("utf-8")
+            old = before.get((name, rel), {})
+            if entry["url"] is None and "text" not in entry and old.get("sha256") == entry["sha256"]:
+                entry |= {k: old[k] for k in ("url", "decode") if old.get(k) is not None}
             if gz:
                 entry["gzip"] = True
             if rel in spec.get("docs", ()):
                 entry["docs"] = True
             files.append(entry)
-        out[name] = {k: v for k, v in spec.items() if k not in ("files", "docs")} | {"files": files}
-        n_url = sum(f["url"] is not None for f in files)
-        print(f"{name}: {len(files)} files, {sum(f['size'] for f in files) / 1e6:.1f} MB, {n_url} with an upstream URL")
+        out[name] = {k: v for k, v in spec.items() if k not in ("files", "docs", "decoded", "written")} | {"files": files}
+        n_url = sum(f["url"] is not None or "text" in f for f in files)
+        print(f"{name}: {len(files)} files, {sum(f['size'] for f in files) / 1e6:.1f} MB, {n_url} from upstream")
     OUT.write_text(json.dumps(out, indent=1) + "\n")
     print(OUT)
 

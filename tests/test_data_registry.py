@@ -7,16 +7,19 @@ import gzip
 import hashlib
 import re
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 import yaml
 
+from appeal import datasets
 from appeal.data_fetch import content_sha256, fetch_dataset, verify_dataset
 from appeal.datasets import DataFile, dataset, dataset_names, resolve_reference
 from appeal.errors import AppealInputError
 from appeal_cli import main
 from data_server import closed_port_url, serve
+from upstream_tree import draco_glb_of_obj, pointed_at, upstream_tree, url_path
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -35,11 +38,19 @@ def _err_lines(capsys) -> list[str]:
     return [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
 
 
+def _sums(text: str, prefix: str = "") -> dict[str, str]:
+    return {prefix + p.removeprefix("./"): h for h, p in re.findall(r"^([0-9a-f]{64})  (\S+)$", text, re.M)}
+
+
 def test_the_registry_matches_the_manifest_of_the_shared_data(shared_data):
-    """Every registered file is in shared/data with the registered content; sha256 as in MANIFEST.md."""
-    manifest = dict((p.removeprefix("./"), h) for h, p in re.findall(r"^([0-9a-f]{64})  (\S+)$",
-                                                                      (shared_data / "MANIFEST.md").read_text(), re.M))
-    n = 0
+    """Every registered file is in shared/data with the registered content; sha256 as in MANIFEST.md
+    or the SHA256SUMS a registered folder holds for files added later."""
+    manifest = _sums((shared_data / "MANIFEST.md").read_text())
+    for name in dataset_names():
+        folder = dataset(name).folder
+        for sums in sorted((shared_data / folder).rglob("SHA256SUMS*")):
+            manifest |= _sums(sums.read_text(), f"{sums.parent.relative_to(shared_data)}/")
+    registered = set()
     for name in dataset_names():
         ds = dataset(name)
         assert ds.licence and ds.credit and ds.upstream and ds.description
@@ -48,10 +59,10 @@ def test_the_registry_matches_the_manifest_of_the_shared_data(shared_data):
             p = shared_data / rel
             assert content_sha256(p, f.gzip) == f.sha256, rel
             assert p.stat().st_size == f.size, rel
-            if not f.gzip:
+            if not f.gzip and not rel.endswith("/SHA256SUMS-more"):
                 assert manifest[rel] == f.sha256, rel
-            n += 1
-    assert n == len(manifest)  # every third-party file is registered
+            registered.add(rel)
+    assert set(manifest) <= registered  # every third-party file is registered
 
 
 def test_upstream_urls_are_pinned_to_a_commit():
@@ -59,7 +70,11 @@ def test_upstream_urls_are_pinned_to_a_commit():
         for f in dataset(name).files:
             if f.url is not None:
                 assert re.match(r"https://raw\.githubusercontent\.com/[^/]+/[^/]+/[0-9a-f]{40}/", f.url), f.url
-    assert all(f.url is None for f in dataset("leeperrysmith").files)  # decoded from a Draco GLB: mirror only
+            # no shipped study file needs a mirror: every file has an upstream source
+            assert f.upstream or f.docs, f"{name}/{f.path}"
+    lps = {f.path: f for f in dataset("leeperrysmith").files}
+    assert lps["LeePerrySmith.obj"].decode["from"] == "draco-glb" and lps["LeePerrySmith.obj"].url.endswith(".glb")
+    assert lps["LeePerrySmith.mtl"].text is not None
 
 
 def test_no_shipped_study_file_names_a_path_outside_the_repository():
@@ -148,11 +163,68 @@ def test_offline_is_one_line_naming_the_dataset_and_the_retry(empty_data, capsys
     assert "retry: appeal data fetch menpo3d-james" in err[0]
 
 
-def test_a_file_without_an_upstream_copy_needs_a_mirror(empty_data, capsys):
-    assert main(["data", "fetch", "leeperrysmith"]) == 2
+def test_a_file_without_an_upstream_copy_needs_a_mirror(empty_data, capsys, monkeypatch):
+    """A curator's file with neither an upstream URL nor registry text: one line, nothing downloaded."""
+    ds = dataset("menpo3d-james")
+    orphan = replace(ds, files=tuple(replace(f, url=None) if f.path == "james.obj" else f for f in ds.files))
+    monkeypatch.setattr(datasets, "_registry", lambda: {"menpo3d-james": orphan})
+    assert main(["data", "fetch", "menpo3d-james"]) == 2
     err = _err_lines(capsys)
-    assert len(err) == 1 and "no public upstream copy" in err[0] and "--url" in err[0]
+    assert len(err) == 1 and "james.obj has no public upstream copy" in err[0] and "--url" in err[0]
     assert not any((empty_data).rglob("*"))  # nothing was downloaded
+
+
+def _upstream_registry(monkeypatch, base: str, names: list[str]) -> None:
+    """The registry with the datasets ``names`` whose upstream URLs point at the loopback server."""
+    moved = {n: replace(dataset(n), files=tuple(pointed_at(f, base) for f in dataset(n).files)) for n in names}
+    monkeypatch.setattr(datasets, "_registry", lambda: moved)
+
+
+def test_every_shipped_study_file_is_fetched_from_upstream_without_a_mirror(shared_data, empty_data, tmp_path,
+                                                                            monkeypatch, capsys):
+    """`appeal data fetch --for` every shipped study file, from a loopback server laid out like the
+    upstream repositories (raw, uncompressed; the Lee Perry-Smith OBJ as a Draco-compressed glTF):
+    every file arrives with the registry's checksum, the scan's OBJ decoded byte for byte."""
+    studies = sorted(str(p) for p in (ROOT / "protocols").rglob("*.yaml") if "data:" in p.read_text())
+    names = ["ict-facekit", "menpo3d-james", "leeperrysmith", "biosemi-newtest17"]
+    tree = upstream_tree(shared_data, tmp_path / "upstream", names)
+    with serve(tree) as (url, requests):
+        _upstream_registry(monkeypatch, url, names)
+        assert main(["data", "fetch", *(a for s in studies for a in ("--for", s))]) == 0
+    assert "leeperrysmith: 5 files fetched" in capsys.readouterr().out
+    served = {p for p, _ in requests}
+    assert any(p.endswith("/LeePerrySmith.glb") for p in served) and not any(p.endswith("LeePerrySmith.mtl") for p in served)
+    for name in names:
+        assert all(state == "ok" for _, state in verify_dataset(name)), name
+    lps = empty_data / "meshes/leeperrysmith"
+    assert (lps / "LeePerrySmith.obj").read_bytes() == (shared_data / "meshes/leeperrysmith/LeePerrySmith.obj").read_bytes()
+    assert not list(empty_data.rglob("*part"))
+
+
+def test_a_damaged_glb_upstream_is_refused_with_one_line_and_nothing_left(shared_data, empty_data, tmp_path,
+                                                                           monkeypatch, capsys):
+    """Upstream serving other bytes (a truncated GLB, a GLB of another mesh) is refused with the
+    reason; nothing is left under the file's name or as a partial file; a good source then works."""
+    tree = upstream_tree(shared_data, tmp_path / "upstream", ["leeperrysmith"])
+    obj = next(f for f in dataset("leeperrysmith").files if f.path == "LeePerrySmith.obj")
+    glb = tree / url_path(obj.url).lstrip("/")
+    good = glb.read_bytes()
+    folder = empty_data / "meshes/leeperrysmith"
+    other = tmp_path / "other.obj"
+    other.write_text((shared_data / "meshes/leeperrysmith/LeePerrySmith.obj").read_text().replace("v 1.29", "v 1.30", 1))
+    with serve(tree) as (url, _):
+        _upstream_registry(monkeypatch, url, ["leeperrysmith"])
+        for damaged, why in ((good[:len(good) // 2], "truncated glTF binary"), (b"<html>404</html>", "not a binary glTF"),
+                             (draco_glb_of_obj(other), "expected b4b39bd04123")):
+            glb.write_bytes(damaged)
+            assert main(["data", "fetch", "leeperrysmith"]) == 2
+            err = _err_lines(capsys)
+            assert len(err) == 1 and "LeePerrySmith.obj from http://127.0.0.1" in err[0] and why in err[0], err
+            assert "retry: appeal data fetch leeperrysmith" in err[0]
+            assert not (folder / "LeePerrySmith.obj").exists() and not [p for p in folder.iterdir() if "part" in p.name]
+        glb.write_bytes(good)
+        assert main(["data", "fetch", "leeperrysmith"]) == 0
+    assert (folder / "LeePerrySmith.obj").read_bytes() == (shared_data / "meshes/leeperrysmith/LeePerrySmith.obj").read_bytes()
 
 
 def test_an_upstream_file_served_uncompressed_is_stored_gzipped(shared_data, empty_data, tmp_path):
