@@ -167,3 +167,67 @@ def test_cycles_grid_renders_and_rerenders_identically(tmp_path):
     m3, _ = run_grid(other, tmp_path / "three", n_jobs=1)
     c = np.asarray(Image.open(tmp_path / "three" / m3["file"].iloc[0])).astype(int)
     assert np.abs(a - c).max() > 0
+
+
+@needs_cycles
+def test_hair_is_rendered_as_strands_with_the_principled_hair_bsdf(tmp_path, shared_data):
+    """An ICT head with short hair: the exported scene carries strands grown over the hair mesh;
+    Cycles builds them as a curves object shaded by the Principled Hair BSDF, and renders them:
+    dark strands over the head where the hair is."""
+    import subprocess
+
+    from stimulus_engine.grid.prepare import prepare_grid
+    from stimulus_engine.grid.worker import item_scene
+    from stimulus_engine.render.cycles import composite
+
+    p = tmp_path / "hair.yaml"
+    p.write_text(f"""kind: grid
+name: hair
+characters:
+  - {{name: a, ict: {shared_data / "meshes" / "ict-facekit"}, hair: short02}}
+shapes: [0.0]
+materials: [original]
+expressions: [neutral]
+lighting: [gi_soft]
+shading: [pbr]
+render: {{width: 128, height: 96, engine: cycles, samples: 4}}
+""")
+    _, items, _ = prepare_grid(load_study_file(p, GridFile), tmp_path / "out")
+    parts, cam = item_scene(items[0])
+    lights, ambient = lighting_preset("gi_soft")
+    scene = export_scene(parts, lights, ambient, cam, tmp_path / "scene", width=128, height=96,
+                         background=(0.5, 0.5, 0.5))
+    spec = json.loads(scene.read_text())
+    k = [r["name"] for r in spec["parts"]].index("hair")
+    assert spec["parts"][k]["strands"]
+    arrays = np.load(scene.parent / "parts.npz")
+    sizes, points = arrays[f"ss{k}"], arrays[f"sp{k}"]
+    assert len(sizes) > 10000 and sizes.sum() == len(points) == len(arrays[f"sr{k}"])
+    worker = Path(__file__).resolve().parents[1] / "stimulus_engine" / "render" / "cycles_worker.py"
+    probe = f"""
+import importlib.util, pathlib, bpy
+s = importlib.util.spec_from_file_location("w", {str(worker)!r}); w = importlib.util.module_from_spec(s); s.loader.exec_module(w)
+w.build_scene(bpy, pathlib.Path({str(scene)!r}), 4, 0, 2)
+ob = bpy.context.scene.objects["strands"]
+nodes = [n.bl_idname for n in ob.data.materials[0].node_tree.nodes]
+print("PROBE", ob.type, len(ob.data.curves), len(ob.data.points), "ShaderNodeBsdfHairPrincipled" in nodes)
+bpy.context.scene.render.filepath = {str(tmp_path / "hair.png")!r}
+bpy.ops.render.render(write_still=True)
+"""
+    out = subprocess.run([str(cycles_python()), "-c", probe], capture_output=True, text=True, cwd=tmp_path)
+    line = next((ln for ln in out.stdout.splitlines() if ln.startswith("PROBE")), out.stderr[-2000:])
+    assert line == f"PROBE CURVES {len(sizes)} {len(points)} True", line
+    img = composite(np.asarray(Image.open(tmp_path / "hair.png")), (0.5, 0.5, 0.5)).astype(float)
+    # dark strands where the hair mesh is the nearest surface (pyrender's depth of the head with
+    # and without it), not the skin's colour
+    from stimulus_engine.render import render_mesh
+
+    kw = dict(width=128, height=96, lighting="gi_soft", camera=cam, return_depth=True)
+    full = render_mesh(parts, **kw)[1]
+
+    def seen(name: str) -> np.ndarray:
+        depth = render_mesh([q for q in parts if q.name == name], **kw)[1]
+        return (depth > 0) & (np.abs(depth - full) < 1e-3 * full.max())
+
+    hair, skin = seen("hair"), seen("skin")
+    assert hair.sum() > 200 and img[hair].mean() < 0.6 * img[skin].mean(), (hair.sum(), img[hair].mean(), img[skin].mean())

@@ -12,7 +12,8 @@ the background.
 It imports nothing from this package. Skin is Blender's Principled BSDF with random-walk
 subsurface scattering driven by the albedo (radius red > green > blue, as in skin, in
 millimetres converted to scene units), eyes and teeth wet and glossy, lashes and hair cut out by
-their texture's alpha. Lights: directional → sun (0.5° across: hard shadows), a disc of spot
+their texture's alpha; the hair's strands (when the scene has them) as curves with the Principled
+Hair BSDF (Chiang's model; coloured by the hair colour) over the cut-out hair mesh. Lights: directional → sun (0.5° across: hard shadows), a disc of spot
 samples → a sun as wide as the disc seen from the face (an area light at infinity: soft
 shadows), the ambient level → a uniform world, which with 4 diffuse bounces is the global
 illumination of ``gi_soft``. Film: AgX view transform (Blender's filmic tone curve),
@@ -111,6 +112,40 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
     return mat
 
 
+#: Principled Hair BSDF settings: longitudinal and azimuthal roughness, and the share of the
+#: hair colour the strands take (the grey strand texture averages about 0.7 of it).
+HAIR_ROUGHNESS, HAIR_RADIAL_ROUGHNESS, HAIR_TEXTURE_MEAN = 0.3, 0.3, 0.7
+#: Darkest colour a strand absorbs down to (its absorption coefficient is -ln of the colour).
+HAIR_MIN_COLOUR = 1e-3
+
+
+def _hair_material(bpy, rec: dict):
+    mat = bpy.data.materials.new("strands")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.remove(nodes["Principled BSDF"])
+    hair = nodes.new("ShaderNodeBsdfHairPrincipled")
+    # absorption from the colour: one pass through a fibre keeps the colour's share of the light
+    # (Blender's "direct colouring" maps a colour to a hair volume's multiple scattering instead,
+    # under which dark brown strands lit from behind by the presets' rim lights glowed white)
+    hair.parametrization = "ABSORPTION"
+    colour = np.maximum(HAIR_TEXTURE_MEAN * np.asarray(rec["base_color"][:3], float), HAIR_MIN_COLOUR)
+    hair.inputs["Absorption Coefficient"].default_value = tuple(-np.log(colour))
+    hair.inputs["Roughness"].default_value = HAIR_ROUGHNESS
+    hair.inputs["Radial Roughness"].default_value = HAIR_RADIAL_ROUGHNESS
+    links.new(hair.outputs["BSDF"], nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def _strands(bpy, name: str, points: np.ndarray, sizes: np.ndarray, radius: np.ndarray):
+    curves = bpy.data.hair_curves.new(name)
+    curves.add_curves([int(n) for n in sizes])
+    curves.position_data.foreach_set("vector", points.astype(np.float32).ravel())
+    attr = curves.attributes.get("radius") or curves.attributes.new("radius", "FLOAT", "POINT")
+    attr.data.foreach_set("value", radius.astype(np.float32))
+    return curves
+
+
 def _mesh(bpy, name: str, v: np.ndarray, f: np.ndarray, n: np.ndarray, uv: np.ndarray | None):
     me = bpy.data.meshes.new(name or "part")
     me.vertices.add(len(v))
@@ -170,6 +205,10 @@ def build_scene(bpy, scene_path: Path, samples: int, seed: int, threads: int):
         me.materials.append(_material(bpy, rec, folder, spec["mm_per_unit"]))
         ob = bpy.data.objects.new(rec["name"] or f"part{k}", me)
         sc.collection.objects.link(ob)
+        if rec.get("strands"):
+            curves = _strands(bpy, "strands", parts[f"sp{k}"], parts[f"ss{k}"], parts[f"sr{k}"])
+            curves.materials.append(_hair_material(bpy, rec))
+            sc.collection.objects.link(bpy.data.objects.new("strands", curves))
     for i, light in enumerate(spec["lights"]):
         data = bpy.data.lights.new(f"light{i}", "SUN")
         data.energy = float(light["intensity"])

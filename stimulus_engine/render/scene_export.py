@@ -6,6 +6,10 @@ any renderer can read without this package: ``scene.json`` (camera, lights in wo
 coordinates, background, per part its material values and file names) beside ``parts.npz``
 (per part vertices, triangles, normals and UVs) and the part textures as PNG. The path tracer
 (:mod:`.cycles`) renders from it in a separate Python (Blender's ``bpy`` needs numpy < 2).
+
+The hair part also gets strands (:func:`stimulus_engine.render.hair_strands.grow_strands`, grown
+over the posed hair mesh where its texture has hair): ``parts.npz`` holds their points, points
+per strand and radii, which Cycles renders as curves with its hair BSDF over the alpha-tested mesh.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
+from stimulus_engine.render.hair_strands import grow_strands
 from stimulus_engine.render.camera import CameraSpec
 from stimulus_engine.render.lighting import Disc, LightSpec, group_discs
 
@@ -116,10 +121,16 @@ def export_scene(parts: list, lights: list[LightSpec], ambient: float, camera: C
         records.append(_material_record(p.name, p.material, folder, k))
         if p.name == "skin":
             skin_extent = float(np.ptp(mesh.vertices[:, 0]))
-    np.savez(folder / "parts.npz", **arrays)
     # the face's scale in millimetres (a head is about 150 mm wide): subsurface scattering
-    # distances are physical lengths
+    # distances and hair strands are physical lengths
     mm_per_unit = 150.0 / skin_extent if skin_extent else 150.0 / max(float(np.linalg.norm(camera.target)), 1.0)
+    for k, (p, rec) in enumerate(zip(parts, records)):
+        if p.name == "hair" and f"uv{k}" in arrays and rec.get("alpha_blend"):
+            alpha = np.asarray(Image.open(folder / rec["texture"]))[..., -1] > 127
+            arrays[f"sp{k}"], arrays[f"ss{k}"], arrays[f"sr{k}"] = grow_strands(
+                arrays[f"v{k}"], arrays[f"f{k}"], arrays[f"uv{k}"], alpha, mm_per_unit)
+            rec["strands"] = True
+    np.savez(folder / "parts.npz", **arrays)
     scene = {
         "format": SCENE_FORMAT,
         "width": int(width), "height": int(height), "background": [float(b) for b in background],
