@@ -83,9 +83,11 @@ FREE_BELOW_IOD, TUCK_IOD = 0.15, 0.3
 #: The collar's rib: its edge stands this much further off the neck than the garment elsewhere
 #: (iod; with it, the collar's edge closes over the neck's sides where they meet the shoulders).
 COLLAR_RIB_IOD = 0.05
-#: The bust's neck takes its colour from the skin this far above the border it continues (iod;
-#: nearer, a scan's border still holds the blurred edge of its collar).
-NECK_COLOUR_ABOVE_IOD = 0.35
+#: The bust's neck takes its colour from the skin this far above the border it continues (iod).
+#: Nearer, a scan's border held the blurred edge of its collar, until that was hidden from mask
+#: level 0.2; further (0.35), james's neck took the colour of his beard, olive under a pale
+#: border, and the border's ragged outline showed.
+NECK_COLOUR_ABOVE_IOD = 0.1
 #: The garment's neckline hugs the character's neck where the neck is within this distance of it.
 HUG_REACH_IOD = 1.1
 #: Depth under the character's skin of the neck-skin corners it covers (hides the join's edge).
