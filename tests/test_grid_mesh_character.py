@@ -158,7 +158,7 @@ def test_a_closed_eyed_scan_on_the_rig_shows_its_eyeballs(shared_data, tmp_path)
         ahead = umeyama(base.vertices[ball], rig.vertices[ball]).rotation @ np.array([0.0, 0.0, 1.0])
         locs, _, tri = mesh.ray.intersects_location([c + 3 * r * ahead], [-ahead])
         order = np.argsort(np.linalg.norm(locs - (c + 3 * r * ahead), axis=1))
-        first = next(t for t in tri[order] if part[t] not in ("lashes", "tear", "hidden"))  # see-through parts
+        first = next(t for t in tri[order] if part[t] not in ("lashes", "tear", "eye_shadow", "hidden"))  # see-through
         assert part[first] == "eye", side
         rotations.append(umeyama(base.vertices[ball], rig.vertices[ball]).rotation)
     angle = np.degrees(np.arccos(np.clip((np.trace(rotations[0].T @ rotations[1]) - 1) / 2, -1, 1)))

@@ -240,3 +240,51 @@ def test_the_lids_wet_line_is_a_clear_glossy_film(ict, tmp_path):
     assert mat.alphaMode == "BLEND" and mat.baseColorFactor[3] < 0.5 and mat.roughnessFactor < 0.1
     rec = _material_record("tear", mat, tmp_path, 0)
     assert rec["alpha_blend"] and rec["base_color"][3] < 0.5 and "texture" not in rec
+
+
+def test_the_eye_shadow_texture_darkens_the_lid_margins_and_paints_the_caruncle():
+    from stimulus_engine.parts.eyes import EYE_SHADOW_UPPER, eye_shadow_texture
+
+    t = eye_shadow_texture(128).astype(float)
+    a = t[..., 3] / 255
+
+    def at(u: float, v: float) -> np.ndarray:  # UV (0, 0) bottom-left: outer corner, lower lid
+        return t[int((1 - v) * 127), int(u * 127)]
+
+    assert at(0.5, 0.55)[3] < 5  # the middle of the eye: clear
+    assert at(0.5, 0.98)[3] / 255 > 0.9 * EYE_SHADOW_UPPER  # under the upper lid: the darkest band
+    assert at(0.5, 0.02)[3] < at(0.5, 0.98)[3]  # the lower lid's shadow is lighter
+    assert a[:, :8].mean() > 0.3  # the outer corner
+    car = at(0.97, 0.5)
+    assert car[3] > 180 and car[0] - car[1] > 50 and car[0] > 150  # the caruncle: opaque pink
+    assert (t[..., :3].mean(axis=2)[a > 0.3] < 120).mean() > 0.6  # the shadow itself is dark
+
+
+def test_the_eye_shadow_lies_on_the_eyeballs_and_darkens_only_the_eye(ict):
+    """The ICT rig's eye-occlusion shells are drawn as the eye's shadow: alpha-blended on their
+    texture, laid just outside each eyeball's sphere (so only the lids' opening shows them), in
+    every pose; the render differs from one without them only where the eye shows."""
+    from stimulus_engine.characters.render_parts import EYE_SHADOW_LIFT, _eyeballs
+    from stimulus_engine.render import render_mesh
+    from stimulus_engine.render.camera import face_camera
+
+    smile = apply_expression(ict, "happiness")
+    for v in (ict.vertices, smile):
+        parts = {p.name: p for p in rig_render_parts(ict, v, None)}
+        shadow = parts["eye_shadow"]
+        assert shadow.material.alphaMode == "BLEND" and shadow.material.baseColorTexture is not None
+        centres, radii = _eyeballs(ict, v)
+        d = np.linalg.norm(shadow.mesh.vertices[:, None] - centres[None], axis=2).min(axis=1)
+        assert np.allclose(d, radii.mean() * (1 + EYE_SHADOW_LIFT), rtol=0.02)
+    parts = rig_render_parts(ict, ict.vertices, None)
+    lm = ict.landmark_points()
+    iod = float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
+    cam = face_camera((lm["eye_left"] + lm["eye_right"]) / 2, iod, eye_row=0.5)  # the eyes fill the frame
+    kw = dict(width=320, height=240, lighting="gi_soft", return_depth=True, camera=cam)
+    with_shadow, d_with = render_mesh(parts, **kw)
+    without, d_without = render_mesh([p for p in parts if p.name != "eye_shadow"], **kw)
+    changed = np.abs(with_shadow.astype(int) - without.astype(int)).max(axis=2) > 2
+    front = d_with < d_without - 1e-4 * d_without.max()  # the shadow is the nearest surface there
+    eye = render_mesh([p for p in parts if p.name == "eye"], **kw)[1] > 0
+    assert changed.sum() > 20 and front.sum() > 20
+    assert (changed & ~eye).sum() <= 0.02 * changed.sum()  # nothing on the lids or the skin

@@ -120,3 +120,27 @@ def test_occlusion_dims_only_the_ambient_light_of_skin_shading():
     # pbr and phong materials ignore it (pyrender would otherwise multiply the whole colour by it)
     assert abs(render("pbr", half, 0.6, 2.0) - render("pbr", None, 0.6, 2.0)) < 1
     assert abs(render("phong", half, 0.6, 2.0) - render("phong", None, 0.6, 2.0)) < 1
+
+
+@pytest.mark.parametrize("shading", ["pbr", "skin"])
+def test_an_eye_reflects_a_dome_of_lights_as_one_glint(shading):
+    """Under gi_soft (a dozen lights around the camera) a glossy ball shows a ring of sharp dots;
+    the eye's EYE_GLINT switch gives one glint, centred where the lights' mean direction
+    reflects, and keeps the ball's diffuse shading."""
+    from scipy import ndimage
+
+    from stimulus_engine.characters.render_parts import _material
+
+    ball = trimesh.creation.icosphere(subdivisions=5)
+    grey = (0.6, 0.6, 0.6, 1.0)
+    imgs, body = {}, None
+    for glint in (False, True):
+        mat = _material(shading, grey, None, 0.05, glint=glint)
+        img, depth = render_mesh([RenderPart(ball, material=mat)], width=200, height=200, lighting="gi_soft",
+                                 shadows=False, return_depth=True)
+        imgs[glint], body = img.astype(float).mean(axis=2), depth > 0
+    spots = {glint: ndimage.label(img > np.percentile(img[body], 99.0) * 0.98)[1] for glint, img in imgs.items()}
+    assert spots[False] >= 4 and spots[True] == 1, spots
+    # the ball's diffuse shading is the same away from the glints: the switch only gathers them
+    calm = body & (imgs[False] < np.percentile(imgs[False][body], 80)) & (imgs[True] < np.percentile(imgs[True][body], 80))
+    assert calm.sum() > 1000 and np.abs(imgs[False][calm] - imgs[True][calm]).mean() < 6

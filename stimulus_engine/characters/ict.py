@@ -34,10 +34,12 @@ _ICT_PART_OF_REGION = {
     "mouth_socket": "mouth", "gums_and_tongue": "tongue", "teeth": "teeth",
     "eyeball_left": "eye", "eyeball_right": "eye", "eyelashes_left": "lashes", "eyelashes_right": "lashes",
     "lacrimal_fluid_left": "tear", "lacrimal_fluid_right": "tear",
+    "eye_occlusion_left": "eye_shadow", "eye_occlusion_right": "eye_shadow",
 }
-# the lacrimal fluid is drawn as the lids' wet line ("tear": a clear, glossy film); the eye blend
-# and eye occlusion shells (transparent helpers in Unreal) stay hidden
-_ICT_PARTS = ("skin", "eye", "teeth", "mouth", "tongue", "lashes", "tear", "hidden")
+# the lacrimal fluid is drawn as the lids' wet line ("tear": a clear, glossy film), the eye
+# occlusion shells as the shadow along the lids and the caruncle ("eye_shadow": see
+# parts.eyes.eye_shadow_texture); the eye blend shells (transparent helpers in Unreal) stay hidden
+_ICT_PARTS = ("skin", "eye", "teeth", "mouth", "tongue", "lashes", "tear", "eye_shadow", "hidden")
 
 
 def _ict_eyes(v: np.ndarray, faces: np.ndarray, face_part: np.ndarray, uv: np.ndarray | None,
@@ -149,7 +151,7 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
     identity and expression linearly, so the deltas are ``shape − generic_neutral`` and are added
     to any identity unchanged.
     """
-    from stimulus_engine.parts.eyes import photographic_eye_texture
+    from stimulus_engine.parts.eyes import eye_shadow_texture, photographic_eye_texture
 
     d = _ict_dir(ict_dir)
     v, faces, layout = _ict_mesh(_ict_file(d, identity))
@@ -184,5 +186,5 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
         name=identity, vertices=v, faces=faces, uv=uv, face_uv=face_uv, face_part=face_part, part_names=_ICT_PARTS,
         landmarks=_ict_landmarks(v, regions["landmarks"], regions, pupils), blendshapes=blend,
         rigid_sets=[regions["eyeball_left"], regions["eyeball_right"]], skin=skin,
-        part_textures={} if uv is None else {"eye": photographic_eye_texture()},
+        part_textures={} if uv is None else {"eye": photographic_eye_texture(), "eye_shadow": eye_shadow_texture()},
     )

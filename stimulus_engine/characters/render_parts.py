@@ -57,11 +57,13 @@ _MATERIALS: dict[tuple, tuple[tuple, object]] = {}
 
 def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | None, roughness: float = 0.62,
               normal: np.ndarray | None = None, specular: np.ndarray | None = None, scatter: bool = False,
-              inside: bool = False) -> object:
+              inside: bool = False, glint: bool = False) -> object:
     """A pyrender material; cached per (shading, colour, texture array, roughness, scatter) in this process.
 
     ``scatter``: under ``skin`` shading, the subsurface-softened diffuse term (the skin part).
     ``inside``: a part inside the mouth (:data:`INSIDE_PARTS`), lit through its ambient visibility.
+    ``glint``: an eyeball, whose lights reflect as one glint (``EYE_GLINT`` of :mod:`.skin_shader`;
+    metallic-roughness shadings only).
 
     Reusing the same material (and so the same ``pyrender.Texture``) for every image that wears
     the same albedo lets the renderer keep the texture on the GPU (pyrender uploads a texture,
@@ -69,8 +71,14 @@ def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | Non
     of the per-image time on llvmpipe. The key holds the array's id and the entry the array
     itself, so a new array that reuses a freed id never hits a stale material.
     """
-    return _cached(("part", shading, tuple(colour), float(roughness), scatter, inside), (texture, normal, specular),
-                   lambda: _inside(_new_material(shading, colour, texture, roughness, normal, specular, scatter), inside))
+    def make() -> object:
+        mat = _inside(_new_material(shading, colour, texture, roughness, normal, specular, scatter), inside)
+        if glint and shading in ("pbr", "skin"):
+            mat.appeal_defines["EYE_GLINT"] = 1
+        return mat
+
+    return _cached(("part", shading, tuple(colour), float(roughness), scatter, inside, glint),
+                   (texture, normal, specular), make)
 
 
 def _inside(material: object, inside: bool) -> object:
@@ -200,16 +208,31 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
     normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
     parts = []
     for name, uniq, tri, textured in _split_parts(rig, albedo is not None or maps):
-        mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=normals[uniq[:, 0]], process=False)
+        if name == "eye_shadow":  # laid on the eyeballs: seen where the lids open, under their skin elsewhere
+            pos, out = _onto_eyeballs(v[uniq[:, 0]], rig, v)
+            mesh = trimesh.Trimesh(pos, tri, vertex_normals=out, process=False)
+        elif name == "eye":  # shaded as the round ball the cornea makes it: the glint is a dot (an
+            # ICT iris is a cone sunk into the ball, and reflected the lights as a ring round the pupil)
+            mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=_radial(v[uniq[:, 0]], _eyeballs(rig, v)[0])[1],
+                                   process=False)
+        else:
+            mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=normals[uniq[:, 0]], process=False)
         if textured:
             mesh.visual = trimesh.visual.TextureVisuals(uv=rig.uv[uniq[:, 1]])
         tex = (albedo if name == "skin" else rig.part_textures[name]) if textured else None
         skin = name == "skin" and textured
         rough = _SKIN_SHADING_ROUGHNESS.get(name) if shading == "skin" else None
         rough = _PART_ROUGHNESS.get(name, 0.62) if rough is None else rough
-        mat = _tear_material(shading) if name == "tear" else _material(
-            shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough, normal_map if skin else None,
-            specular_map if skin else None, scatter=name == "skin", inside=name in INSIDE_PARTS and occlusion is not None)
+        if name == "tear":
+            mat = _tear_material(shading)
+        elif name == "eye_shadow":
+            if tex is None:
+                continue  # without its texture the shell would cover the eye
+            mat = _eye_shadow_material(shading, tex)
+        else:
+            mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough,
+                            normal_map if skin else None, specular_map if skin else None, scatter=name == "skin",
+                            inside=name in INSIDE_PARTS and occlusion is not None, glint=name == "eye")
         occ = None if occlusion is None else np.asarray(occlusion)[uniq[:, 0]]
         parts.append(RenderPart(mesh, material=mat, smooth=True, name=name, occlusion=occ))
     if rig.body is not None:
@@ -231,6 +254,54 @@ def _tear_material(shading: str) -> object:
     return _cached(("tear", shading), (), lambda: _shader_defines(pyrender.MetallicRoughnessMaterial(
         baseColorFactor=TEAR_COLOUR, metallicFactor=0.0, roughnessFactor=TEAR_ROUGHNESS, alphaMode="BLEND",
         doubleSided=True), shading, scatter=False))
+
+
+#: The eye's shadow layer lies this much outside the eyeball (a fraction of its radius: 0.24 mm on
+#: a 12 mm ball), so the lids' skin, in front of the ball, covers all of it but the eye's opening.
+EYE_SHADOW_LIFT = 0.02
+
+
+def _eyeballs(rig: FaceRig, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (2, 3) and radii (2,) of the spheres fitted to the rig's drawn eyeballs at ``vertices``."""
+    from stimulus_engine.parts.eyes import fit_sphere
+
+    drawn = np.unique(rig.faces[rig.face_part == rig.part_names.index("eye")])
+    side = vertices[drawn, 0] > vertices[drawn, 0].mean()  # the two balls lie either side of the face's middle
+    spheres = [fit_sphere(vertices[drawn[side == s]]) for s in (False, True) if (side == s).sum() >= 4]
+    return np.array([c for c, _ in spheres]), np.array([r for _, r in spheres])
+
+
+def _radial(points: np.ndarray, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the nearest of ``centres`` for each point, and the unit direction from it."""
+    k = np.argmin(np.linalg.norm(points[:, None, :] - centres[None], axis=2), axis=1)
+    out = points - centres[k]
+    return k, out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+
+
+def _onto_eyeballs(points: np.ndarray, rig: FaceRig, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``points`` moved radially onto the nearer eyeball's sphere, :data:`EYE_SHADOW_LIFT` outside
+    it, and their outward unit normals.
+
+    A rig's eye-occlusion shell, fitted to one head, pokes out in front of another's lids (a dark
+    arc on the lid's skin); on the ball it shows only through the opening the lids leave."""
+    centres, radii = _eyeballs(rig, vertices)
+    k, out = _radial(points, centres)
+    return centres[k] + out * (radii[k] * (1 + EYE_SHADOW_LIFT))[:, None], out
+
+
+def _eye_shadow_material(shading: str, texture: np.ndarray) -> object:
+    """The eye-occlusion shell's material: its texture's alpha blended over the eye (the lids'
+    soft shadow and the caruncle, :func:`stimulus_engine.parts.eyes.eye_shadow_texture`), matte,
+    both sides."""
+    from stimulus_engine.render._pyrender import pyrender
+
+    def make() -> object:
+        tex = pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGBA")
+        return _shader_defines(pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(1.0, 1.0, 1.0, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
+            alphaMode="BLEND", doubleSided=True), shading, scatter=False)
+
+    return _cached(("eye_shadow", shading), (texture,), make)
 
 
 #: Roughness of the garment (matte knit).

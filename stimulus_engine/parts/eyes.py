@@ -18,8 +18,8 @@ import numpy as np
 from stimulus_engine.data import DATA_DIR
 from stimulus_engine.geometry.ramps import smoothstep
 
-__all__ = ["eye_texture", "eyeball_asset", "eyeball_uv", "fit_sphere", "painted_pupils", "photographic_eye_texture",
-           "tint_iris"]
+__all__ = ["eye_shadow_texture", "eye_texture", "eyeball_asset", "eyeball_uv", "fit_sphere", "painted_pupils",
+           "photographic_eye_texture", "tint_iris"]
 
 #: Default angles (degrees from the gaze axis, seen from the eyeball centre). Measured on the ICT
 #: Face Model's inner eyeball (the flattened iris cone ends at 24–27°, the pupil dip at ~8°;
@@ -231,6 +231,41 @@ def photographic_eye_texture(size: int = 512, iris_angle: float = IRIS_ANGLE) ->
     img = np.clip(np.rint(out.reshape(size, size, 3)), 0, 255).astype(np.uint8)
     img.setflags(write=False)
     return img
+
+#: The eye's shadow layer (a rig's eye-occlusion shell over the eye opening): the darkest it gets
+#: under the upper lid, above the lower lid and in the corners (alpha 0..1), its colour (sRGB), and
+#: the caruncle's (the pink fold in the inner corner).
+EYE_SHADOW_UPPER, EYE_SHADOW_LOWER, EYE_SHADOW_CORNER = 0.6, 0.3, 0.45
+EYE_SHADOW_COLOUR = (52, 30, 26)
+CARUNCLE_COLOUR, CARUNCLE_ALPHA = (196, 112, 106), 0.85
+
+
+@functools.lru_cache(maxsize=4)
+def eye_shadow_texture(size: int = 128) -> np.ndarray:
+    """(size, size, 4) uint8 RGBA for a rig's eye-occlusion shell: a soft shadow along the lids and
+    the corners, transparent over the middle of the eye, and the caruncle in the inner corner.
+
+    The shell's UVs (the ICT Face Model's ``eye_occlusion`` meshes) run across the eye opening:
+    u from the outer corner (0) to the inner (1), v from the lower lid (0) to the upper (1), its
+    border on the lid margins. The upper lid's shadow is the widest and darkest (it shades the
+    sclera's top third in photographs, where the rasteriser draws the eyeball evenly lit); the
+    caruncle is an ellipse of pink at the inner end, which turns the sclera's hard white wedge into
+    the fleshy corner of a real eye.
+    """
+    v, u = np.mgrid[0:size, 0:size].astype(np.float64)
+    u, v = (u + 0.5) / size, 1.0 - (v + 0.5) / size  # image rows run top (v = 1) to bottom
+    layers = (EYE_SHADOW_UPPER * smoothstep(v, 0.52, 0.9), EYE_SHADOW_LOWER * (1 - smoothstep(v, 0.12, 0.42)),
+              EYE_SHADOW_CORNER * (1 - smoothstep(u, 0.0, 0.16)), EYE_SHADOW_CORNER * smoothstep(u, 0.8, 1.0))
+    alpha = 1 - np.prod([1 - a for a in layers], axis=0)
+    rgb = np.broadcast_to(np.asarray(EYE_SHADOW_COLOUR, np.float64), (size, size, 3)).copy()
+    r = np.hypot((u - 0.97) / 0.07, (v - 0.5) / 0.16)
+    pink = CARUNCLE_ALPHA * (1 - smoothstep(r, 0.55, 1.0))
+    rgb = rgb * (1 - pink[..., None]) + np.asarray(CARUNCLE_COLOUR, np.float64) * pink[..., None]
+    alpha = np.maximum(alpha, pink)
+    img = np.rint(np.dstack([rgb, 255 * alpha])).clip(0, 255).astype(np.uint8)
+    img.setflags(write=False)
+    return img
+
 
 _ASSET = DATA_DIR / "eyes"
 

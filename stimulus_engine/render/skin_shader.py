@@ -17,6 +17,13 @@ switches a material turns on through its ``appeal_defines`` (see
     light's baked shadow (:mod:`.light_shadows`, :mod:`.baked_shadows`).
 ``OCCLUDED_AMBIENT`` (the ``skin`` shading)
     The ambient light is multiplied by that red channel; direct light keeps its shadows.
+``EYE_GLINT`` (the eyeballs, ``pbr`` and ``skin`` shadings)
+    The eye reflects the lights as one glint: each light gives only its diffuse term, and the
+    lights on the camera's side add one specular lobe from their intensity-weighted mean
+    direction, widened by their spread (roughness at least :data:`GLINT_SPREAD` times the
+    square root of ``1 − |Σ I l| / Σ I``). A dome of a dozen lights (``gi_soft``) had put a ring of sharp dots
+    around every pupil, where a photograph shows one soft window; a single key light still gives
+    a crisp catch-light.
 ``TONEMAP_FILMIC`` (every part of a ``skin`` render)
     The linear colour goes through the ACES filmic curve (Narkowicz 2015 fit, exposure
     :data:`EXPOSURE`) and the exact sRGB encoding instead of pyrender's clipped ``pow(1/2.2)``:
@@ -25,7 +32,7 @@ switches a material turns on through its ``appeal_defines`` (see
 
 from __future__ import annotations
 
-__all__ = ["SCATTER_WRAP", "EXPOSURE", "HUE_KEEP", "skin_fragment_shader"]
+__all__ = ["SCATTER_WRAP", "EXPOSURE", "GLINT_SPREAD", "HUE_KEEP", "skin_fragment_shader"]
 
 #: Per-channel wrap of the diffuse cosine (R, G, B): how far light reaches past the terminator.
 SCATTER_WRAP = (0.45, 0.18, 0.10)
@@ -35,6 +42,9 @@ EXPOSURE = 0.8
 
 #: Share of the tone curve applied to the luminance (keeping the hue) instead of each channel.
 HUE_KEEP = 0.5
+
+#: How much the lights' spread widens the eye's one glint (times the square root of the spread).
+GLINT_SPREAD = 0.5
 
 _FUNCTIONS = """
 vec3 compute_skin(vec3 n, vec3 v, vec3 l, float roughness, float metalness, vec3 f0, vec3 c_diff, vec3 albedo,
@@ -56,6 +66,46 @@ vec3 compute_skin(vec3 n, vec3 v, vec3 l, float roughness, float metalness, vec3
         vec3 diffuse_contrib = (1.0 - F) * c_diff / PI;
         vec3 spec_contrib = F * G * D / (4.0 * nl * nv + 0.001);
         return radiance * (nl_wrapped * diffuse_contrib + step(0.0, nl_raw) * nl * spec_contrib);
+}
+
+vec3 compute_eye(vec3 n, vec3 v, vec3 l, float roughness, float metalness, vec3 f0, vec3 c_diff, vec3 albedo,
+                 vec3 radiance)
+{
+        // the diffuse term only: the eye's glint is one lobe for all the lights (EYE_GLINT)
+        vec3 h = normalize(l+v);
+        float nl = clamp(dot(n, l), 0.001, 1.0);
+        float nv = clamp(abs(dot(n, v)), 0.001, 1.0);
+        PBRInfo info = PBRInfo(nl, nv, clamp(dot(n, h), 0.0, 1.0), clamp(dot(l, h), 0.0, 1.0),
+                               clamp(dot(v, h), 0.0, 1.0), roughness, metalness, f0, c_diff);
+        return nl * radiance * (1.0 - specular_reflection(info)) * c_diff / PI;
+}
+
+vec3 eye_glint(vec3 n, vec3 v, float roughness, vec3 f0)
+{
+        vec3 sum_l = vec3(0.0);
+        vec3 sum_radiance = vec3(0.0);
+        float sum_i = 0.0;
+        for (int i = 0; i < n_directional_lights; i++) {
+            vec3 l = normalize(-1.0 * directional_lights[i].direction);
+            float w = step(0.0, dot(l, v)) * directional_lights[i].intensity;  // lights on the camera's side
+            sum_l += w * l;
+            sum_radiance += w * directional_lights[i].color;
+            sum_i += w;
+        }
+        if (sum_i <= 0.0) {
+            return vec3(0.0);
+        }
+        float len_l = length(sum_l);
+        vec3 l = sum_l / max(len_l, 1e-6);
+        float r = clamp(max(roughness, GLINT_SPREAD * sqrt(max(1.0 - len_l / sum_i, 0.0))), 0.04, 1.0);
+        vec3 h = normalize(l+v);
+        float nl = clamp(dot(n, l), 0.001, 1.0);
+        float nv = clamp(abs(dot(n, v)), 0.001, 1.0);
+        PBRInfo info = PBRInfo(nl, nv, clamp(dot(n, h), 0.0, 1.0), clamp(dot(l, h), 0.0, 1.0),
+                               clamp(dot(v, h), 0.0, 1.0), r, 0.0, f0, vec3(0.0));
+        vec3 spec = specular_reflection(info) * geometric_occlusion(info) * microfacet_distribution(info)
+                    / (4.0 * nl * nv + 0.001);
+        return step(0.0, dot(n, l)) * nl * sum_radiance * spec;
 }
 
 vec3 aces_curve(vec3 x)
@@ -81,7 +131,11 @@ vec3 linear_to_srgb(vec3 c)
 #ifdef SKIN_SCATTER
 #define SHADE compute_skin
 #else
+#ifdef EYE_GLINT
+#define SHADE compute_eye
+#else
 #define SHADE compute_brdf
+#endif
 #endif
 
 """
@@ -97,6 +151,11 @@ _OCCLUDED_AMBIENT = """#ifdef OCCLUDED_AMBIENT
 """ + _AMBIENT + "#endif\n"
 _MULTIPLY = "#ifdef COLOR_0_LOC\n    color *= color_multiplier;\n#endif\n"
 _MULTIPLY_UNLESS_BAKED = "#ifdef COLOR_0_LOC\n#ifdef VISIBILITY_IN_COLOR0\n#else\n    color *= color_multiplier;\n#endif\n#endif\n"
+_POINT_LOOP = "    for (int i = 0; i < n_point_lights; i++) {\n"
+_GLINT = """#ifdef EYE_GLINT
+    color.xyz += eye_glint(n, normalize(cam_pos - frag_position), roughness, f0);
+#endif
+""" + _POINT_LOOP
 _OUTPUT = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
 _TONEMAPPED = """#ifdef TONEMAP_FILMIC
     frag_color = vec4(linear_to_srgb(aces_filmic(color.xyz)), clamp(color.a * base_color.a, 0.0, 1.0));
@@ -105,7 +164,7 @@ _TONEMAPPED = """#ifdef TONEMAP_FILMIC
 
 
 def skin_fragment_shader(text: str) -> str:
-    """pyrender 0.1.45's ``mesh.frag`` with the ``SKIN_SCATTER`` and ``TONEMAP_FILMIC`` switches.
+    """pyrender 0.1.45's ``mesh.frag`` with the switches of the module docstring.
 
     Without either define the shader computes exactly what it did before (``SHADE`` is
     ``compute_brdf``, the output line is pyrender's).
@@ -114,11 +173,13 @@ def skin_fragment_shader(text: str) -> str:
     # after the Phong patch the output line appears again in the glossy branch: only the first
     # (metallic-roughness) one is switched
     if (text.count(call) != 3 or text.count(_OUTPUT) < 1 or text.count(_AMBIENT) < 1 or text.count(_MULTIPLY) < 1
-            or text.count("float texture2DCompare(") != 1):
+            or text.count("float texture2DCompare(") != 1 or text.count(_POINT_LOOP) < 1):
         raise RuntimeError("pyrender's mesh.frag changed: the skin shader patch was written for pyrender 0.1.45")
     functions = (_FUNCTIONS.replace("SCATTER_WRAP", ", ".join(f"{w:.4f}" for w in SCATTER_WRAP))
-                 .replace("EXPOSURE", f"{EXPOSURE:.4f}").replace("HUE_KEEP", f"{HUE_KEEP:.4f}"))
+                 .replace("EXPOSURE", f"{EXPOSURE:.4f}").replace("HUE_KEEP", f"{HUE_KEEP:.4f}")
+                 .replace("GLINT_SPREAD", f"{GLINT_SPREAD:.4f}"))
     i = text.index("float texture2DCompare(")
     text = text[:i] + functions + text[i:]
     return (text.replace(call, "SHADE(n, v, l, roughness, metallic,").replace(_OUTPUT, _TONEMAPPED, 1)
-            .replace(_AMBIENT, _OCCLUDED_AMBIENT, 1).replace(_MULTIPLY, _MULTIPLY_UNLESS_BAKED))
+            .replace(_AMBIENT, _OCCLUDED_AMBIENT, 1).replace(_MULTIPLY, _MULTIPLY_UNLESS_BAKED)
+            .replace(_POINT_LOOP, _GLINT, 1))
