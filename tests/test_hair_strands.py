@@ -85,3 +85,22 @@ def test_combing_needs_a_hairline():
     closed = np.concatenate([f, f[:, ::-1] + 0])  # every edge used twice: no border
     with pytest.raises(ValueError, match="no open border"):
         combing_directions(v, closed)
+
+
+def test_strand_tangents_are_the_combing_direction_on_every_render_vertex():
+    """The render mesh repeats vertices along UV seams: each copy gets its position's direction,
+    unit length, in the surface; at the crown (no combing direction) a direction in the surface."""
+    from stimulus_engine.geometry.mesh_ops import vertex_normals
+    from stimulus_engine.render.hair_strands import strand_tangents
+
+    v, f, _ = _dome()
+    t = strand_tangents(v, f)
+    assert t.shape == v.shape and np.allclose(np.linalg.norm(t, axis=1), 1)
+    assert np.abs(np.einsum("ij,ij->i", t, vertex_normals(v, f))).max() < 0.2
+    # the seam's copies (first and last column of the dome) agree
+    n = 24
+    idx = np.arange(len(v) - 1).reshape(2 * n + 1, n)
+    assert np.allclose(t[idx[0]], t[idx[-1]])
+    # away from the pole they point down the dome, towards the hairline
+    body = (v[:, 1] < 4.0) & (v[:, 1] > 0.5)
+    assert (t[body, 1] < 0).all()

@@ -144,3 +144,32 @@ def test_an_eye_reflects_a_dome_of_lights_as_one_glint(shading):
     # the ball's diffuse shading is the same away from the glints: the switch only gathers them
     calm = body & (imgs[False] < np.percentile(imgs[False][body], 80)) & (imgs[True] < np.percentile(imgs[True][body], 80))
     assert calm.sum() > 1000 and np.abs(imgs[False][calm] - imgs[True][calm]).mean() < 6
+
+
+@pytest.mark.parametrize("shading", ["pbr", "skin"])
+def test_hair_highlights_run_across_the_strands(shading):
+    """Kajiya-Kay hair (HAIR_KAJIYA): a ball combed around its vertical axis, lit from the camera,
+    shows its sheen as a vertical band across the horizontal strands, where an isotropic lobe
+    shows a round spot."""
+    from stimulus_engine.characters.render_parts import _hair_material, _material
+
+    ball = trimesh.creation.icosphere(subdivisions=5)
+    ball.visual = trimesh.visual.TextureVisuals(uv=0.5 + 0.5 * ball.vertices[:, :2])
+    strands = np.cross([0.0, 1.0, 0.0], ball.vertices)  # around the vertical axis
+    strands[np.linalg.norm(strands, axis=1) < 1e-9] = [1.0, 0.0, 0.0]
+    strands /= np.linalg.norm(strands, axis=1, keepdims=True)
+    texture = np.full((8, 8, 4), 200, np.uint8)
+    texture[..., 3] = 255
+    mat = _hair_material(shading, (0.5, 0.45, 0.4), texture)
+    assert mat.appeal_defines.get("HAIR_KAJIYA") == 1
+    light = ([LightSpec("directional", (0.0, 0.0, -1.0), 3.0)], 0.0)
+    shapes = {}
+    plain = _material(shading, (0.5, 0.45, 0.4, 1.0), None, 0.3)
+    for name, part in (("strands", RenderPart(ball, material=mat, tangents=strands)), ("isotropic", RenderPart(ball, material=plain))):
+        img, depth = render_mesh([part], width=200, height=200,
+                                 lighting=light, shadows=False, return_depth=True)
+        lum = img.astype(float).mean(axis=2)
+        bright = (lum > np.percentile(lum[depth > 0], 95)) & (depth > 0)
+        rows, cols = np.nonzero(bright)
+        shapes[name] = np.ptp(rows) / max(np.ptp(cols), 1)
+    assert shapes["strands"] > 3 and shapes["isotropic"] < 2, shapes

@@ -362,9 +362,12 @@ def hair_render_part(hair: Hair, vertices: np.ndarray, shading: str = "pbr") -> 
     double-sided part; its grey strand texture is multiplied by the hair colour."""
     from stimulus_engine.render.renderer import RenderPart
 
+    from stimulus_engine.render.hair_strands import strand_tangents
+
     mesh = trimesh.Trimesh(hair.pose(vertices), hair.faces, process=False)
     mesh.visual = trimesh.visual.TextureVisuals(uv=hair.uv)
-    return RenderPart(mesh, material=_hair_material(shading, hair.colour, hair.texture), smooth=True, name="hair")
+    return RenderPart(mesh, material=_hair_material(shading, hair.colour, hair.texture), smooth=True, name="hair",
+                      tangents=strand_tangents(mesh.vertices, mesh.faces))
 
 
 def _hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray) -> object:
@@ -380,11 +383,15 @@ def _new_hair_material(shading: str, colour: tuple[float, float, float], texture
         mat = pyrender.material.SpecularGlossinessMaterial(
             diffuseFactor=(*colour, 1.0), diffuseTexture=tex, specularFactor=(_PHONG_SPECULAR,) * 3,
             glossinessFactor=1.17 - HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
-    else:
+    else:  # a flat normal map: pyrender hands the strand tangents to the shader only with one
+        flat = pyrender.Texture(source=np.full((4, 4, 3), (128, 128, 255), np.uint8), source_channels="RGB")
         mat = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=HAIR_ROUGHNESS,
-            alphaMode="MASK", doubleSided=True)
-    return _shader_defines(mat, shading, scatter=False)
+            alphaMode="MASK", doubleSided=True, normalTexture=flat)
+    mat = _shader_defines(mat, shading, scatter=False)
+    if shading in ("pbr", "skin"):
+        mat.appeal_defines["HAIR_KAJIYA"] = 1  # strand highlights along the tangents (render.skin_shader)
+    return mat
 
 
 def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32, *, inside_only: bool = False) -> np.ndarray:

@@ -31,7 +31,7 @@ import numpy as np
 from stimulus_engine.geometry.closest import SurfaceIndex
 from stimulus_engine.geometry.mesh_ops import boundary_vertex_mask, face_normals, vertex_normals
 
-__all__ = ["StrandSpec", "combing_directions", "grow_strands"]
+__all__ = ["StrandSpec", "combing_directions", "grow_strands", "strand_tangents"]
 
 
 @dataclass(frozen=True)
@@ -115,6 +115,21 @@ def combing_directions(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndar
     out = np.zeros_like(acc)
     out[length > 0] = acc[length > 0] / length[length > 0, None]
     return out, dist
+
+
+def strand_tangents(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(N, 3) unit combing direction at every vertex of a hair mesh as rendered (vertices may repeat
+    along UV seams; they get the same direction): the tangents pyrender's Kajiya-Kay hair shading
+    reads. Where the combing has no direction (the crown) any direction in the surface is taken."""
+    wv, wf, inverse = _welded(np.asarray(vertices, np.float64), np.asarray(faces, np.int64))
+    comb, _ = combing_directions(wv, wf)
+    flat = np.linalg.norm(comb, axis=1) < 0.5
+    if flat.any():
+        n = vertex_normals(wv, wf)[flat]
+        side = np.cross(n, [1.0, 0.0, 0.0])
+        side[np.linalg.norm(side, axis=1) < 1e-6] = [0.0, 0.0, 1.0]
+        comb[flat] = side / np.linalg.norm(side, axis=1, keepdims=True)
+    return comb[inverse]
 
 
 def _alpha_at(alpha: np.ndarray, uv: np.ndarray) -> np.ndarray:

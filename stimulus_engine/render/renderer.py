@@ -50,6 +50,9 @@ class RenderPart:
     occlusion : (N,) array or None
         Baked ambient visibility per vertex (:func:`~stimulus_engine.render.occlusion.vertex_occlusion`);
         a material that asks for it (the ``skin`` shading) dims its ambient light by it.
+    tangents : (N, 3) array or None
+        A direction per vertex in the surface (hair: along the strands), passed to the shader as
+        the vertex tangent (the ``HAIR_KAJIYA`` switch of :mod:`.skin_shader` reads it).
     """
 
     mesh: trimesh.Trimesh
@@ -57,6 +60,7 @@ class RenderPart:
     smooth: bool = True
     name: str = ""
     occlusion: Any = None
+    tangents: Any = None
 
 
 MeshLike = Union[trimesh.Trimesh, trimesh.Scene, RenderPart, "pyrender.Mesh"]
@@ -90,7 +94,7 @@ def release_renderers() -> None:
 
 
 def _smooth_mesh(mesh: trimesh.Trimesh, material: Any, occlusion: np.ndarray | None = None,
-                 visibility: np.ndarray | None = None) -> Any:
+                 visibility: np.ndarray | None = None, tangents: np.ndarray | None = None) -> Any:
     """A smooth-shaded pyrender mesh that *shares* ``material`` (what ``from_trimesh`` builds, minus
     its deep copy of the material). Sharing lets the renderer keep a texture on the GPU from one
     image to the next (pyrender uploads a texture only when a new one appears in the scene); the
@@ -107,8 +111,11 @@ def _smooth_mesh(mesh: trimesh.Trimesh, material: Any, occlusion: np.ndarray | N
         ao = np.ones(n, np.float32) if ao is None else ao
         vis = np.ones(n, np.float32) if vis is None else vis
         colour = np.stack([ao, vis, ao, np.ones_like(ao)], axis=1)
+    tan = None
+    if tangents is not None and len(tangents) == n:  # xyz and the bitangent's handedness
+        tan = np.column_stack([np.asarray(tangents, np.float32), np.ones(n, np.float32)])
     prim = pyrender.Primitive(positions=mesh.vertices, normals=mesh.vertex_normals, texcoord_0=uv, color_0=colour,
-                              indices=mesh.faces, material=material, mode=pyrender.constants.GLTF.TRIANGLES)
+                              tangents=tan, indices=mesh.faces, material=material, mode=pyrender.constants.GLTF.TRIANGLES)
     return pyrender.Mesh(primitives=[prim])
 
 
@@ -171,7 +178,7 @@ def _as_part(m: Any, visibility: np.ndarray | None = None) -> Any:
     if isinstance(m, pyrender.Mesh):
         return m
     if isinstance(m, RenderPart) and m.material is not None and m.smooth:
-        return _smooth_mesh(m.mesh, m.material, m.occlusion, visibility)
+        return _smooth_mesh(m.mesh, m.material, m.occlusion, visibility, m.tangents)
     if isinstance(m, RenderPart):
         return pyrender.Mesh.from_trimesh(m.mesh, material=m.material, smooth=m.smooth)
     return pyrender.Mesh.from_trimesh(m, smooth=True)

@@ -24,6 +24,14 @@ switches a material turns on through its ``appeal_defines`` (see
     square root of ``1 − |Σ I l| / Σ I``). A dome of a dozen lights (``gi_soft``) had put a ring of sharp dots
     around every pupil, where a photograph shows one soft window; a single key light still gives
     a crisp catch-light.
+``HAIR_KAJIYA`` (hair, ``pbr`` and ``skin`` shadings; per-vertex tangents along the strands, and a
+flat normal map, without which pyrender does not pass the tangents on)
+    Kajiya-Kay hair shading as game engines draw hair cards (Scheuermann 2004): the diffuse term
+    is the sine of the angle between strand and light, softened by the card's normal; the
+    specular term two highlights about the strand direction tilted along the normal by
+    :data:`HAIR_SHIFTS` (a white one, and one tinted by the hair's colour), each
+    ``sin(t, h) ** exponent`` (:data:`HAIR_EXPONENTS`, :data:`HAIR_SPECULAR`): bands of sheen
+    across the strands, where the isotropic lobe put round patches on the cards.
 ``TONEMAP_FILMIC`` (every part of a ``skin`` render)
     The linear colour goes through the ACES filmic curve (Narkowicz 2015 fit, exposure
     :data:`EXPOSURE`) and the exact sRGB encoding instead of pyrender's clipped ``pow(1/2.2)``:
@@ -32,7 +40,8 @@ switches a material turns on through its ``appeal_defines`` (see
 
 from __future__ import annotations
 
-__all__ = ["SCATTER_WRAP", "EXPOSURE", "GLINT_SPREAD", "HUE_KEEP", "skin_fragment_shader"]
+__all__ = ["SCATTER_WRAP", "EXPOSURE", "GLINT_SPREAD", "HAIR_EXPONENTS", "HAIR_SHIFTS", "HAIR_SPECULAR", "HUE_KEEP",
+           "skin_fragment_shader"]
 
 #: Per-channel wrap of the diffuse cosine (R, G, B): how far light reaches past the terminator.
 SCATTER_WRAP = (0.45, 0.18, 0.10)
@@ -45,6 +54,12 @@ HUE_KEEP = 0.5
 
 #: How much the lights' spread widens the eye's one glint (times the square root of the spread).
 GLINT_SPREAD = 0.5
+
+#: Kajiya-Kay hair: the two highlights' strand tilt along the normal, exponents and strengths
+#: (the first white, the second times the hair's colour).
+HAIR_SHIFTS = (0.08, -0.12)
+HAIR_EXPONENTS = (80.0, 16.0)
+HAIR_SPECULAR = (0.12, 0.5)
 
 _FUNCTIONS = """
 vec3 compute_skin(vec3 n, vec3 v, vec3 l, float roughness, float metalness, vec3 f0, vec3 c_diff, vec3 albedo,
@@ -108,6 +123,42 @@ vec3 eye_glint(vec3 n, vec3 v, float roughness, vec3 f0)
         return step(0.0, dot(n, l)) * nl * sum_radiance * spec;
 }
 
+// the strand direction: the vertex tangent, which reaches the fragment shader only as the TBN
+// frame of a normal-mapped material (hair carries a flat normal map for it); pyrender evaluates
+// each #ifdef itself, so the three conditions are nested around the function
+vec3 strand_direction(vec3 n)
+{
+        vec3 t = normalize(cross(n, vec3(1.0, 0.0, 0.0)) + vec3(1e-4));
+#ifdef HAS_NORMAL_TEX
+#ifdef TANGENT_LOC
+#ifdef NORMAL_LOC
+        t = tbn[0];
+#endif
+#endif
+#endif
+        return normalize(t - n * dot(n, t));
+}
+
+float strand_highlight(vec3 t, vec3 n, vec3 h, float shift, float exponent)
+{
+        vec3 ts = normalize(t + shift * n);
+        float th = dot(ts, h);
+        return pow(sqrt(max(1.0 - th * th, 0.0)), exponent);
+}
+
+vec3 compute_hair(vec3 n, vec3 v, vec3 l, float roughness, float metalness, vec3 f0, vec3 c_diff, vec3 albedo,
+                  vec3 radiance)
+{
+        vec3 t = strand_direction(n);
+        vec3 h = normalize(l + v);
+        float tl = dot(t, l);
+        float facing = clamp(0.5 + 0.5 * dot(n, l), 0.0, 1.0);  // cards are drawn from both sides
+        vec3 diffuse = c_diff / PI * sqrt(max(1.0 - tl * tl, 0.0)) * facing;
+        vec3 spec = HAIR_SPECULAR_1 * vec3(strand_highlight(t, n, h, HAIR_SHIFT_1, HAIR_EXPONENT_1))
+                    + HAIR_SPECULAR_2 * albedo * strand_highlight(t, n, h, HAIR_SHIFT_2, HAIR_EXPONENT_2);
+        return radiance * (diffuse + spec * facing);
+}
+
 vec3 aces_curve(vec3 x)
 {
     return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
@@ -134,7 +185,11 @@ vec3 linear_to_srgb(vec3 c)
 #ifdef EYE_GLINT
 #define SHADE compute_eye
 #else
+#ifdef HAIR_KAJIYA
+#define SHADE compute_hair
+#else
 #define SHADE compute_brdf
+#endif
 #endif
 #endif
 
@@ -178,6 +233,10 @@ def skin_fragment_shader(text: str) -> str:
     functions = (_FUNCTIONS.replace("SCATTER_WRAP", ", ".join(f"{w:.4f}" for w in SCATTER_WRAP))
                  .replace("EXPOSURE", f"{EXPOSURE:.4f}").replace("HUE_KEEP", f"{HUE_KEEP:.4f}")
                  .replace("GLINT_SPREAD", f"{GLINT_SPREAD:.4f}"))
+    for k in (0, 1):
+        functions = (functions.replace(f"HAIR_SHIFT_{k + 1}", f"{HAIR_SHIFTS[k]:.4f}")
+                     .replace(f"HAIR_EXPONENT_{k + 1}", f"{HAIR_EXPONENTS[k]:.4f}")
+                     .replace(f"HAIR_SPECULAR_{k + 1}", f"{HAIR_SPECULAR[k]:.4f}"))
     i = text.index("float texture2DCompare(")
     text = text[:i] + functions + text[i:]
     return (text.replace(call, "SHADE(n, v, l, roughness, metallic,").replace(_OUTPUT, _TONEMAPPED, 1)
