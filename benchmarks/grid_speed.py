@@ -10,7 +10,9 @@ ratio now / then (machines are noisy: alternate, and read the median).
 
 Measured 2026-11-26 on this 2-core machine (pyrender, OSMesa), the shipped Exp. 2 grid (250
 images) with every part on (eyes aimed, lashes, mouth interior, hair styles, bust and garment):
-64.0 and 66.2 s now against 57.3 and 55.2 s at e309ec3: median ratio 1.16 (the issue's bound: 1.5).
+64.0 and 66.2 s now against 57.3 and 55.2 s at e309ec3: median ratio 1.16 (the issue's bound: 1.5);
+with the lids' shadow, one glint per eye and Kajiya-Kay hair (b1d00c5): 69.8 and 73.8 s against
+60.9 and 60.9 s, ratio 1.18.
 
 Run:  .venv/bin/python benchmarks/grid_speed.py [--grid protocols/grids/exp2_stylisation.yaml]
           [--base e309ec3] [--repeats 2]
