@@ -34,10 +34,8 @@ def _scene(folder: Path) -> Path:
     from appeal.studyfile import load_study_file
     from stimulus_engine.grid.prepare import prepare_grid
     from stimulus_engine.grid.schema import GridFile
-    from stimulus_engine.grid.worker import item_scene
-    from stimulus_engine.render import lighting_preset
+    from stimulus_engine.grid.worker import export_item_scene
     from stimulus_engine.render.hair_strands import grow_strands
-    from stimulus_engine.render.scene_export import export_scene
 
     grid = yaml.safe_load((ROOT / "protocols/grids/exp2_stylisation.yaml").read_text())
     grid["characters"] = [c for c in grid["characters"] if c["name"] == "lps"]
@@ -45,10 +43,7 @@ def _scene(folder: Path) -> Path:
     path = folder / "lps.yaml"
     path.write_text(yaml.safe_dump(grid))
     _, items, _ = prepare_grid(load_study_file(path, GridFile), folder / "out")
-    parts, cam = item_scene(items[0])
-    lights, ambient = lighting_preset("gi_soft")
-    scene = export_scene(parts, lights, ambient, cam, folder / "scene", width=1024, height=768,
-                         background=(0.5, 0.5, 0.5))
+    scene = export_item_scene(items[0], folder / "scene")  # 1024 x 768, gi_soft, as shipped
     spec = json.loads(scene.read_text())
     k = [p["name"] for p in spec["parts"]].index("hair")
     arrays = np.load(scene.parent / "parts.npz")

@@ -177,7 +177,7 @@ def test_hair_is_rendered_as_strands_with_the_principled_hair_bsdf(tmp_path, sha
     import subprocess
 
     from stimulus_engine.grid.prepare import prepare_grid
-    from stimulus_engine.grid.worker import item_scene
+    from stimulus_engine.grid.worker import export_item_scene, item_scene
     from stimulus_engine.render.cycles import composite
 
     p = tmp_path / "hair.yaml"
@@ -193,10 +193,8 @@ shading: [pbr]
 render: {{width: 128, height: 96, engine: cycles, samples: 4}}
 """)
     _, items, _ = prepare_grid(load_study_file(p, GridFile), tmp_path / "out")
+    scene = export_item_scene(items[0], tmp_path / "scene")
     parts, cam = item_scene(items[0])
-    lights, ambient = lighting_preset("gi_soft")
-    scene = export_scene(parts, lights, ambient, cam, tmp_path / "scene", width=128, height=96,
-                         background=(0.5, 0.5, 0.5))
     spec = json.loads(scene.read_text())
     k = [r["name"] for r in spec["parts"]].index("hair")
     assert spec["parts"][k]["strands"]

@@ -108,6 +108,19 @@ def _render_pyrender(item: RenderItem) -> np.ndarray:
                        background=item.background, shadows=item.shadows)
 
 
+def export_item_scene(item: RenderItem, folder: str | Path) -> Path:
+    """Export ``item``'s scene as the path tracer reads it (its parts, lighting, camera, size and
+    background: :func:`stimulus_engine.render.scene_export.export_scene`) into ``folder``; the
+    path of its ``scene.json``."""
+    from stimulus_engine.render import lighting_preset
+    from stimulus_engine.render.scene_export import export_scene
+
+    parts, cam = item_scene(item)
+    lights, ambient = lighting_preset(item.lighting) if isinstance(item.lighting, str) else item.lighting
+    return export_scene(parts, lights, ambient, cam, folder, width=item.width, height=item.height,
+                        background=item.background)
+
+
 def _render_cycles(item: RenderItem) -> np.ndarray:
     """The image of ``item`` path-traced by Blender's Cycles (in its own Python)."""
     from stimulus_engine.render.cycles import render_cycles
