@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from stimulus_engine.characters.render_parts import INSIDE_PARTS, TEETH_FLOOR, rig_occlusion
+from stimulus_engine.characters.render_parts import INSIDE_FLOOR, INSIDE_PARTS, TEETH_FLOOR, rig_occlusion
 from stimulus_engine.characters.rig import FaceRig
 
 
@@ -42,13 +42,17 @@ def _box_mouth(gap: bool) -> FaceRig:
 def test_inside_parts_see_the_front_through_the_opening():
     for gap in (True, False):
         rig = _box_mouth(gap)
+        direct = rig_occlusion(rig, rig.vertices, floors=(0.0, 0.0))
         occ = rig_occlusion(rig, rig.vertices)
         teeth = np.unique(rig.faces[rig.face_part == 1])
         tongue = np.unique(rig.faces[rig.face_part == 2])
         if gap:  # a slot 1 unit high, 1 unit in front: the front cone is partly open
-            assert 0.05 < occ[tongue].mean() < 0.9 and occ[teeth].min() >= TEETH_FLOOR
-        else:  # a closed mouth: no light reaches the tongue, teeth keep their floor
-            assert occ[tongue].max() < 1e-6 and np.allclose(occ[teeth], TEETH_FLOOR)
+            assert 0.05 < direct[tongue].mean() < 0.9
+        else:  # a closed mouth: no direct light reaches inside
+            assert direct[tongue].max() < 1e-6 and direct[teeth].max() < 1e-6
+        # the bounced light's floors
+        assert np.allclose(occ[tongue], np.maximum(direct[tongue], INSIDE_FLOOR))
+        assert np.allclose(occ[teeth], np.maximum(direct[teeth], TEETH_FLOOR))
     assert set(INSIDE_PARTS) == {"mouth", "teeth", "tongue"}
 
 

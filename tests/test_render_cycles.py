@@ -229,3 +229,36 @@ bpy.ops.render.render(write_still=True)
 
     hair, skin = seen("hair"), seen("skin")
     assert hair.sum() > 200 and img[hair].mean() < 0.6 * img[skin].mean(), (hair.sum(), img[hair].mean(), img[skin].mean())
+
+
+@needs_cycles
+@pytest.mark.slow
+def test_the_inside_of_an_open_mouth_agrees_between_the_engines(tmp_path):
+    """Lee Perry-Smith's surprise (Exp. 2's character, gi_soft, pbr): the teeth and the tongue seen
+    through the open mouth are as bright in pyrender (direct light from the front, and the
+    bounced light's floor) as in Cycles (four diffuse bounces), within a quarter. With direct
+    light only, the tongue was a black hole (6 against 120 grey levels)."""
+    import yaml
+
+    from stimulus_engine.grid.prepare import prepare_grid
+    from stimulus_engine.grid.worker import item_scene
+    from stimulus_engine.render import render_mesh
+    from stimulus_engine.render.cycles import render_cycles
+
+    root = Path(__file__).resolve().parents[1]
+    grid = yaml.safe_load((root / "protocols/grids/exp2_stylisation.yaml").read_text())
+    grid["characters"] = [c for c in grid["characters"] if c["name"] == "lps"]
+    grid.update(shapes=[0.0], materials=["original"], expressions=["surprise"], render={"shadows": False})
+    path = tmp_path / "mouth.yaml"
+    path.write_text(yaml.safe_dump(grid))
+    _, items, _ = prepare_grid(load_study_file(path, GridFile), tmp_path / "out")
+    parts, cam = item_scene(items[0])
+    kw = dict(width=512, height=384, lighting="gi_soft", camera=cam)
+    py, full = render_mesh(parts, return_depth=True, shadows=False, **kw)
+    cy = render_cycles(parts, samples=16, **kw)
+    for name in ("teeth", "tongue"):
+        depth = render_mesh([p for p in parts if p.name == name], return_depth=True, shadows=False, **kw)[1]
+        seen = (depth > 0) & (np.abs(depth - full) < 1e-4 * full.max())
+        assert seen.sum() > 20, name
+        a, b = py[seen].astype(float).mean(), cy[seen].astype(float).mean()
+        assert 0.75 < a / b < 1.25, (name, a, b)

@@ -68,7 +68,7 @@ def test_james_scan_drawn_as_itself_in_a_grid(shared_data, tmp_path):
 def test_james_gets_eyeballs_and_lips_that_part(shared_data, tmp_path):
     """The defaults (eyes: eyeballs, mouth: inside) on the real scan against its painted eyes and
     one-surface lips: neutral, only the eyes differ (the closed lips' cut does not show) and show
-    bright sclera; surprised, the parted lips show a dark mouth (socket, teeth and tongue behind
+    bright sclera; surprised, the parted lips show the mouth (socket, teeth and tongue behind
     them) where the one-surface lips do not."""
     from PIL import Image
 
@@ -120,10 +120,12 @@ def test_james_gets_eyeballs_and_lips_that_part(shared_data, tmp_path):
     skin = float(np.median(lum["default", "neutral"][ys.min() - 20:ys.min() - 5, xs.min():xs.max() + 1]))
     assert np.percentile(lum["default", "neutral"][eyes], 10) < 0.6 * skin
     assert np.percentile(lum["default", "neutral"][eyes], 90) > skin
-    # surprised: a dark open mouth below the eyes
-    dark = (lum["default", "surprise"] < 40) & (lum["scan", "surprise"] > 60)
-    dy, dx = np.nonzero(dark)
-    assert dark.sum() > 40 and dy.mean() > ys.mean() + 0.1 * 384 and abs(dx.mean() - xs.mean()) < 0.05 * 512
+    # surprised: the parted lips open on the inside of the mouth below the eyes, darker than the
+    # scan's own lips there (lit by the light bounced in: no longer black, as Cycles renders it)
+    below = np.arange(lum["default", "surprise"].shape[0])[:, None] > ys.mean() + 0.1 * 384
+    opened = below & (lum["default", "surprise"] < lum["scan", "surprise"] - 20)
+    dy, dx = np.nonzero(opened)
+    assert opened.sum() > 40 and abs(dx.mean() - xs.mean()) < 0.05 * 512, (opened.sum(), dx.mean(), xs.mean())
 
 
 def test_a_scan_wears_a_hair_style_over_its_own_hair():

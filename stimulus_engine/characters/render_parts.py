@@ -394,7 +394,8 @@ def _new_hair_material(shading: str, colour: tuple[float, float, float], texture
     return mat
 
 
-def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32, *, inside_only: bool = False) -> np.ndarray:
+def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32, *, inside_only: bool = False,
+                  floors: tuple[float, float] | None = None) -> np.ndarray:
     """Ambient visibility ``(N,)`` of every vertex of ``rig`` at ``vertices``, the whole head
     (every part, hidden ones too: the inside of the mouth) occluding (:mod:`.occlusion`).
 
@@ -402,8 +403,10 @@ def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32, *, inside_
     the share of directions within :data:`FRONT_CONE_DEG` of +z (towards the camera, where the
     lighting presets' key and dome lights stand) that leave the mouth unblocked, among those
     their surface faces. The whole hemisphere's visibility (about 0.1 behind parted lips) made
-    teeth seen through the opening, and lit through it, dark grey. With ``inside_only`` the rest
-    is left at 1 (what shadings other than ``skin`` need: a third of the time).
+    teeth seen through the opening, and lit through it, dark grey. Inside parts see at least
+    ``floors`` (the mouth's and the teeth's; default :data:`INSIDE_FLOOR`, :data:`TEETH_FLOOR`):
+    the light bounced in. With ``inside_only`` the rest is left at 1 (what shadings other than
+    ``skin`` need: a third of the time).
     """
     from stimulus_engine.render.occlusion import cone_directions, light_visibility, vertex_occlusion
 
@@ -416,16 +419,25 @@ def rig_occlusion(rig: FaceRig, vertices: np.ndarray, rays: int = 32, *, inside_
         dirs = cone_directions(np.array([0.0, 0.0, 1.0]), np.radians(FRONT_CONE_DEG), 24)
         seen = light_visibility(v[idx], normals[idx], (v, rig.faces), dirs)  # unblocked and facing, of all
         facing = (normals[idx] @ dirs.T > 0).mean(axis=1)
-        out[idx] = np.where(facing > 0, seen / np.maximum(facing, 1e-9), 0.0).astype(np.float32)
+        direct = np.where(facing > 0, seen / np.maximum(facing, 1e-9), 0.0)
+        inside_floor, teeth_floor = (INSIDE_FLOOR, TEETH_FLOOR) if floors is None else floors
+        out[idx] = np.maximum(direct, inside_floor).astype(np.float32)
         if "teeth" in rig.part_names:  # enamel carries light in from the lit front teeth
             teeth = np.unique(rig.faces[rig.face_part == rig.part_names.index("teeth")])
-            out[teeth] = np.maximum(out[teeth], TEETH_FLOOR)
+            out[teeth] = np.maximum(out[teeth], teeth_floor)
     return out
 
 
-#: The least visibility of a tooth: enamel and dentine scatter light along the tooth (seen
-#: through barely parted lips, teeth lit only through the gap came out black, like holes).
-TEETH_FLOOR = 0.4
+#: The least visibility of anything inside the mouth, and of a tooth: the light that reaches them
+#: after bouncing off teeth, lips and cheeks, which the cone's direct visibility leaves out. Set so
+#: that pyrender agrees with the path tracer on the same scenes (Exp. 2's surprise, gi_soft,
+#: pbr; mean sRGB of each part's visible pixels): with 0 and 0.4 the tongue came out (6, 4, 4) for
+#: Lee Perry-Smith and (49, 29, 29) for james where Cycles, with its four diffuse bounces, gives
+#: (120, 68, 65) and (125, 69, 66) -- a black hole in every open mouth -- and the teeth (112, 105,
+#: 95) against (142, 122, 110); with 0.55 and 0.7, (107, 64, 64), (108, 64, 64) and (143, 134, 121).
+#: Enamel and dentine also carry light along each tooth (through barely parted lips, teeth lit only
+#: through the gap came out black, like holes).
+INSIDE_FLOOR, TEETH_FLOOR = 0.55, 0.7
 
 
 #: Half-angle of the cone of directions, about the view axis, whose visibility lights the inside
