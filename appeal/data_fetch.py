@@ -23,6 +23,7 @@ import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
+from appeal.atomic import atomic_write_bytes
 from appeal.datasets import DataFile, Dataset, dataset, fetch_root
 from appeal.errors import AppealInputError
 from appeal.progress import progress_enabled
@@ -71,10 +72,11 @@ class FetchReport:
     present: list[str]
 
 
-def _source(ds: Dataset, f: DataFile, base_url: str | None) -> str:
+def _source(ds: Dataset, f: DataFile, base_url: str | None) -> str | None:
+    """Where ``f`` comes from: the mirror, else its upstream URL (None: the registry's own text)."""
     if base_url:
         return f"{base_url.rstrip('/')}/{ds.folder}/{f.path}"
-    if f.url is None:
+    if not f.upstream:
         raise AppealInputError(f"{ds.name}: {f.path} has no public upstream copy ({ds.upstream}); fetch it from a "
                                f"mirror of the data tree: {ds.fetch_command} --url URL (or set {MIRROR_ENV})")
     return f.url
@@ -154,18 +156,17 @@ def _write_text(ds: Dataset, f: DataFile, dest: Path) -> None:
     if hashlib.sha256(data).hexdigest() != f.sha256:
         raise AppealInputError(f"{ds.name}: the registry's text of {f.path} does not match its sha256 "
                                f"(expected {f.sha256[:12]}...); the registry is damaged, reinstall appeal-lab")
-    part = dest.with_name(dest.name + ".part")
-    part.write_bytes(data)
-    os.replace(part, dest)
+    atomic_write_bytes(dest, data)
 
 
 def _fetch_file(ds: Dataset, f: DataFile, dest: Path, base_url: str | None, bar: object | None) -> None:
     """One file of ``ds`` into ``dest``, from the mirror, else upstream (or the registry's own text)."""
     dest.parent.mkdir(parents=True, exist_ok=True)
-    if f.text is not None and not base_url:
+    src = _source(ds, f, base_url)
+    if src is None:
         return _write_text(ds, f, dest)
     try:
-        _fetch_from(ds, f, dest, _source(ds, f, base_url), base_url, bar)
+        _fetch_from(ds, f, dest, src, base_url, bar)
     except _SourceFailed as exc:
         hint = "check the connection and " if exc.offline else ""
         raise AppealInputError(f"{ds.name}: {exc}; {hint}retry: {ds.fetch_command}") from None
@@ -203,8 +204,7 @@ def fetch_dataset(name: str, *, base_url: str | None = None, root: Path | None =
     # documentation files without a source are skipped rather than failing the dataset
     todo = [f for f in todo if not (f.docs and not f.upstream and not base_url)]
     for f in todo:
-        if f.text is None or base_url:
-            _source(ds, f, base_url)  # every file has a source before anything is downloaded
+        _source(ds, f, base_url)  # every file has a source before anything is downloaded
     # sizes are of the stored files: upstream serves some uncompressed or Draco-compressed
     raw = any(f.gzip or f.decode for f in todo) and not base_url
     bar = tqdm(total=None if raw else sum(f.size for f in todo), unit="B", unit_scale=True, desc=name, file=sys.stderr,

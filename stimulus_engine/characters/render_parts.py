@@ -47,7 +47,8 @@ INSIDE_PARTS: tuple[str, ...] = ("mouth", "teeth", "tongue")
 #: 0.22 first chosen here made ICT faces look like wet plastic).
 _PHONG_SPECULAR = 0.08
 #: PBR roughness per part (wet eyes and teeth are glossy; the default is the skin's).
-_PART_ROUGHNESS = {"eye": 0.12, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8}
+_PART_ROUGHNESS = {"eye": 0.12, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8,
+                   "eye_shadow": 1.0}
 #: Under ``skin`` shading the eyes are wet: a sharp highlight of the key light on the cornea.
 _SKIN_SHADING_ROUGHNESS = {"eye": 0.07, "sclera": 0.08, "iris": 0.07, "teeth": 0.25}
 
@@ -207,14 +208,16 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         raise ValueError(f"rig '{rig.name}' has no UVs but a texture was asked for")
     normals = trimesh.Trimesh(v, rig.faces, process=False).vertex_normals
     parts = []
+    balls = None  # the eyeballs' spheres, fitted once for the eyes and their shadow
     for name, uniq, tri, textured in _split_parts(rig, albedo is not None or maps):
+        if name in ("eye", "eye_shadow") and balls is None:
+            balls = _eyeballs(rig, v)
         if name == "eye_shadow":  # laid on the eyeballs: seen where the lids open, under their skin elsewhere
-            pos, out = _onto_eyeballs(v[uniq[:, 0]], rig, v)
+            pos, out = _onto_eyeballs(v[uniq[:, 0]], *balls)
             mesh = trimesh.Trimesh(pos, tri, vertex_normals=out, process=False)
         elif name == "eye":  # shaded as the round ball the cornea makes it: the glint is a dot (an
             # ICT iris is a cone sunk into the ball, and reflected the lights as a ring round the pupil)
-            mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=_radial(v[uniq[:, 0]], _eyeballs(rig, v)[0])[1],
-                                   process=False)
+            mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=_radial(v[uniq[:, 0]], balls[0])[1], process=False)
         else:
             mesh = trimesh.Trimesh(v[uniq[:, 0]], tri, vertex_normals=normals[uniq[:, 0]], process=False)
         if textured:
@@ -223,13 +226,11 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         skin = name == "skin" and textured
         rough = _SKIN_SHADING_ROUGHNESS.get(name) if shading == "skin" else None
         rough = _PART_ROUGHNESS.get(name, 0.62) if rough is None else rough
+        if name == "eye_shadow" and tex is None:
+            continue  # without its texture the shell would cover the eye
         if name == "tear":
             mat = _tear_material(shading)
-        elif name == "eye_shadow":
-            if tex is None:
-                continue  # without its texture the shell would cover the eye
-            mat = _eye_shadow_material(shading, tex)
-        else:
+        else:  # the eye's shadow is an alpha-blended card on its RGBA texture, as the lashes are
             mat = _material(shading, _PART_COLOURS.get(name, (0.7, 0.7, 0.7, 1.0)), tex, rough,
                             normal_map if skin else None, specular_map if skin else None, scatter=name == "skin",
                             inside=name in INSIDE_PARTS and occlusion is not None, glint=name == "eye")
@@ -278,30 +279,14 @@ def _radial(points: np.ndarray, centres: np.ndarray) -> tuple[np.ndarray, np.nda
     return k, out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
 
 
-def _onto_eyeballs(points: np.ndarray, rig: FaceRig, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``points`` moved radially onto the nearer eyeball's sphere, :data:`EYE_SHADOW_LIFT` outside
-    it, and their outward unit normals.
+def _onto_eyeballs(points: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``points`` moved radially onto the nearer eyeball's sphere (:func:`_eyeballs`),
+    :data:`EYE_SHADOW_LIFT` outside it, and their outward unit normals.
 
     A rig's eye-occlusion shell, fitted to one head, pokes out in front of another's lids (a dark
     arc on the lid's skin); on the ball it shows only through the opening the lids leave."""
-    centres, radii = _eyeballs(rig, vertices)
     k, out = _radial(points, centres)
     return centres[k] + out * (radii[k] * (1 + EYE_SHADOW_LIFT))[:, None], out
-
-
-def _eye_shadow_material(shading: str, texture: np.ndarray) -> object:
-    """The eye-occlusion shell's material: its texture's alpha blended over the eye (the lids'
-    soft shadow and the caruncle, :func:`stimulus_engine.parts.eyes.eye_shadow_texture`), matte,
-    both sides."""
-    from stimulus_engine.render._pyrender import pyrender
-
-    def make() -> object:
-        tex = pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGBA")
-        return _shader_defines(pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=(1.0, 1.0, 1.0, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
-            alphaMode="BLEND", doubleSided=True), shading, scatter=False)
-
-    return _cached(("eye_shadow", shading), (texture,), make)
 
 
 #: Roughness of the garment (matte knit).

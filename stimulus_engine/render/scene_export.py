@@ -125,8 +125,10 @@ def export_scene(parts: list, lights: list[LightSpec], ambient: float, camera: C
     # distances and hair strands are physical lengths
     mm_per_unit = 150.0 / skin_extent if skin_extent else 150.0 / max(float(np.linalg.norm(camera.target)), 1.0)
     for k, (p, rec) in enumerate(zip(parts, records)):
-        if p.name == "hair" and f"uv{k}" in arrays and rec.get("alpha_blend"):
-            alpha = np.asarray(Image.open(folder / rec["texture"]))[..., -1] > 127
+        # the texture the record saved: metallic-roughness or specular-glossiness (phong)
+        tex = _texture_array(getattr(p.material, "baseColorTexture", None) or getattr(p.material, "diffuseTexture", None))
+        if p.name == "hair" and f"uv{k}" in arrays and rec.get("alpha_blend") and tex is not None and tex.shape[-1] == 4:
+            alpha = tex[..., 3] > 127
             arrays[f"sp{k}"], arrays[f"ss{k}"], arrays[f"sr{k}"] = grow_strands(
                 arrays[f"v{k}"], arrays[f"f{k}"], arrays[f"uv{k}"], alpha, mm_per_unit)
             rec["strands"] = True
