@@ -249,3 +249,47 @@ def test_the_garment_is_drawn_on_both_sides(ict):
     rig, _ = _dressed(ict)
     parts = {p.name: p for p in body_render_parts(rig.body, rig.vertices, None)}
     assert parts["garment"].material.doubleSided
+
+
+@pytest.mark.slow
+def test_a_scan_fades_into_a_neck_of_its_skin_colour(shared_data, tmp_path):
+    """james's scan ends in a ragged border under his chin, which the bust's neck continues: the
+    neck takes its colour from skin only (his border runs into his hair at the back, where the
+    neck came out near-black: a dark wedge beside his neck), and the scan's skin fades into
+    that colour toward the border (the border's texels, paler than his skin, drew its torn
+    outline): at the border, the scan's texels differ from the neck behind them by less than half
+    of what the scan's own texture does."""
+    from scipy.spatial import cKDTree
+
+    from appeal.studyfile import validate_data
+    from stimulus_engine.geometry.mesh_io import load_mesh, texture_image
+    from stimulus_engine.grid.characters import load_character
+    from stimulus_engine.grid.schema import GridFile
+    from stimulus_engine.parts.body import RING_BELOW_IOD, _angle_bin, _level, _ring, _texels, skin_texels
+
+    d = shared_data / "meshes"
+    spec = validate_data({
+        "kind": "grid", "name": "neck", "characters": [{"name": "james", "ict": str(d / "ict-facekit"), "mesh": {
+            "file": str(d / "menpo3d-james" / "james.obj"), "region": "front", "topology": "scan"}}],
+        "shapes": [0.0], "materials": ["original"], "expressions": ["neutral"], "lighting": ["gi_soft"],
+        "shading": ["pbr"]}, GridFile, source="g.yaml")
+    ch = load_character(spec.characters[0], tmp_path, "g.yaml")
+    t, body = ch.scan.topology, ch.scan.topology.body
+    neck = body.neck_texture(t.texture)[0].astype(float)
+    lum = neck @ [0.2126, 0.7152, 0.0722]
+    assert lum.min() > 0.75 * np.median(lum), lum  # no hair-dark stretch around the neck
+
+    skin = t.face_part == t.part_names.index("skin")
+    lm = ch.rig.landmark_points()
+    ring = _ring(t.vertices, t.faces[skin], _level(lm["eye_right"], lm["eye_left"], RING_BELOW_IOD))
+    vertex_uv = np.zeros((len(t.vertices), 2))
+    vertex_uv[t.faces[skin].ravel()] = t.uv[t.face_uv[skin].ravel()]
+    ring = ring[_texels(skin_texels(t.texture_masks, t.texture.shape), vertex_uv[ring]) > 0.5]
+    assert len(ring) > 20
+    neck_v = np.unique(body.faces[body.face_part == 0])
+    nearest = neck_v[cKDTree(body.pose(t.vertices)[neck_v]).query(t.vertices[ring])[1]]
+    behind = neck[_angle_bin((body.neck_uv[nearest, 0] - 0.5) * 2 * np.pi, len(neck))]
+    own = np.asarray(texture_image(load_mesh(d / "menpo3d-james" / "james.obj")).convert("RGB"))
+    step = {name: np.abs(_texels(img, vertex_uv[ring]).astype(float) - behind).mean()
+            for name, img in (("faded", t.texture), ("own", own))}
+    assert step["faded"] < 0.5 * step["own"], step

@@ -105,10 +105,13 @@ def _with_hair(c: CharacterSpec, rig: FaceRig, rig_hash: str, over: FaceRig | No
     return replace(rig, hair=fit_hair(rig, style, colour, over=surface)), sha(rig_hash, "hair", style, c.hair_colour)
 
 
-def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | None = None) -> tuple[FaceRig, str]:
+def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | None = None,
+               fade: bool = False) -> tuple[FaceRig, str]:
     """``rig`` with the character's bust under its head (``body: bust``) and the hash of both;
-    the eye centres are ``eyes``' (a rig in the same frame; default ``rig`` itself)."""
-    from stimulus_engine.parts.body import clothes_faces, fit_body, under_garment
+    the eye centres are ``eyes``' (a rig in the same frame; default ``rig`` itself). With
+    ``fade`` (a scan, whose lower border the bust's neck continues) its skin fades into the
+    neck's colour toward that border (:func:`~stimulus_engine.parts.body.fade_into_neck`)."""
+    from stimulus_engine.parts.body import clothes_faces, fade_into_neck, fit_body, skin_texels, under_garment
     from stimulus_engine.parts.hair import linear_rgb
 
     if c.body == "none":
@@ -124,8 +127,12 @@ def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | No
     rig = _hide_faces(rig, hide)
     skin = rig.face_part == rig.part_names.index("skin")
     colour = None if c.garment_colour is None else linear_rgb(c.garment_colour)
+    tex = None if rig.texture is None or rig.uv is None else skin_texels(rig.texture_masks, rig.texture.shape)
     body = fit_body(rig.vertices, rig.faces[skin], rig.uv, rig.face_uv[skin], lm["eye_right"], lm["eye_left"], colour,
-                    neck_faces=whole)
+                    neck_faces=whole, skin=tex)
+    if fade and tex is not None:
+        rig = replace(rig, texture=fade_into_neck(rig.texture, body, rig.vertices, rig.faces[skin], rig.uv,
+                                                  rig.face_uv[skin], lm["eye_right"], lm["eye_left"], tex))
     return replace(rig, body=body), sha(rig_hash, "body", c.body, c.garment_colour)
 
 
@@ -178,7 +185,7 @@ def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
     if m.topology != "scan":
         return Character(c, *_dressed(c, rig, h), base)
     scan = _scan_surface(c, rig, mesh, alignment, source, ibug)
-    drawn, h = _with_body(c, scan.topology, sha(h, "scan"), eyes=rig)
+    drawn, h = _with_body(c, scan.topology, sha(h, "scan"), eyes=rig, fade=True)
     scan = replace(scan, topology=drawn)
     rig, h = _with_hair(c, rig, h, over=drawn)
     return Character(c, rig, h, base, scan if rig.hair is None else wear_rig_hair(scan, rig.hair))

@@ -25,16 +25,19 @@ neck skin or garment (a crew neck). :func:`fit_body` puts it under a character:
    neckline sit on a character's own neck. Each ring vertex's gap to the bust surface, and each
    neckline vertex's gap to the neck beside it (within :data:`HUG_REACH_IOD`), is spread over
    the free bust vertices by distance-weighted interpolation, fading out
-   :data:`JOIN_REACH_IOD` away, so the bust's surface passes through the ring and the collar
-   hugs the neck: no gap, no step. Neck-skin faces that straddle the ring are kept, their covered
+   :data:`JOIN_REACH_IOD` away, so the bust's surface passes just behind the ring (:data:`SINK_IOD`
+   under it: through it, slivers of background showed between a scan's ragged border and the
+   neck) and the collar hugs the neck: no gap, no step. Neck-skin faces that straddle the ring are kept, their covered
    corners sunk :data:`SINK_IOD` under the character's skin, so the join has no crack.
 
 The result, :class:`Body`, is bound to the character's skin like the hair is: every vertex is a
 fixed weighted sum of skin vertices (the ring's, or a skin triangle's) plus an offset, so the
 bust follows expressions and stylised shapes with its seam closed. The neck skin is drawn with
 the character's own albedo (each vertex takes the texture coordinate of the skin a little above
-its ring point: the skin colour continues down the neck, and every material style restyles it
-with the face); the garment with a knit texture times its colour.
+its ring point, on skin texels only: the skin colour continues down the neck, and every material
+style restyles it with the face); the garment with a knit texture times its colour. A scan's
+skin fades into that colour toward its border (:func:`fade_into_neck`), so its ragged outline
+is not drawn in a colour of its own.
 """
 
 from __future__ import annotations
@@ -48,7 +51,7 @@ from stimulus_engine.data import DATA_DIR
 from stimulus_engine.parts.stored import part_arrays, part_from_arrays
 
 __all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "UNDER_GARMENT_IOD", "body_arrays", "body_from_arrays", "bust_asset", "clothes_faces",
-           "fit_body", "neck_axis", "neckline", "placed_bust", "under_garment"]
+           "fade_into_neck", "fit_body", "neck_axis", "neckline", "placed_bust", "skin_texels", "under_garment"]
 
 _DATA = DATA_DIR / "body"
 #: Default garment colour (linear RGB; multiplies the grey knit texture): a muted slate blue.
@@ -88,6 +91,14 @@ COLLAR_RIB_IOD = 0.05
 #: level 0.2; further (0.35), james's neck took the colour of his beard, olive under a pale
 #: border, and the border's ragged outline showed.
 NECK_COLOUR_ABOVE_IOD = 0.1
+#: A scan's skin fades into the neck's colour toward the lower border the bust's neck continues:
+#: wholly within the first distance of that border, not at all from the second (iod). The
+#: border of a scan is ragged (james's ends in torn tufts under his chin, in texels paler than
+#: his skin); faded, its outline lies on a neck of its own colour (a step in the shading remains).
+NECK_FADE_IOD = (0.15, 0.6)
+#: A texel is skin (a sample of the neck's colour, a texel to fade) where the skin weight of the
+#: albedo's region masks (:func:`skin_texels`) exceeds this.
+SKIN_TEXEL_LEVEL = 0.5
 #: The garment's neckline hugs the character's neck where the neck is within this distance of it.
 HUG_REACH_IOD = 1.1
 #: Depth under the character's skin of the neck-skin corners it covers (hides the join's edge).
@@ -361,7 +372,8 @@ def _garment_uv(points: np.ndarray, eye_mid: np.ndarray, iod: float) -> np.ndarr
 
 def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_uv: np.ndarray,
              eye_right: np.ndarray, eye_left: np.ndarray,
-             colour: tuple[float, float, float] | None = None, neck_faces: np.ndarray | None = None) -> Body:
+             colour: tuple[float, float, float] | None = None, neck_faces: np.ndarray | None = None,
+             skin: np.ndarray | None = None) -> Body:
     """Put the shipped bust under a character (see the module docstring).
 
     Parameters
@@ -381,6 +393,10 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
         The skin the collar hugs: the character's skin before :func:`under_garment` hid what
         the garment covers (default ``skin_faces``); at the sides of a narrow neck the collar's
         edge meets it only there.
+    skin : (H, W) array, optional
+        How much each texel of the albedo is skin (:func:`skin_texels`): the neck's colour is
+        taken from skin texels only (a scan's border runs into its hair at the back; sampled
+        there, the back of the neck was the hair's near-black). Default: every texel.
 
     Returns
     -------
@@ -431,7 +447,7 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     skin_n = np.einsum("kc,kcd->kd", bary, normals[corners])
     skin_n /= np.maximum(np.linalg.norm(skin_n, axis=1, keepdims=True), 1e-12)
     # each source's gap (to the garment: the garment's height over the skin), spread over the bust
-    lift = np.where(on_cloth, GARMENT_LIFT_IOD, 0.0) + np.r_[np.zeros(len(ring)), np.full(len(hug), COLLAR_RIB_IOD)]
+    lift = np.where(on_cloth, GARMENT_LIFT_IOD, -SINK_IOD) + np.r_[np.zeros(len(ring)), np.full(len(hug), COLLAR_RIB_IOD)]
     gaps = np.einsum("kc,kcd->kd", bary, v[corners]) + lift[:, None] * iod * skin_n - targets
     join = _join_weights(p, targets, JOIN_REACH_IOD * iod) if len(targets) else np.zeros((len(p), 0))
     placed = p + join @ gaps
@@ -465,9 +481,74 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
         ring_uv = np.einsum("nk,nkd->nd", above.bary, uv[face_uv[above.face]])
     else:
         ring_uv = np.zeros((0, 2))
+    ring_angle = _angle(v[ring], centre)
+    if skin is not None and len(ring):
+        on_skin = _texels(np.asarray(skin), ring_uv) > SKIN_TEXEL_LEVEL
+        ring_uv, ring_angle = ring_uv[on_skin], ring_angle[on_skin]
     return Body(anchors, weights.astype(np.float32), offset, faces, face_part, _garment_uv(placed, mid, iod), neck_uv,
-                asset.texture, ring_uv,
-                _angle(v[ring], centre), tuple(float(c) for c in (colour or DEFAULT_GARMENT)))
+                asset.texture, ring_uv, ring_angle, tuple(float(c) for c in (colour or DEFAULT_GARMENT)))
+
+
+def skin_texels(masks: dict[str, np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
+    """(H, W) float: how much each texel of an albedo of ``shape`` is skin, from its region masks
+    (:mod:`stimulus_engine.characters.scan_regions`: skin is what no other region claims)."""
+    other = np.zeros(shape[:2])
+    for name, m in masks.items():
+        if name != "skin" and np.shape(m)[:2] == other.shape:
+            other += np.asarray(m, np.float64)
+    return np.clip(1.0 - other, 0.0, 1.0)
+
+
+def fade_into_neck(albedo: np.ndarray, body: Body, vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray,
+                   face_uv: np.ndarray, eye_right: np.ndarray, eye_left: np.ndarray,
+                   skin: np.ndarray | None = None) -> np.ndarray:
+    """``albedo`` with the character's skin faded into the colour of the bust's neck toward its
+    lower border (the ring of :func:`fit_body`; within :data:`NECK_FADE_IOD`).
+
+    Each skin vertex near a ring vertex on skin takes, as its target, the neck's colour
+    (:meth:`Body.neck_texture`) at the nearest neck vertex of the bust (what shows behind it);
+    targets and fade weights are interpolated over the skin's texels, which move toward their
+    target by the weight times their skin weight (``skin``, :func:`skin_texels`: hair is left
+    as it is). Arguments as for :func:`fit_body` (``face_uv`` rows of ``skin_faces``); returns
+    a new uint8 albedo.
+    """
+    from scipy.spatial import cKDTree
+
+    from stimulus_engine.geometry.ramps import smoothstep
+    from stimulus_engine.geometry.uv_raster import rasterize_uv
+
+    img = np.asarray(albedo)
+    v = np.asarray(vertices, np.float64)
+    er, el = np.asarray(eye_right, np.float64), np.asarray(eye_left, np.float64)
+    iod = float(np.linalg.norm(el - er))
+    skin_w = np.ones(img.shape[:2]) if skin is None else np.asarray(skin, np.float64)
+    ring = _ring(v, skin_faces, _level(er, el, RING_BELOW_IOD))
+    vertex_uv = np.zeros((len(v), 2))
+    vertex_uv[skin_faces.ravel()] = uv[face_uv.ravel()]
+    ring = ring[_texels(skin_w, vertex_uv[ring]) > SKIN_TEXEL_LEVEL]
+    neck = np.unique(body.faces[body.face_part == 0])
+    if not len(ring) or not len(neck) or not len(body.ring_uv):
+        return img.copy()
+    near, far = (d * iod for d in NECK_FADE_IOD)
+    used = np.unique(skin_faces)
+    d = cKDTree(v[ring]).query(v[used])[0]
+    weight = np.zeros(len(v))
+    weight[used] = 1.0 - smoothstep((d - near) / (far - near))
+    colours = body.neck_texture(img)[0].astype(np.float64)
+    bust = body.pose(v)
+    j = cKDTree(bust[neck]).query(v[used])[1]
+    bins = _angle_bin((body.neck_uv[neck[j], 0] - 0.5) * 2 * np.pi, len(colours))
+    target = np.zeros((len(v), 3))
+    target[used] = colours[bins]
+    faded = weight[skin_faces].max(axis=1) > 0
+    rows, cols, face, bary = rasterize_uv(uv, face_uv[faded], img.shape[1], img.shape[0])
+    tri = skin_faces[faded][face]
+    w = np.einsum("pk,pk->p", bary, weight[tri]) * skin_w[rows, cols]
+    t = np.einsum("pk,pkc->pc", bary, target[tri])
+    out = img.copy()
+    px = out[rows, cols, :3].astype(np.float64)
+    out[rows, cols, :3] = np.rint(px + w[:, None] * (t - px)).astype(np.uint8)
+    return out
 
 
 def _hug(vertices: np.ndarray, skin_faces: np.ndarray, points: np.ndarray, candidates: np.ndarray,
