@@ -121,3 +121,36 @@ def test_the_inside_is_moved_behind_the_skin_it_pokes_through():
     assert np.allclose(out[inside], v[inside] - [0.0, 0.0, 0.55])  # all of it, by the deepest poke + gap
     skin = np.setdiff1d(np.arange(len(v)), inside)
     assert np.array_equal(out[skin], v[skin])
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_parted_lips_open_on_a_dark_gap(tmp_path):
+    """Lee Perry-Smith (Exp. 2's second character) in neutral, front render at full size: his
+    rig's lips part a little, and the inside of the lips between them took the texels of the
+    scan's closed lip line, a pale band brighter than the upper lip (row means 114-122 under a
+    lip of 96). Drawn as mucosa in the lips' shade (MUCOSA_SHADE), the gap is no brighter than
+    the upper lip above it."""
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid.schema import GridFile
+
+    src = (__import__("pathlib").Path(__file__).resolve().parent.parent / "protocols" / "grids" / "exp2_stylisation.yaml")
+    text = re.sub(r"(?m)^(shapes|materials|expressions): .*$",
+                  lambda m: {"shapes": "shapes: [0.0]", "materials": "materials: [original]",
+                             "expressions": "expressions: [neutral]"}[m.group(1)], src.read_text())
+    text = re.sub(r"(?ms)^  - name: james.*?(?=^  - name: lps)", "", text)  # Lee Perry-Smith only
+    grid_file = tmp_path / "lips.yaml"
+    grid_file.write_text(text.replace("name: exp2_stylisation", "name: lips_check"))
+    run_grid(load_study_file(grid_file, GridFile), tmp_path / "out", n_jobs=1)
+    row = next(pd.read_csv(tmp_path / "out" / "manifest.csv").itertuples())
+    assert row.character == "lps" and (row.width, row.height) == (1024, 768)
+    lm = pd.read_csv(tmp_path / "out" / "landmarks.csv").set_index("landmark")
+    box = np.array([_project(row.camera, lm.loc[n, ["x", "y", "z"]].to_numpy(float), row.width, row.height)
+                    for n in ("mouth_left", "mouth_right", "mouth_top", "mouth_bottom")])
+    (x0, y0), (x1, y1) = box.min(axis=0).astype(int), box.max(axis=0).astype(int)
+    grey = np.asarray(Image.open(tmp_path / "out" / row.file).convert("RGB"), float) @ [0.2126, 0.7152, 0.0722]
+    cx, w = (x0 + x1) // 2, (x1 - x0) // 4
+    rows = grey[y0:y1, cx - w:cx + w].mean(axis=1)  # the middle half of the mouth, row by row
+    k = int(np.argmin(rows[: int(0.6 * len(rows))]))  # the upper lip's lower edge, where the gap starts
+    assert k > 0 and rows[k:k + 8].max() < rows[:k].mean(), rows.round()

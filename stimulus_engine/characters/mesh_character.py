@@ -304,6 +304,33 @@ def _painted_fill(rig: FaceRig, size: int) -> tuple[np.ndarray, dict[str, np.nda
                 for k, m in masks.items()}
 
 
+#: The inside of the lips (their faces turned away from the mesh's surface they lie on, within
+#: this share of the mouth's width of its centre; cosine below :data:`INNER_LIP_COS`) ...
+INNER_LIP_REACH, INNER_LIP_COS = 0.6, 0.3
+#: ... is drawn in the lips' mean colour times this (wet mucosa in the lips' shade): a closed-lipped
+#: scan gives the rig's inner lips the texels of its lip line, and a rig's neutral lips, parted a
+#: little, showed a pale band between them (Lee Perry-Smith).
+MUCOSA_SHADE = 0.6
+
+
+def _inner_lip_faces(deformed: trimesh.Trimesh, mesh: trimesh.Trimesh, mouth_left: np.ndarray,
+                     mouth_right: np.ndarray) -> np.ndarray:
+    """(F,) bool over ``deformed``'s faces (the rig region on the mesh): the inside of the lips,
+    faces near the mouth turned away from the mesh's surface at their closest point there (a
+    lip's inner face looks down or up into the mouth where the closed scan looks forward)."""
+    from stimulus_engine.geometry.closest import SurfaceIndex
+
+    centres = np.asarray(deformed.triangles_center)
+    mouth, width = (mouth_left + mouth_right) / 2, float(np.linalg.norm(mouth_left - mouth_right))
+    near = np.linalg.norm(centres - mouth, axis=1) < INNER_LIP_REACH * width
+    out = np.zeros(len(centres), bool)
+    if near.any():
+        hit = SurfaceIndex(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)).query(centres[near])
+        facing = np.einsum("fd,fd->f", np.asarray(deformed.face_normals)[near], np.asarray(mesh.face_normals)[hit.face])
+        out[near] = facing < INNER_LIP_COS
+    return out
+
+
 def _teeth_behind_lips(rig: FaceRig, v: np.ndarray, lips: np.ndarray, gap: float) -> None:
     """Move the teeth and tongue back (-z, in place) until no tooth comes through the skin around
     the mouth: the rig's mouth inside, moved with the lips, fits the rig's lips, and a thinner or
@@ -504,6 +531,11 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
         good = np.zeros((texture_size, texture_size))
         good[rows, cols] = ok[np.asarray(source.faces)[fid]].all(axis=1)
         good = gaussian_filter(good, sigma=texture_size / 512)
+        inner_lips = np.zeros((texture_size, texture_size))
+        lm_new = out.landmark_points()  # the corresponded mouth corners, in the mesh's frame
+        corners = res.alignment.apply(np.stack([lm_new["mouth_left"], lm_new["mouth_right"]]))
+        inner_lips[rows, cols] = _inner_lip_faces(deformed, mesh, *corners)[fid]
+        inner_lips = gaussian_filter(inner_lips, sigma=texture_size / 512)
 
         def relay(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             """``img`` (mesh layout) in the rig's layout, and the weight of the transferred texels."""
@@ -534,7 +566,12 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
             gain = ((moved[..., :3] * skin_w[..., None]).sum(axis=(0, 1))
                     / np.maximum((painted * skin_w[..., None]).sum(axis=(0, 1)), 1e-9))
             painted = np.clip(painted * gain, 0, 255)
-        albedo = np.clip(np.rint(painted * (1 - a) + moved[..., :3] * a), 0, 255).astype(np.uint8)
+        albedo = painted * (1 - a) + moved[..., :3] * a
+        lips = np.clip(masks.get("lips", np.zeros(a.shape[:2])), 0, 1) * a[..., 0] * (1 - inner_lips)
+        if lips.sum() > 0:  # the lips' inside: their own red, darker (wet mucosa in the lips' shade)
+            red = (moved[..., :3] * lips[..., None]).sum(axis=(0, 1)) / lips.sum() * MUCOSA_SHADE
+            albedo = albedo * (1 - inner_lips[..., None]) + red * inner_lips[..., None]
+        albedo = np.clip(np.rint(albedo), 0, 255).astype(np.uint8)
         out = replace(out, texture=albedo, texture_masks=dict(masks))
         transferred = a[..., 0] > 0.5
     return MeshCharacter(rig=out, region=vid, metrics=dict(res.metrics), transferred=transferred,
