@@ -252,3 +252,41 @@ def test_painted_eye_remnants_on_the_lids_are_inpainted():
     assert out[r2, c2].max() < 80  # the lash stays dark
     fr, fc = px(8, 8)
     assert np.array_equal(out[fr - 5:fr + 5, fc - 5:fc + 5], tex[fr - 5:fr + 5, fc - 5:fc + 5])  # far away: untouched
+
+
+@pytest.mark.slow
+def test_james_eyes_open_on_the_ball_with_a_wet_margin_not_a_dark_outline(shared_data, tmp_path):
+    """Looking at james's eyes from the front (a grid of lines of sight over each opening), what
+    one sees inside the lids is the eyeball, the lower lid's wet line and the caruncle in the
+    inner corner (``margin``), not the socket: with the socket fanned from the lid rim it lay in
+    front of his deep-set balls, 28 % and 34 % of the openings a dark outline round each eye."""
+    from appeal.studyfile import validate_data
+    from stimulus_engine.grid.characters import load_character
+    from stimulus_engine.grid.schema import GridFile
+
+    d = shared_data / "meshes"
+    spec = validate_data({
+        "kind": "grid", "name": "eyes", "characters": [{"name": "james", "ict": str(d / "ict-facekit"), "mesh": {
+            "file": str(d / "menpo3d-james" / "james.obj"), "region": "front", "topology": "scan"}}],
+        "shapes": [0.0], "materials": ["original"], "expressions": ["neutral"], "lighting": ["gi_soft"],
+        "shading": ["pbr"]}, GridFile, source="g.yaml")
+    t = load_character(spec.characters[0], tmp_path, "g.yaml").scan.topology
+    names = np.asarray(t.part_names)
+    drawn = ~np.isin(names[t.face_part], ["hidden", "lashes"])
+    mesh = trimesh.Trimesh(t.vertices, t.faces[drawn], process=False)
+    part = names[t.face_part[drawn]]
+    centres = {side: t.vertices[t.landmarks[f"eye_{side}"]].mean(axis=0) for side in ("right", "left")}
+    midline = (centres["right"][0] + centres["left"][0]) / 2
+    for side, c in centres.items():
+        g = np.linspace(-1.3, 1.3, 120)
+        x, y = np.meshgrid(c[0] + g, c[1] + 0.5 * g)
+        origins = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, t.vertices[:, 2].max() + 1)])
+        tri = mesh.ray.intersects_first(origins, np.tile([0.0, 0.0, -1.0], (len(origins), 1)))
+        seen, where = part[tri[tri >= 0]], origins[tri >= 0]
+        inside = seen != "skin"
+        share = {p: float(np.mean(seen[inside] == p)) for p in ("eye", "margin", "socket")}
+        assert share["socket"] < 0.05 and 0.03 < share["margin"] < 0.25 and share["eye"] > 0.7, (side, share)
+        # the caruncle: the margin is what one sees at the inner corner of the opening
+        toward = np.sign(midline - c[0])
+        corner = inside & ((where[:, 0] - c[0]) * toward > 0.8 * np.abs(where[inside, 0] - c[0]).max())
+        assert np.mean(seen[corner] == "margin") > 0.5, side

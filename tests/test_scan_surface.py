@@ -91,7 +91,7 @@ def test_james_gets_eyeballs_and_lips_that_part(shared_data, tmp_path):
         parts = tuple(str(x) for x in np.load(rigs[0])["part_names"])
         # "hidden": the scan's collar and the neck below the cut, where the bust takes over
         assert parts == (("skin", "hidden") if look == "scan"
-                         else ("skin", "eye", "socket", "lashes", "mouth", "teeth", "tongue", "hidden"))
+                         else ("skin", "eye", "socket", "lashes", "margin", "mouth", "teeth", "tongue", "hidden"))
         for e in ("neutral", "surprise"):
             images[look, e] = np.asarray(Image.open(tmp_path / look / "images" / f"james_realistic_original_{e}_gi_soft_pbr.png"),
                                          np.float64)[..., :3]

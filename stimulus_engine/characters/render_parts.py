@@ -37,6 +37,7 @@ _PART_COLOURS = {
     "sclera": (0.85, 0.83, 0.80, 1.0), "iris": (0.18, 0.22, 0.30, 1.0), "teeth": (0.56, 0.50, 0.40, 1.0),
     "mouth": (0.05, 0.012, 0.015, 1.0), "socket": (0.09, 0.045, 0.04, 1.0), "tongue": (0.40, 0.12, 0.12, 1.0), "lashes": (0.05, 0.04, 0.04, 1.0),
     "skin": (0.8, 0.62, 0.52, 1.0), "eye": (0.9, 0.88, 0.85, 1.0),
+    "margin": (0.36, 0.16, 0.14, 1.0),  # a scan's lid margins: wet line and caruncle, mucosa pink
 }
 #: The parts inside the mouth: every light reaches them only as far as their baked ambient
 #: visibility lets it (the ``OCCLUDED_LIGHTS`` switch), in every shading, so an open mouth is a
@@ -47,7 +48,7 @@ INSIDE_PARTS: tuple[str, ...] = ("mouth", "teeth", "tongue")
 #: 0.22 first chosen here made ICT faces look like wet plastic).
 _PHONG_SPECULAR = 0.08
 #: PBR roughness per part (wet eyes and teeth are glossy; the default is the skin's).
-_PART_ROUGHNESS = {"eye": 0.12, "socket": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8,
+_PART_ROUGHNESS = {"eye": 0.12, "socket": 0.3, "margin": 0.3, "sclera": 0.25, "iris": 0.3, "teeth": 0.35, "tongue": 0.6, "mouth": 0.8,
                    "eye_shadow": 1.0}
 #: Under ``skin`` shading the eyes are wet: a sharp highlight of the key light on the cornea.
 _SKIN_SHADING_ROUGHNESS = {"eye": 0.07, "sclera": 0.08, "iris": 0.07, "teeth": 0.25}

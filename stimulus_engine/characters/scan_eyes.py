@@ -12,9 +12,12 @@ scan becomes a real eye:
    (``stimulus_engine/data/eyes``) — sits behind each opening, sized by anatomy (radius 12 mm for
    an interpupillary distance of 63 mm: 0.19 × the distance between the two eye centres), its
    front pole on the painted surface, looking ahead (:func:`place_eyeballs`);
-4. a socket (the conjunctiva: dark, wet pink) closes the opening behind the eyeball, so the
+4. the lids get their thickness (:func:`lid_margins`): a strip from the rim back onto the ball,
+   wet pink where it shows (the lower lid's wet line, the caruncle in the inner corner), in the
+   upper lid's shadow elsewhere;
+5. a socket (the conjunctiva: dark, wet pink) closes the opening behind the margins, so the
    corners of the eye, where the ball curves away, show tissue and not the inside of the head;
-5. the bare upper lid margins get lashes (:mod:`stimulus_engine.parts.eyelashes`).
+6. the bare upper lid margins get lashes (:mod:`stimulus_engine.parts.eyelashes`).
 
 Everything is in the rig's frame (+y up, +z towards the viewer).
 """
@@ -29,8 +32,8 @@ from stimulus_engine.parts.eyes import eyeball_asset
 from stimulus_engine.parts.eyelashes import lash_strip
 from stimulus_engine.geometry.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, push_behind, relax_around
 
-__all__ = ["EyeGeometry", "erase_painted_eyes", "eye_geometry", "lid_contour", "cut_openings", "place_eyeballs",
-           "openness", "painted_iris_colour"]
+__all__ = ["EyeGeometry", "erase_painted_eyes", "eye_geometry", "lid_contour", "lid_margins", "cut_openings",
+           "place_eyeballs", "openness", "painted_iris_colour"]
 
 #: Eyeball radius over the distance between the eye centres (12 mm / 63 mm).
 EYEBALL_RATIO = 12.0 / 63.0
@@ -59,6 +62,9 @@ class EyeGeometry:
     lashes : list of ((R, 3) array, (L, 3) int array, (R, 2) array)
         Each upper lid's lash strip (:func:`stimulus_engine.parts.eyelashes.lash_strip`): vertices,
         faces, UVs; drawn with :func:`stimulus_engine.parts.eyelashes.lash_texture`.
+    margins : list of ((M, 3) array, (G, 3) int array, (M,) int array, (G,) bool array)
+        Each opening's lid margin (:func:`lid_margins`): vertices, faces, the rim vertex of the
+        scan each vertex stands on (it moves with it), and the faces of the wet line and caruncle.
     """
 
     keep: np.ndarray
@@ -69,6 +75,7 @@ class EyeGeometry:
     sockets: list[tuple[np.ndarray, np.ndarray]]
     texture: np.ndarray
     lashes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+    margins: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
 def lid_contour(points: np.ndarray, n: int = 8) -> np.ndarray:
@@ -206,6 +213,90 @@ def _behind_lids(ball: np.ndarray, vertices: np.ndarray, faces: np.ndarray, cont
     return push_behind(ball, vertices[near], gap * float(np.ptp(contour[:, 0])), opening=contour)
 
 
+#: Seen from the front, the lower lid's margin (its wet line) reaches this far over the eyeball,
+#: and at the inner corner the caruncle this far (inter-ocular distances: 1 mm and 2.5 mm of 63),
+#: over the inner :data:`CARUNCLE_SHARE` of the eye's width.
+WET_LINE_IOD, CARUNCLE_IOD, CARUNCLE_SHARE = 0.016, 0.04, 0.15
+
+
+def _margin_reach(rim: np.ndarray, middle: np.ndarray, midline: float, width: float) -> np.ndarray:
+    """How far (iod) each rim point's margin reaches over the ball, seen from the front: the wet
+    line along the lower lid, the caruncle in the inner corner (the side of ``midline``)."""
+    from stimulus_engine.geometry.ramps import smoothstep
+
+    lower = smoothstep((middle[1] - rim[:, 1]) / (0.1 * width))  # below the eye's middle
+    toward = np.sign(midline - middle[0])
+    inner = 1 - smoothstep((middle[0] + toward * width / 2 - rim[:, 0]) * toward / (CARUNCLE_SHARE * width))
+    return np.maximum(WET_LINE_IOD * lower, CARUNCLE_IOD * inner)
+
+
+#: The lid margin's inner edge lies this far outside the eyeball (a fraction of its radius: 0.24 mm
+#: on a 12 mm ball), so the margin meets the ball without a gap and without cutting into it.
+MARGIN_LIFT = 0.02
+
+
+def lid_margins(vertices: np.ndarray, faces: np.ndarray, contours: list[np.ndarray], centres: list[np.ndarray],
+                radius: float) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None]:
+    """The lids' thickness: a strip from each opening's rim back onto its eyeball.
+
+    A scan cut open along its lid line ends in a paper-thin edge; where the eyeball curves away
+    behind it (the corners, and wherever the ball sits deeper than the lid) one saw the socket, a
+    hard dark outline round the eye. Each rim vertex of an opening (the border of ``faces``
+    nearest each contour) gets a twin straight behind it on the ball (the sphere of ``radius``
+    about each of ``centres``, :data:`MARGIN_LIFT` outside it), or, where the line of sight
+    misses the ball, on the ball's outline as the camera sees it; the quads between rim and
+    twins, facing the opening's front, are the margin of the lid. Drawn with the scan's own skin
+    at the rim, a lower lid shows its lit margin and an upper one its shaded underside; where the
+    ball comes through the opening in front of the rim the twin is the rim itself.
+
+    Returns
+    -------
+    list of (vertices (2K, 3), faces (2K, 3), roots (2K,), wet (2K,)) or None, per contour
+        The rim's copies then the twins; ``roots`` the rim's scan vertex of each; ``wet`` the
+        faces of the wet line and the caruncle (the rest, the upper lid's, are in its shadow).
+        None where no opening of ``faces`` lies at a contour.
+    """
+    from stimulus_engine.geometry.mesh_ops import boundary_loops
+
+    v = np.asarray(vertices, np.float64)
+    loops = boundary_loops(np.asarray(faces, np.int64))
+    r = radius * (1 + MARGIN_LIFT)
+    middles = [cn.mean(axis=0) for cn in contours]
+    midline = float(np.mean([m[0] for m in middles]))
+    iod = float(np.linalg.norm(middles[0] - middles[-1]))
+    out = []
+    for contour, c in zip(contours, centres):
+        middle = contour.mean(axis=0)
+        loop = min(loops, key=lambda lp: float(np.linalg.norm(v[lp].mean(axis=0) - middle)))
+        if np.linalg.norm(v[loop].mean(axis=0) - middle) > 0.5 * float(np.ptp(contour[:, 0])):
+            out.append(None)  # no opening here
+            continue
+        rim = v[loop]
+        rim_in = rim.copy()  # the margin's inner edge seen from the front: the lower lid's wet
+        inward = middle[:2] - rim[:, :2]  # margin and the caruncle lie over the ball
+        inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-12)
+        reach = _margin_reach(rim, middle, midline, float(np.ptp(contour[:, 0])))
+        rim_in[:, :2] += inward * iod * reach[:, None]
+        d = rim_in[:, :2] - c[:2]
+        across = np.linalg.norm(d, axis=1)
+        hits = across < r
+        twin = rim_in.copy()
+        twin[hits, 2] = np.minimum(rim[hits, 2], c[2] + np.sqrt(r ** 2 - across[hits] ** 2))
+        twin[~hits, :2] = c[:2] + r * d[~hits] / across[~hits, None]
+        twin[~hits, 2] = np.minimum(rim[~hits, 2], c[2])
+        k = len(loop)
+        i, j = np.arange(k), (np.arange(k) + 1) % k
+        tri = np.vstack([np.column_stack([i, j, k + j]), np.column_stack([i, k + j, k + i])])
+        pts = np.vstack([rim, twin])
+        normal = np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]])
+        front = middle + np.array([0.0, 0.0, r]) - pts[tri].mean(axis=1)
+        flip = np.einsum("fd,fd->f", normal, front) < 0
+        tri[flip] = tri[flip][:, ::-1]
+        wet = reach[tri[:, :2] % k].mean(axis=1) > 0.5 * WET_LINE_IOD
+        out.append((pts, tri.astype(np.int64), np.concatenate([loop, loop]).astype(np.int64), wet))
+    return out
+
+
 def _socket(contour: np.ndarray, depth: float) -> tuple[np.ndarray, np.ndarray]:
     """A fan from the contour to its centre pushed ``depth`` back (-z)."""
     centre = contour.mean(axis=0) - np.array([0.0, 0.0, depth])
@@ -290,11 +381,16 @@ def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray
     if texture is not None:
         eye_texture = tint_iris(eye_texture, painted_iris_colour(*texture, ~keep))
     eye_texture = lid_shadow(eye_texture, templates)
-    sockets = [_socket(c, radius) for c in contours]
+    ball_centres = [b[0] - radius * t[0][0] for b, t in zip(balls, templates)]
+    margins = lid_margins(v, faces[keep], contours, ball_centres, radius)
+    # the socket closes the opening behind the lids' margins, from their inner edge to the ball's
+    # centre (from the rim, it lay in front of a ball set deep behind the lids: a dark outline)
+    sockets = [_socket(c, radius) if m is None else _socket(m[0][len(m[0]) // 2:], float(m[0][len(m[0]) // 2:, 2].mean() - bc[2]))
+               for c, m, bc in zip(contours, margins, ball_centres)]
     half = len(contours[0]) // 2  # the upper arc, corner to corner
     lashes = [lash_strip(c[:half + 1], float(np.linalg.norm(p[3] - p[0]))) for c, p in zip(contours, pts)]
     return EyeGeometry(keep, v, balls, [t[1] for t in templates], [t[2] for t in templates], sockets, eye_texture,
-                       lashes)
+                       lashes, [m for m in margins if m is not None])
 
 
 def erase_painted_eyes(texture: np.ndarray, vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray,

@@ -193,10 +193,20 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
     part, names, textures, rigid, follow, landmarks = np.zeros(len(f), np.int64), ["skin"], {}, (), (), {}
     n_scan = len(v)
     lashes: list[np.ndarray] = []
+    margins: list[tuple[np.ndarray, np.ndarray]] = []  # (drawn vertices, the scan vertex each stands on)
     if eyes is not None:
-        v, f, t, ft, part, pieces = _with_pieces(v, f, t, ft, part, _eye_pieces(eyes))
+        uv_of = np.zeros(n_scan, np.int64)  # a texture coordinate of each scan vertex (its last corner's)
+        uv_of[f.ravel()] = ft.ravel()
+        # the lids' margins stand on the rim: the wet line and caruncle (part 4, mucosa) and the
+        # upper lid's shaded underside (part 2, the socket's colour); UVs for the layout only
+        wet_dry = [(mv, mf[w if k == 4 else ~w], t[uv_of[roots]], k) for mv, mf, roots, w in eyes.margins
+                   for k in (4, 2)]
+        v, f, t, ft, part, pieces = _with_pieces(v, f, t, ft, part, _eye_pieces(eyes) + wet_dry)
+        margins = list(zip(pieces[len(pieces) - len(wet_dry):], [roots for _, _, roots, _ in eyes.margins
+                                                                 for _ in (4, 2)]))
+        pieces = pieces[:len(pieces) - len(wet_dry)]
         balls, lashes = pieces[:len(eyes.balls)], pieces[len(eyes.balls) + len(eyes.sockets):]
-        names, textures = ["skin", "eye", "socket", "lashes"], {"eye": eyes.texture, "lashes": lash_texture()}
+        names, textures = ["skin", "eye", "socket", "lashes", "margin"], {"eye": eyes.texture, "lashes": lash_texture()}
         landmarks = _eye_landmarks(v, balls)
         centres = np.array([rig.vertices[s].mean(axis=0) for s in rig.rigid_sets])
         if len(centres):
@@ -225,6 +235,8 @@ def bind_scan(rig: FaceRig, vertices: np.ndarray, faces: np.ndarray, uv: np.ndar
         if len(idx):
             hit = SurfaceIndex(rig.vertices, sf).query(v[idx])
             corners[idx], bary[idx] = sf[hit.face], hit.bary
+    for drawn, roots in margins:  # a lid's margin moves with the rim it stands on
+        corners[drawn], bary[drawn] = corners[roots], bary[roots]
     for strip in lashes:  # a lash moves with the lid point at its root
         root = strip[np.arange(len(strip)) % (len(strip) // LASH_ROWS)]
         corners[strip], bary[strip] = corners[root], bary[root]
