@@ -293,3 +293,32 @@ def test_a_scan_fades_into_a_neck_of_its_skin_colour(shared_data, tmp_path):
     step = {name: np.abs(_texels(img, vertex_uv[ring]).astype(float) - behind).mean()
             for name, img in (("faded", t.texture), ("own", own))}
     assert step["faded"] < 0.5 * step["own"], step
+
+
+@pytest.mark.slow
+def test_the_collar_edge_has_no_notch(shared_data, tmp_path):
+    """Lee Perry-Smith (Exp. 2): along the garment's neckline no vertex stands lower than the
+    neckline beside it (the median of two neighbours either side) by more than 2 % of the
+    inter-ocular distance (measured 1 %). The hug had pulled front vertices down and in onto his
+    neck (dips up to 6 %), and his skin showed through the notch below the collar (8 px at
+    1024x768)."""
+    from stimulus_engine.grid.characters import load_character
+    from stimulus_engine.grid.schema import CharacterSpec
+    from stimulus_engine.parts.body import _angle
+
+    d = shared_data / "meshes"
+    spec = CharacterSpec(name="lps", ict=d / "ict-facekit", mesh={"file": d / "leeperrysmith" / "LeePerrySmith.obj",
+                                                                    "region": "front"})
+    rig = load_character(spec, tmp_path, "g.yaml").rig
+    asset, posed = bust_asset(), rig.body.pose(rig.vertices)
+    edge = np.zeros(len(posed), bool)
+    edge[asset.faces[~asset.cloth_face].ravel()] = True
+    ring = np.flatnonzero(edge & asset.cloth)
+    lm = rig.landmark_points()
+    iod = float(np.linalg.norm(lm["eye_left"] - lm["eye_right"]))
+    centre = posed[ring].mean(axis=0)
+    ring = ring[np.argsort(_angle(posed[ring], centre))]
+    y = posed[ring, 1]
+    around = np.stack([np.roll(y, k) for k in (-2, -1, 1, 2)], axis=1)
+    dip = (np.median(around, axis=1) - y)[np.abs(_angle(posed[ring], centre)) < np.pi / 4]  # the throat
+    assert dip.max() < 0.02 * iod, dip / iod

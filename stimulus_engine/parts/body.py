@@ -453,6 +453,8 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
     placed = p + join @ gaps
     # the character's neck and chest, where drawn, never come through the cloth
     placed[cloth] = lift_out(placed[cloth], index, normals, GARMENT_LIFT_IOD * iod, HUG_REACH_IOD * iod, at_border=True)
+    neck_edge = np.flatnonzero(edge & cloth)
+    placed[neck_edge] = _without_dips(placed[neck_edge], axis)
 
     # anchors: the sources' corners (free vertices) and skin triangles (covered ones)
     rows = np.flatnonzero(covered)
@@ -548,6 +550,31 @@ def fade_into_neck(albedo: np.ndarray, body: Body, vertices: np.ndarray, skin_fa
     out = img.copy()
     px = out[rows, cols, :3].astype(np.float64)
     out[rows, cols, :3] = np.rint(px + w[:, None] * (t - px)).astype(np.uint8)
+    return out
+
+
+#: Each neckline vertex stands at least as high and as far out as the median of this many
+#: neighbours on either side along the neckline.
+NECKLINE_EVEN = 2
+
+
+def _without_dips(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """The neckline ``points`` with no vertex lower or further in than the median of its
+    :data:`NECKLINE_EVEN` neighbours either side (in order of angle around the vertical ``axis``):
+    the hug pulled single vertices of the collar's edge down and in onto the skin, and the neck
+    showed through each such notch (8 px of skin below Lee Perry-Smith's collar at the throat)."""
+    if len(points) < 2 * NECKLINE_EVEN + 1:
+        return points
+    order = np.argsort(_angle(points, axis))
+    rel = points[order] - axis
+    radius, angle = np.hypot(rel[:, 0], rel[:, 2]), np.arctan2(rel[:, 0], rel[:, 2])
+    k = np.arange(-NECKLINE_EVEN, NECKLINE_EVEN + 1)
+    k = k[k != 0]
+    around = (np.arange(len(points))[:, None] + k[None]) % len(points)
+    radius = np.maximum(radius, np.median(radius[around], axis=1))
+    y = np.maximum(rel[:, 1], np.median(rel[around, 1], axis=1))
+    out = points.copy()
+    out[order] = axis + np.column_stack([radius * np.sin(angle), y, radius * np.cos(angle)])
     return out
 
 
