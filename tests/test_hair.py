@@ -258,3 +258,47 @@ def test_a_see_through_blended_card_casts_no_shadow():
     away = np.ones((160, 160), bool)
     away[70:90, 70:90] = False  # around the dot itself
     assert np.abs(both - alone)[away].mean() < 1.0
+
+
+def test_the_strands_edges_are_soft_and_their_cores_opaque():
+    """The binary strand alpha is softened when drawn: a one-texel strand keeps an opaque core,
+    its neighbours are half covered (the edge fades over a texel instead of stepping), and three
+    texels away nothing is drawn."""
+    from stimulus_engine.characters.render_parts import _soft_alpha
+
+    tex = np.zeros((32, 32, 4), np.uint8)
+    tex[:, 16] = 255
+    a = _soft_alpha(tex)[..., 3].astype(int)
+    assert (a[:, 16] >= 230).all() and (60 < a[:, 15]).all() and (a[:, 17] < 200).all()
+    assert (a[:, 13] < 10).all() and (a[:, 19] < 10).all()
+    assert np.array_equal(_soft_alpha(tex)[..., :3], tex[..., :3])
+
+
+@pytest.mark.render
+def test_blended_cards_are_drawn_back_to_front():
+    """Two cards of one blended part, the front one (half transparent red) first in the mesh:
+    drawn in that order it would hide the card behind (depth written, the blue card rejected,
+    the green background through the red); sorted farthest first, the blue card shows through
+    the red one and no background does."""
+    import pyrender
+
+    from stimulus_engine.render import CameraSpec, render_mesh
+    from stimulus_engine.render.renderer import RenderPart
+
+    tex = np.zeros((8, 16, 4), np.uint8)
+    tex[:, :8] = (255, 0, 0, 128)  # left half of the texture: the front card
+    tex[:, 8:] = (0, 0, 255, 255)  # right half: the back card
+    quad = np.array([[-1.0, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
+    v = np.vstack([quad + [0, 0, 0.5], quad])
+    f = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+    uv = np.array([[0.1, 0.1], [0.4, 0.1], [0.4, 0.9], [0.1, 0.9], [0.6, 0.1], [0.9, 0.1], [0.9, 0.9], [0.6, 0.9]])
+    mesh = trimesh.Trimesh(v, f, process=False)
+    mesh.visual = trimesh.visual.TextureVisuals(uv=uv)
+    mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0,
+                                             baseColorTexture=pyrender.Texture(source=tex, source_channels="RGBA"),
+                                             alphaMode="BLEND", doubleSided=True)
+    cam = CameraSpec((0.0, 0.0, 4.0), (0.0, 0.0, 0.0), 40.0, (0.0, 1.0, 0.0))
+    img = render_mesh([RenderPart(mesh, material=mat, name="cards")], width=100, height=100, camera=cam,
+                      lighting="flat", background=(0.0, 1.0, 0.0), shadows=False)
+    r, g, b = img[50, 50].astype(int)
+    assert g < 60 and r > 60 and b > 60, (r, g, b)

@@ -344,8 +344,10 @@ HAIR_ROUGHNESS = 0.8
 
 
 def hair_render_part(hair: Hair, vertices: np.ndarray, shading: str = "pbr") -> object:
-    """The rig's hair (:mod:`stimulus_engine.parts.hair`), posed on ``vertices``, as an alpha-tested
-    double-sided part; its grey strand texture is multiplied by the hair colour."""
+    """The rig's hair (:mod:`stimulus_engine.parts.hair`), posed on ``vertices``, as alpha-blended
+    double-sided cards (the renderer draws a blended part's triangles back to front); its grey
+    strand texture, its strands' edges softened (:data:`HAIR_ALPHA_SOFTEN`), is multiplied by the
+    hair colour."""
     from stimulus_engine.render.renderer import RenderPart
 
     from stimulus_engine.render.hair_strands import strand_tangents
@@ -361,19 +363,36 @@ def _hair_material(shading: str, colour: tuple[float, float, float], texture: np
     return _cached(("hair", shading, tuple(colour)), (texture,), lambda: _new_hair_material(shading, colour, texture))
 
 
+#: The hair texture's strands (alpha 0 or 1) are softened by a Gaussian of this many texels and
+#: the result scaled by :data:`HAIR_ALPHA_GAIN` (clipped at 1), so that blended, their edges and
+#: tips fade over a texel or so instead of stepping (the fringe's staircase) while a strand's core
+#: stays opaque (blurred alone, single-texel strands let the scalp show through at 40 %).
+HAIR_ALPHA_SOFTEN, HAIR_ALPHA_GAIN = 0.8, 2.0
+
+
+def _soft_alpha(texture: np.ndarray) -> np.ndarray:
+    """``texture`` (RGBA) with its strands' alpha softened (:data:`HAIR_ALPHA_SOFTEN`)."""
+    from scipy.ndimage import gaussian_filter
+
+    out = np.array(texture, np.uint8, copy=True)
+    soft = gaussian_filter(out[..., 3].astype(np.float64), HAIR_ALPHA_SOFTEN, mode="wrap") * HAIR_ALPHA_GAIN
+    out[..., 3] = np.rint(np.clip(soft, 0, 255))
+    return out
+
+
 def _new_hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray) -> object:
     from stimulus_engine.render._pyrender import pyrender
 
-    tex = pyrender.Texture(source=np.ascontiguousarray(texture), source_channels="RGBA")
+    tex = pyrender.Texture(source=np.ascontiguousarray(_soft_alpha(texture)), source_channels="RGBA")
     if shading == "phong":
         mat = pyrender.material.SpecularGlossinessMaterial(
             diffuseFactor=(*colour, 1.0), diffuseTexture=tex, specularFactor=(_PHONG_SPECULAR,) * 3,
-            glossinessFactor=1.17 - HAIR_ROUGHNESS, alphaMode="MASK", doubleSided=True)
+            glossinessFactor=1.17 - HAIR_ROUGHNESS, alphaMode="BLEND", doubleSided=True)
     else:  # a flat normal map: pyrender hands the strand tangents to the shader only with one
         flat = pyrender.Texture(source=np.full((4, 4, 3), (128, 128, 255), np.uint8), source_channels="RGB")
         mat = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=HAIR_ROUGHNESS,
-            alphaMode="MASK", doubleSided=True, normalTexture=flat)
+            alphaMode="BLEND", doubleSided=True, normalTexture=flat)
     mat = _shader_defines(mat, shading, scatter=False)
     if shading in ("pbr", "skin"):
         mat.appeal_defines["HAIR_KAJIYA"] = 1  # strand highlights along the tangents (render.skin_shader)

@@ -15,7 +15,7 @@ hangs as it does on the source head instead of following the normal of the skin 
 The result, :class:`Hair`, is bound to the skin: every pose of the rig (an identity of the same
 topology, an expression, a stylised shape) moves each hair vertex with its skin point, so the
 hair follows a growing cranium or a raised brow. :func:`stimulus_engine.characters.render_parts.rig_render_parts`
-draws it as an alpha-tested ``hair`` part.
+draws it as an alpha-blended ``hair`` part (its cards sorted back to front by the renderer).
 """
 
 from __future__ import annotations

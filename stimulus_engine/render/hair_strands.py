@@ -1,6 +1,6 @@
 """Hair strands grown over a hair mesh, for the path tracer's true curves (thesis §2.4).
 
-pyrender draws a hair style as its alpha-tested mesh with a strand texture
+pyrender draws a hair style as its mesh of alpha-blended cards with a strand texture
 (:func:`stimulus_engine.characters.render_parts.hair_render_part`). Cycles can do what a
 rasteriser cannot: render each hair as a curve with a hair BSDF (Blender's Principled Hair,
 Chiang et al. 2016, the successor of the Marschner model the thesis names). This module makes
@@ -15,7 +15,7 @@ shape as the mesh does and fall where the texture draws hair:
   (closest point after every step), and ends where the texture's alpha ends (the hairline and its
   ragged tips) or at its length;
 - each strand stands a random height above the mesh, along its outward normal: the strands form
-  a layer of some thickness over the alpha-tested mesh, which stays beneath them as the
+  a layer of some thickness over the hair mesh, which stays beneath them as the
   undercoat (so the scalp does not show between a few ten thousand strands).
 
 The roots are drawn as (triangle, barycentric weights), so the same seed gives the same strands

@@ -184,6 +184,24 @@ def _as_part(m: Any, visibility: np.ndarray | None = None) -> Any:
     return pyrender.Mesh.from_trimesh(m, smooth=True)
 
 
+def _back_to_front(item: Any, camera: CameraSpec) -> Any:
+    """An alpha-blended :class:`RenderPart` with its triangles in order of distance from the
+    camera, farthest first (OpenGL blends a draw call's triangles in their order: hair cards
+    drawn in the mesh's order hid the cards behind them or showed them through the front ones);
+    anything else as it is."""
+    if not (isinstance(item, RenderPart) and getattr(item.material, "alphaMode", "OPAQUE") == "BLEND"):
+        return item
+    m = item.mesh
+    faces = np.asarray(m.faces)
+    centres = np.asarray(m.vertices)[faces].mean(axis=1)
+    order = np.argsort(-np.linalg.norm(centres - np.asarray(camera.position, np.float64), axis=1), kind="stable")
+    if np.array_equal(order, np.arange(len(faces))):
+        return item
+    out = trimesh.Trimesh(m.vertices, faces[order], vertex_normals=m.vertex_normals, process=False)
+    out.visual = m.visual.copy() if getattr(m.visual, "kind", None) == "texture" else m.visual
+    return replace(item, mesh=out)
+
+
 def _wants_baked_shadows(items: list[Any]) -> bool:
     """True when every item is a smooth :class:`RenderPart` whose material reads baked
     visibility from its vertex colour (the ``VISIBILITY_IN_COLOR0`` switch every rig part's
@@ -421,6 +439,7 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
     lights, ambient = lighting_preset(lighting) if isinstance(lighting, str) else lighting
     if camera is None:
         camera = fit_camera(_points(items), width / height)
+    items = [_back_to_front(m, camera) for m in items]
     visibility, baked = [None] * len(items), frozenset()
     if shadows and any(s.shadow and s.kind == "spot" for s in lights) and _wants_baked_shadows(items):
         visibility = _baked_visibility(items, lights, camera)

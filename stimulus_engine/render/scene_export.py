@@ -9,7 +9,7 @@ coordinates, background, per part its material values and file names) beside ``p
 
 The hair part also gets strands (:func:`stimulus_engine.render.hair_strands.grow_strands`, grown
 over the posed hair mesh where its texture has hair): ``parts.npz`` holds their points, points
-per strand and radii, which Cycles renders as curves with its hair BSDF over the alpha-tested mesh.
+per strand and radii, which Cycles renders as curves with its hair BSDF over the hair mesh.
 """
 
 from __future__ import annotations
@@ -77,8 +77,8 @@ def _material_record(name: str, mat: Any, folder: Path, index: int) -> dict:
         rec["roughness"] = float(1.0 - (mat.glossinessFactor if mat.glossinessFactor is not None else 0.5))
         rec["phong"] = True
         tex = _texture_array(mat.diffuseTexture)
-    # the texture's alpha cuts the surface out: blended cards (lashes) and alpha-tested ones (hair;
-    # as an opaque card the hair rendered as a solid dark cap)
+    # the texture's alpha cuts the surface out: blended cards (lashes, hair: as an opaque card the
+    # hair rendered as a solid dark cap) and alpha-tested ones
     rec["alpha_blend"] = getattr(mat, "alphaMode", "OPAQUE") in ("BLEND", "MASK")
     if tex is not None:
         rec["texture"] = f"part{index}_albedo.png"
