@@ -256,3 +256,35 @@ def test_textured_scan_has_no_dark_band_along_its_uv_seam(shared_data):
     assert (box.max(axis=2) < 15).mean() < 0.005
     flat = trimesh.creation.icosphere()
     assert split_uv_seams(flat) is flat  # nothing to split
+
+
+def test_downsample_averages_light_not_srgb_values():
+    """Half of each output pixel's area lit (255) and half dark (0): the camera's sum of light is
+    half the white's, sRGB 188, not the 128 an average of sRGB values gives."""
+    from stimulus_engine.render.renderer import downsample
+
+    img = np.zeros((4, 4, 3), np.uint8)
+    img[:, ::2] = 255
+    out = downsample(img, 2, 2)
+    assert out.shape == (2, 2, 3) and np.all(np.abs(out.astype(int) - 188) <= 1)
+    assert downsample(img, 4, 4) is img
+
+
+def test_supersampling_smooths_a_silhouette():
+    """A white sphere on black: drawn with one sample a pixel its outline is a staircase of
+    pixels either lit or background; supersampled, the outline's pixels take the covered share
+    of the light in between, and the image keeps the size asked for."""
+    import trimesh
+
+    from stimulus_engine.render import CameraSpec, render_mesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    cam = CameraSpec((0.0, 0.0, 4.0), (0.0, 0.0, 0.0), 40.0, (0.0, 1.0, 0.0))
+    kw = dict(width=96, height=96, camera=cam, lighting="flat", background=(0.0, 0.0, 0.0), shadows=False)
+    hard, soft = render_mesh(sphere, **kw), render_mesh(sphere, supersample=2.0, **kw)
+    assert soft.shape == hard.shape == (96, 96, 3)
+    lum = [im.astype(float).mean(axis=2) for im in (hard, soft)]
+    inner = [(lu > 0) & (lu < 0.5 * lu.max()) for lu in lum]  # pixels part lit, part background
+    assert inner[1].sum() > 3 * max(inner[0].sum(), 1)
+    with pytest.raises(ValueError, match="supersample"):
+        render_mesh(sphere, supersample=0.5, **kw)

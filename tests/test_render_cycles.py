@@ -99,12 +99,16 @@ def test_alpha_tested_and_blended_cards_are_cut_out_in_cycles(tmp_path):
     ("engine", "mitsuba", "render.engine"),
     ("samples", 0, "render.samples"),
     ("samples", -5, "render.samples"),
+    ("supersample", 5, "render.supersample"),
+    ("supersample", 0.5, "render.supersample"),
 ])
 def test_bad_engine_settings_are_one_line_errors_before_rendering(tmp_path, capsys, field, value, expected):
     p = tmp_path / "g.yaml"
     text = GRID.replace("ENGINE", "pyrender").replace("samples: 8", f"samples: {value}" if field == "samples" else "samples: 8")
     if field == "engine":
         text = text.replace("engine: pyrender", f"engine: {value}")
+    if field == "supersample":
+        text = text.replace("samples: 8", f"samples: 8, supersample: {value}")
     p.write_text(text)
     rc = main(["stimuli", "grid", str(p), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err.strip()

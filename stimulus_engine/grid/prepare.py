@@ -255,7 +255,8 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
         items.append(RenderItem(im.file, str(out), str(rig_files[im.character]), str(gp), look.albedo_png,
                                 im.lighting, im.shading, cam, r.width, r.height, r.shadows, tuple(r.background),
                                 look.normal_png, look.specular_png, r.engine, r.samples, r.seed,
-                                face_oval(r.width, r.height, r.eye_row, r.face_fraction) if r.vignette else ()))
+                                face_oval(r.width, r.height, r.eye_row, r.face_fraction) if r.vignette else (),
+                                r.supersample))
         rows.append({"file": im.file, "character": im.character, "shape": im.shape, "shape_label": im.shape_label,
                      "stylisation": im.stylisation, "material": im.material.name,
                      "material_style": im.material.style, "material_from": im.albedo_from,

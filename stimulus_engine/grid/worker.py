@@ -44,6 +44,7 @@ class RenderItem:
     samples: int = 16
     seed: int = 0
     vignette: tuple = ()
+    supersample: float = 1.0
 
 
 @functools.lru_cache(maxsize=16)
@@ -105,7 +106,7 @@ def _render_pyrender(item: RenderItem) -> np.ndarray:
 
     parts, cam = item_scene(item)
     return render_mesh(parts, width=item.width, height=item.height, lighting=item.lighting, camera=cam,
-                       background=item.background, shadows=item.shadows)
+                       background=item.background, shadows=item.shadows, supersample=item.supersample)
 
 
 def export_item_scene(item: RenderItem, folder: str | Path) -> Path:
