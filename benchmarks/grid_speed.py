@@ -12,7 +12,11 @@ Measured 2026-11-26 on this 2-core machine (pyrender, OSMesa), the shipped Exp. 
 images) with every part on (eyes aimed, lashes, mouth interior, hair styles, bust and garment):
 64.0 and 66.2 s now against 57.3 and 55.2 s at e309ec3: median ratio 1.16 (the issue's bound: 1.5);
 with the lids' shadow, one glint per eye and Kajiya-Kay hair (b1d00c5): 69.8 and 73.8 s against
-60.9 and 60.9 s, ratio 1.18.
+60.9 and 60.9 s, ratio 1.18; with a scan's lid margins, the neck fade and blended hair (f17b266):
+76.8 and 73.3 s against 63.1 and 61.8 s, ratio 1.20; anti-aliased by supersampling 1.5x
+(b10fd2c): 89.9 and 87.9 s against 59.2 and 57.5 s, ratio 1.52 -- over the bound; with the
+images rendered in runs that share an albedo (no re-upload of a 2400 x 1600 texture per image)
+and a table-driven linear-light downsample: 84.1 and 84.2 s against 59.0 and 57.1 s, ratio 1.45.
 
 Run:  .venv/bin/python benchmarks/grid_speed.py [--grid protocols/grids/exp2_stylisation.yaml]
           [--base e309ec3] [--repeats 2]

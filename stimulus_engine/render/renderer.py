@@ -480,6 +480,11 @@ _SRGB_TO_LINEAR = np.where(np.arange(256) / 255.0 <= 0.04045, np.arange(256) / 2
                            ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
+#: sRGB bytes of linear light in 65536 steps (finer than a byte's step of sRGB at every level).
+_LINEAR_TO_SRGB = np.rint(255 * np.where(np.linspace(0, 1, 65536) <= 0.0031308, np.linspace(0, 1, 65536) * 12.92,
+                                         1.055 * np.linspace(0, 1, 65536) ** (1 / 2.4) - 0.055)).astype(np.uint8)
+
+
 def downsample(image: np.ndarray, width: int, height: int) -> np.ndarray:
     """An sRGB uint8 ``image`` reduced to ``width`` x ``height`` by averaging each output pixel's
     area (a box filter, fractional at the edges) in linear light, as a camera's sensor sums
@@ -492,6 +497,5 @@ def downsample(image: np.ndarray, width: int, height: int) -> np.ndarray:
     linear = _SRGB_TO_LINEAR[image]
     chans = [np.asarray(Image.fromarray(np.ascontiguousarray(linear[..., c], np.float32)).resize((width, height), Image.BOX))
              for c in range(image.shape[2])]
-    lin = np.clip(np.stack(chans, axis=-1), 0.0, 1.0)
-    srgb = np.where(lin <= 0.0031308, lin * 12.92, 1.055 * np.power(lin, 1 / 2.4) - 0.055)
-    return np.rint(srgb * 255).astype(np.uint8)
+    # a box filter's weights are positive and sum to 1: the averages stay within 0..1
+    return _LINEAR_TO_SRGB[(np.stack(chans, axis=-1) * (len(_LINEAR_TO_SRGB) - 1) + 0.5).astype(np.uint16)]
