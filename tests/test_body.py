@@ -252,7 +252,7 @@ def test_the_garment_is_drawn_on_both_sides(ict):
 
 
 @pytest.mark.slow
-def test_a_scan_fades_into_a_neck_of_its_skin_colour(shared_data, tmp_path):
+def test_a_scan_fades_into_a_neck_of_its_skin_colour(shared_data, james_scan):
     """james's scan ends in a ragged border under his chin, which the bust's neck continues: the
     neck takes its colour from skin only (his border runs into his hair at the back, where the
     neck came out near-black: a dark wedge beside his neck), and the scan's skin fades into
@@ -261,19 +261,11 @@ def test_a_scan_fades_into_a_neck_of_its_skin_colour(shared_data, tmp_path):
     of what the scan's own texture does."""
     from scipy.spatial import cKDTree
 
-    from appeal.studyfile import validate_data
     from stimulus_engine.geometry.mesh_io import load_mesh, texture_image
-    from stimulus_engine.grid.characters import load_character
-    from stimulus_engine.grid.schema import GridFile
     from stimulus_engine.parts.body import RING_BELOW_IOD, _angle_bin, _level, _ring, _texels, skin_texels
 
     d = shared_data / "meshes"
-    spec = validate_data({
-        "kind": "grid", "name": "neck", "characters": [{"name": "james", "ict": str(d / "ict-facekit"), "mesh": {
-            "file": str(d / "menpo3d-james" / "james.obj"), "region": "front", "topology": "scan"}}],
-        "shapes": [0.0], "materials": ["original"], "expressions": ["neutral"], "lighting": ["gi_soft"],
-        "shading": ["pbr"]}, GridFile, source="g.yaml")
-    ch = load_character(spec.characters[0], tmp_path, "g.yaml")
+    ch = james_scan
     t, body = ch.scan.topology, ch.scan.topology.body
     neck = body.neck_texture(t.texture)[0].astype(float)
     lum = neck @ [0.2126, 0.7152, 0.0722]

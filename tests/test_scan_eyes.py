@@ -255,22 +255,12 @@ def test_painted_eye_remnants_on_the_lids_are_inpainted():
 
 
 @pytest.mark.slow
-def test_james_eyes_open_on_the_ball_with_a_wet_margin_not_a_dark_outline(shared_data, tmp_path):
+def test_james_eyes_open_on_the_ball_with_a_wet_margin_not_a_dark_outline(james_scan):
     """Looking at james's eyes from the front (a grid of lines of sight over each opening), what
     one sees inside the lids is the eyeball, the lower lid's wet line and the caruncle in the
     inner corner (``margin``), not the socket: with the socket fanned from the lid rim it lay in
     front of his deep-set balls, 28 % and 34 % of the openings a dark outline round each eye."""
-    from appeal.studyfile import validate_data
-    from stimulus_engine.grid.characters import load_character
-    from stimulus_engine.grid.schema import GridFile
-
-    d = shared_data / "meshes"
-    spec = validate_data({
-        "kind": "grid", "name": "eyes", "characters": [{"name": "james", "ict": str(d / "ict-facekit"), "mesh": {
-            "file": str(d / "menpo3d-james" / "james.obj"), "region": "front", "topology": "scan"}}],
-        "shapes": [0.0], "materials": ["original"], "expressions": ["neutral"], "lighting": ["gi_soft"],
-        "shading": ["pbr"]}, GridFile, source="g.yaml")
-    t = load_character(spec.characters[0], tmp_path, "g.yaml").scan.topology
+    t = james_scan.scan.topology
     names = np.asarray(t.part_names)
     drawn = ~np.isin(names[t.face_part], ["hidden", "lashes"])
     mesh = trimesh.Trimesh(t.vertices, t.faces[drawn], process=False)
