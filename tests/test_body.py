@@ -262,7 +262,8 @@ def test_a_scan_fades_into_a_neck_of_its_skin_colour(shared_data, james_scan):
     from scipy.spatial import cKDTree
 
     from stimulus_engine.geometry.mesh_io import load_mesh, texture_image
-    from stimulus_engine.parts.body import RING_BELOW_IOD, _angle_bin, _level, _ring, _texels, skin_texels
+    from stimulus_engine.characters.scan_regions import skin_texels
+    from stimulus_engine.parts.body import RING_BELOW_IOD, _angle_bin, _level, _ring, _texels
 
     d = shared_data / "meshes"
     ch = james_scan

@@ -29,6 +29,7 @@ from appeal.errors import AppealInputError
 from appeal.logs import logger
 from stimulus_engine.characters.lashes import seat_lashes
 from stimulus_engine.characters.rig import FaceRig
+from stimulus_engine.characters.scan_regions import skin_texels
 
 __all__ = ["MeshCharacter", "auto_landmark_points", "correspond_rig", "front_region", "rig_skin_mesh", "source_landmark_names"]
 
@@ -561,7 +562,7 @@ def correspond_rig(rig: FaceRig, mesh: trimesh.Trimesh, landmarks: Mapping[str, 
         painted, masks = _painted_fill(base, texture_size)
         # tone-match the painted rest of the head to the user's skin (per-channel gain over
         # the transferred texels, lips and brows left out)
-        skin_w = a[..., 0] * (1 - sum((np.clip(m, 0, 1) for m in masks.values()), np.zeros(a.shape[:2])).clip(0, 1))
+        skin_w = a[..., 0] * skin_texels(masks, a.shape)
         if skin_w.sum() > 0:
             gain = ((moved[..., :3] * skin_w[..., None]).sum(axis=(0, 1))
                     / np.maximum((painted * skin_w[..., None]).sum(axis=(0, 1)), 1e-9))

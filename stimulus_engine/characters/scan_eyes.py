@@ -245,9 +245,10 @@ def lid_margins(vertices: np.ndarray, faces: np.ndarray, contours: list[np.ndarr
     nearest each contour) gets a twin straight behind it on the ball (the sphere of ``radius``
     about each of ``centres``, :data:`MARGIN_LIFT` outside it), or, where the line of sight
     misses the ball, on the ball's outline as the camera sees it; the quads between rim and
-    twins, facing the opening's front, are the margin of the lid. Drawn with the scan's own skin
-    at the rim, a lower lid shows its lit margin and an upper one its shaded underside; where the
-    ball comes through the opening in front of the rim the twin is the rim itself.
+    twins, facing the opening's front, are the margin of the lid. Along the lower lid and in the
+    inner corner the twins lie inward of the rim (:func:`_margin_reach`), so the margin shows
+    over the ball as the wet line and the caruncle; where the ball comes through the opening in
+    front of the rim the twin is the rim itself.
 
     Returns
     -------
@@ -385,8 +386,9 @@ def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray
     margins = lid_margins(v, faces[keep], contours, ball_centres, radius)
     # the socket closes the opening behind the lids' margins, from their inner edge to the ball's
     # centre (from the rim, it lay in front of a ball set deep behind the lids: a dark outline)
-    sockets = [_socket(c, radius) if m is None else _socket(m[0][len(m[0]) // 2:], float(m[0][len(m[0]) // 2:, 2].mean() - bc[2]))
-               for c, m, bc in zip(contours, margins, ball_centres)]
+    inner_edges = [None if m is None else m[0][len(m[0]) // 2:] for m in margins]  # the twins
+    sockets = [_socket(c, radius) if e is None else _socket(e, float(e[:, 2].mean() - bc[2]))
+               for c, e, bc in zip(contours, inner_edges, ball_centres)]
     half = len(contours[0]) // 2  # the upper arc, corner to corner
     lashes = [lash_strip(c[:half + 1], float(np.linalg.norm(p[3] - p[0]))) for c, p in zip(contours, pts)]
     return EyeGeometry(keep, v, balls, [t[1] for t in templates], [t[2] for t in templates], sockets, eye_texture,

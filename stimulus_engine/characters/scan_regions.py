@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["scan_masks"]
+__all__ = ["scan_masks", "skin_texels"]
 
 
 def _lab(rgb: np.ndarray) -> np.ndarray:
@@ -102,3 +102,14 @@ def scan_masks(texture: np.ndarray, vertices: np.ndarray, faces: np.ndarray, uv:
         soft = {k: np.asarray(Image.fromarray((255 * v).astype(np.uint8)).resize((w, h), Image.BILINEAR),
                               np.float32) / 255.0 for k, v in soft.items()}
     return soft
+
+
+def skin_texels(masks: dict[str, np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
+    """(H, W) float: how much each texel of an albedo of ``shape`` is skin, from its region masks
+    (a scan's, :func:`scan_masks`, or a painted rig's): what no other region claims, each mask
+    clipped to 0..1 (masks of another size, and a ``skin`` mask, are not counted)."""
+    other = np.zeros(shape[:2])
+    for name, m in masks.items():
+        if name != "skin" and np.shape(m)[:2] == other.shape:
+            other += np.clip(np.asarray(m, np.float64), 0.0, 1.0)
+    return np.clip(1.0 - other, 0.0, 1.0)

@@ -111,7 +111,8 @@ def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | No
     the eye centres are ``eyes``' (a rig in the same frame; default ``rig`` itself). With
     ``fade`` (a scan, whose lower border the bust's neck continues) its skin fades into the
     neck's colour toward that border (:func:`~stimulus_engine.parts.body.fade_into_neck`)."""
-    from stimulus_engine.parts.body import clothes_faces, fade_into_neck, fit_body, skin_texels, under_garment
+    from stimulus_engine.characters.scan_regions import skin_texels
+    from stimulus_engine.parts.body import clothes_faces, fade_into_neck, fit_body, under_garment
     from stimulus_engine.parts.hair import linear_rgb
 
     if c.body == "none":

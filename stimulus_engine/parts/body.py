@@ -51,7 +51,7 @@ from stimulus_engine.data import DATA_DIR
 from stimulus_engine.parts.stored import part_arrays, part_from_arrays
 
 __all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "UNDER_GARMENT_IOD", "body_arrays", "body_from_arrays", "bust_asset", "clothes_faces",
-           "fade_into_neck", "fit_body", "neck_axis", "neckline", "placed_bust", "skin_texels", "under_garment"]
+           "fade_into_neck", "fit_body", "neck_axis", "neckline", "placed_bust", "under_garment"]
 
 _DATA = DATA_DIR / "body"
 #: Default garment colour (linear RGB; multiplies the grey knit texture): a muted slate blue.
@@ -97,7 +97,8 @@ NECK_COLOUR_ABOVE_IOD = 0.1
 #: his skin); faded, its outline lies on a neck of its own colour (a step in the shading remains).
 NECK_FADE_IOD = (0.15, 0.6)
 #: A texel is skin (a sample of the neck's colour, a texel to fade) where the skin weight of the
-#: albedo's region masks (:func:`skin_texels`) exceeds this.
+#: albedo's region masks (:func:`~stimulus_engine.characters.scan_regions.skin_texels`)
+#: exceeds this.
 SKIN_TEXEL_LEVEL = 0.5
 #: The garment's neckline hugs the character's neck where the neck is within this distance of it.
 HUG_REACH_IOD = 1.1
@@ -394,7 +395,8 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
         the garment covers (default ``skin_faces``); at the sides of a narrow neck the collar's
         edge meets it only there.
     skin : (H, W) array, optional
-        How much each texel of the albedo is skin (:func:`skin_texels`): the neck's colour is
+        How much each texel of the albedo is skin
+        (:func:`~stimulus_engine.characters.scan_regions.skin_texels`): the neck's colour is
         taken from skin texels only (a scan's border runs into its hair at the back; sampled
         there, the back of the neck was the hair's near-black). Default: every texel.
 
@@ -491,16 +493,6 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
                 asset.texture, ring_uv, ring_angle, tuple(float(c) for c in (colour or DEFAULT_GARMENT)))
 
 
-def skin_texels(masks: dict[str, np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
-    """(H, W) float: how much each texel of an albedo of ``shape`` is skin, from its region masks
-    (:mod:`stimulus_engine.characters.scan_regions`: skin is what no other region claims)."""
-    other = np.zeros(shape[:2])
-    for name, m in masks.items():
-        if name != "skin" and np.shape(m)[:2] == other.shape:
-            other += np.asarray(m, np.float64)
-    return np.clip(1.0 - other, 0.0, 1.0)
-
-
 def fade_into_neck(albedo: np.ndarray, body: Body, vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray,
                    face_uv: np.ndarray, eye_right: np.ndarray, eye_left: np.ndarray,
                    skin: np.ndarray | None = None) -> np.ndarray:
@@ -510,9 +502,10 @@ def fade_into_neck(albedo: np.ndarray, body: Body, vertices: np.ndarray, skin_fa
     Each skin vertex near a ring vertex on skin takes, as its target, the neck's colour
     (:meth:`Body.neck_texture`) at the nearest neck vertex of the bust (what shows behind it);
     targets and fade weights are interpolated over the skin's texels, which move toward their
-    target by the weight times their skin weight (``skin``, :func:`skin_texels`: hair is left
-    as it is). Arguments as for :func:`fit_body` (``face_uv`` rows of ``skin_faces``); returns
-    a new uint8 albedo.
+    target by the weight times their skin weight (``skin``,
+    :func:`~stimulus_engine.characters.scan_regions.skin_texels`: hair is left as it is).
+    Arguments as for :func:`fit_body` (``face_uv`` rows of ``skin_faces``); returns a new uint8
+    albedo.
     """
     from scipy.spatial import cKDTree
 
@@ -565,9 +558,10 @@ def _without_dips(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
     showed through each such notch (8 px of skin below Lee Perry-Smith's collar at the throat)."""
     if len(points) < 2 * NECKLINE_EVEN + 1:
         return points
-    order = np.argsort(_angle(points, axis))
-    rel = points[order] - axis
-    radius, angle = np.hypot(rel[:, 0], rel[:, 2]), np.arctan2(rel[:, 0], rel[:, 2])
+    angle = _angle(points, axis)
+    order = np.argsort(angle)
+    rel, angle = points[order] - axis, angle[order]
+    radius = np.hypot(rel[:, 0], rel[:, 2])
     k = np.arange(-NECKLINE_EVEN, NECKLINE_EVEN + 1)
     k = k[k != 0]
     around = (np.arange(len(points))[:, None] + k[None]) % len(points)

@@ -476,13 +476,17 @@ def render_mesh(meshes: MeshLike | Sequence[MeshLike], *, width: int = 1024, hei
     return color
 
 
-_SRGB_TO_LINEAR = np.where(np.arange(256) / 255.0 <= 0.04045, np.arange(256) / 255.0 / 12.92,
-                           ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4).astype(np.float32)
+def _srgb_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Linear light of each sRGB byte, and the sRGB byte of linear light in 65536 steps (finer
+    than a byte's step of sRGB at every level)."""
+    c = np.arange(256) / 255.0
+    decode = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    lin = np.linspace(0.0, 1.0, 65536)
+    encode = np.where(lin <= 0.0031308, lin * 12.92, 1.055 * lin ** (1 / 2.4) - 0.055)
+    return decode, np.rint(255 * encode).astype(np.uint8)
 
 
-#: sRGB bytes of linear light in 65536 steps (finer than a byte's step of sRGB at every level).
-_LINEAR_TO_SRGB = np.rint(255 * np.where(np.linspace(0, 1, 65536) <= 0.0031308, np.linspace(0, 1, 65536) * 12.92,
-                                         1.055 * np.linspace(0, 1, 65536) ** (1 / 2.4) - 0.055)).astype(np.uint8)
+_SRGB_TO_LINEAR, _LINEAR_TO_SRGB = _srgb_tables()
 
 
 def downsample(image: np.ndarray, width: int, height: int) -> np.ndarray:
