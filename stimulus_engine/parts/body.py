@@ -56,6 +56,12 @@ __all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "UNDER_GARMENT_IOD", "body_ar
 _DATA = DATA_DIR / "body"
 #: Default garment colour (linear RGB; multiplies the grey knit texture): a muted slate blue.
 DEFAULT_GARMENT: tuple[float, float, float] = (0.09, 0.11, 0.15)
+#: The bust's neck goes on this far above the base mesh's cut under the jaw (iod; see
+#: :func:`_neck_extended`).
+NECK_EXTENSION_IOD = 0.3
+#: ... at the sides and back only: beyond this angle from the front around the neck's axis
+#: (degrees; under the chin, the extension came through james's chin).
+NECK_EXTENSION_FROM_DEG = 30.0
 #: The crew neckline, in inter-ocular distances (iod) below the eye centres: lowest in front
 #: (just above the sternal notch), highest at the back (the seventh vertebra); and its radius
 #: from the neck's axis, where it crosses the slope of the shoulders at the sides.
@@ -143,11 +149,38 @@ def bust_asset() -> BustAsset:
     d = np.load(_DATA / "bust.npz")
     with Image.open(_DATA / "jersey.png") as im:
         tex = np.asarray(im.convert("L"))
-    arrays = [d["vertices"].astype(np.float64), d["faces"].astype(np.int64), d["cloth"].astype(bool),
-              d["cloth_face"].astype(bool), d["eyes"].astype(np.float64), tex, d["axis"].astype(np.float64)]
+    vertices, faces, cloth, cloth_face = _neck_extended(d["vertices"].astype(np.float64), d["faces"].astype(np.int64),
+                                                        d["cloth"].astype(bool), d["cloth_face"].astype(bool),
+                                                        d["eyes"].astype(np.float64), d["axis"].astype(np.float64))
+    arrays = [vertices, faces, cloth, cloth_face, d["eyes"].astype(np.float64), tex, d["axis"].astype(np.float64)]
     for a in arrays:
         a.setflags(write=False)
     return BustAsset(*arrays)
+
+
+def _neck_extended(vertices: np.ndarray, faces: np.ndarray, cloth: np.ndarray, cloth_face: np.ndarray,
+                   eyes: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The bust with its neck's open top edge (the base mesh's cut under the jaw) extruded
+    straight up by :data:`NECK_EXTENSION_IOD` at the sides and back (beyond
+    :data:`NECK_EXTENSION_FROM_DEG` around the neck's ``axis``): (vertices, faces, cloth, cloth_face), the new
+    vertices and faces neck skin. Where a character's border lies above the bust's own edge
+    (james's ragged border reaches 0.1 iod higher than the bust's edge under his ear), the
+    extension goes on behind it, as the bust's neck does elsewhere (:data:`TUCK_IOD`)."""
+    from stimulus_engine.geometry.mesh_ops import boundary_half_edges
+
+    edges = boundary_half_edges(faces)
+    edges = edges[~cloth[edges].any(axis=1)]  # the neck's top (the garment's edges are its own)
+    rel = vertices - axis
+    side = np.abs(np.degrees(np.arctan2(rel[:, 0], rel[:, 2]))) > NECK_EXTENSION_FROM_DEG
+    edges = edges[side[edges].all(axis=1)]  # not under the chin (it came through james's)
+    top = np.unique(edges)
+    new = np.full(len(vertices), -1, np.int64)
+    new[top] = len(vertices) + np.arange(len(top))
+    lift = NECK_EXTENSION_IOD * float(np.linalg.norm(eyes[1] - eyes[0]))
+    a, b = edges[:, 0], edges[:, 1]  # each as it runs in its face: the new quad runs b -> a
+    quads = np.concatenate([np.stack([b, a, new[a]], axis=1), np.stack([b, new[a], new[b]], axis=1)])
+    return (np.concatenate([vertices, vertices[top] + [0.0, lift, 0.0]]), np.concatenate([faces, quads]),
+            np.concatenate([cloth, np.zeros(len(top), bool)]), np.concatenate([cloth_face, np.zeros(len(quads), bool)]))
 
 
 @dataclass(frozen=True)
