@@ -208,6 +208,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
         Long table: character, shape, stylisation, expression, landmark, x, y, z.
     """
     from stimulus_engine.characters.gaze import aim_eyes
+    from stimulus_engine.characters.incisor_display import show_upper_incisors, upper_teeth
     from stimulus_engine.characters.skin_clearance import eyes_behind_skin, inside_behind_skin
     from stimulus_engine.stylisation.shape import stylise
 
@@ -223,6 +224,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
     rig_files: dict[str, Path] = {}
     shapes: dict[tuple, tuple[np.ndarray, tuple]] = {}
     geometry: dict[tuple, tuple[Path, str]] = {}
+    uppers: dict[str, np.ndarray] = {}
     for im in images:
         ch = chars[im.character]
         if im.character not in rig_files:
@@ -243,9 +245,15 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
             gp = cache / "geometry" / f"{sha(gh, 'scan', ch.scan.topology.name)}.npy"
             if not gp.exists():
                 topo = ch.scan.topology
+                if im.character not in uppers:
+                    uppers[im.character] = upper_teeth(topo.vertices, topo.faces, topo.face_part, topo.part_names)
                 drawn = ch.scan.pose(np.load(geometry[gkey][0]))
                 if target is not None:  # the drawn eyeballs follow the rig's only nearly: aim them too
                     drawn = aim_eyes(topo.landmarks, drawn, target)
+                rig_pose = ch.rig.landmark_points(np.load(geometry[gkey][0]))
+                drawn = show_upper_incisors(drawn, topo.faces, topo.face_part, topo.part_names,
+                                            uppers[im.character], rig_pose["mouth_left"], rig_pose["mouth_right"],
+                                            float(np.linalg.norm(rig_pose["eye_left"] - rig_pose["eye_right"])))
                 drawn = inside_behind_skin(drawn, topo.faces, topo.face_part, topo.part_names)
                 drawn = eyes_behind_skin(drawn, topo.faces, topo.face_part, topo.part_names, topo.landmarks)
                 save_npy(gp, drawn.astype(np.float32))
