@@ -26,15 +26,20 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
     \b
     GRID.yaml (kind: grid) names the characters (the ICT face model or a procedural head),
     stylisation levels (0 realistic .. 1 cartoon, by the artist-free shape operator), materials
-    (original, blur25, blur50, bilateral, flat, or an albedo from another character),
+    (original, blur25, blur50, bilateral, flat, painted, an albedo from another character,
+    or {levels: N} evenly spaced),
     expressions (FACS recipes: neutral, anger, happiness, sadness, surprise, ...), lighting
     presets (direct_hard, direct_soft, gi_soft, flat) and shading (pbr, phong).
 
     \b
     Writes DIR/images/*.png (1024 x 768 by default, 50% grey background, every face framed
     with the same size and eye position), DIR/manifest.csv (one row per image: file, factors,
-    input hashes, camera, seconds), DIR/landmarks.csv and contact sheets. With --resume, images
-    whose inputs are unchanged are kept. All input problems are reported before rendering.
+    input hashes, camera, seconds), DIR/landmarks.csv, contact sheets and the continuum report
+    (DIR/continuum.csv and .png: per character, the image step between neighbouring shape and
+    material levels and each level's identity distance to the realistic one, dlib's face
+    descriptor, same person within 0.6). materials: {levels: 5} asks for five levels of one
+    painted family spaced by measured image steps. With --resume, images whose inputs are
+    unchanged are kept. All input problems are reported before rendering.
     """
     from appeal.outputs import output_run
     from appeal.studyfile import load_study_file
@@ -48,7 +53,8 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
         run.extra["images"] = len(manifest)
         click.echo(f"{n_ok} of {len(manifest)} images in {run.out / 'images'}; manifest {run.out / 'manifest.csv'}")
         for s in sheets:
-            click.echo(f"contact sheet: {s}")
+            click.echo(f"continuum: {s} (table {s.with_suffix('.csv')})" if s.name == "continuum.png"
+                       else f"contact sheet: {s}")
         if n_ok < len(manifest):
             bad = manifest[~manifest["status"].isin(["rendered", "up to date"])]
             raise click.ClickException(f"{len(bad)} image(s) failed, first: {bad.iloc[0]['file']}: {bad.iloc[0]['status']}")

@@ -105,7 +105,8 @@ def _prepare_material(m: MaterialSpec, ch: Character, albedo: tuple[np.ndarray, 
     from stimulus_engine.stylisation.materials import albedo_hash, maps_hash, stylise_material
 
     img, masks = albedo
-    styl, maps = stylise_material(img, m.style, masks, _material_maps(m, ch, img.shape[:2], cache, source))
+    styl, maps = stylise_material(img, m.style, masks, _material_maps(m, ch, img.shape[:2], cache, source),
+                                  m.amount_for(ch.spec.name))
     ah = albedo_hash(styl)
     paths = {kind: str(save_png_once(a if a.ndim == 3 else np.repeat(a[..., None], 3, axis=2),
                                      cache / "maps" / f"{kind}_{albedo_hash(a)}.png")) for kind, a in maps.items()}
@@ -194,8 +195,28 @@ def _landmark_rows(ch: Character, im: PlannedImage, vertices: np.ndarray) -> lis
             for name, pt in ch.rig.landmark_points(vertices.astype(np.float64)).items()]
 
 
-def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd.DataFrame, list[RenderItem], pd.DataFrame]:
-    """Prepare the inputs of every image in ``out/.cache`` and list the images.
+def _probe_images(probe: GridFile, folder: Path, source: str, cache: Path) -> list[np.ndarray]:
+    """A small grid's images, prepared with the grid's cache and rendered here, in manifest order
+    (the measurements of :func:`~stimulus_engine.grid.continuum.even_materials`)."""
+    from PIL import Image
+
+    from stimulus_engine.grid.worker import render_item
+
+    _, items, _ = prepare_grid(probe, folder, source=source, cache=cache)
+    images = []
+    for it in items:
+        render_item(it)
+        with Image.open(Path(it.out_dir) / it.file) as im:
+            images.append(np.asarray(im.convert("RGB")))
+    return images
+
+
+def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid",
+                 cache: Path | None = None) -> tuple[pd.DataFrame, list[RenderItem], pd.DataFrame]:
+    """Prepare the inputs of every image in ``out/.cache`` (or ``cache``) and list the images.
+
+    A :class:`~stimulus_engine.grid.schema.MaterialContinuum` is measured out first
+    (:func:`~stimulus_engine.grid.continuum.even_materials`).
 
     Returns
     -------
@@ -212,8 +233,11 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
     from stimulus_engine.characters.skin_clearance import eyes_behind_skin, inside_behind_skin
     from stimulus_engine.stylisation.shape import stylise
 
-    cache = out / ".cache"
+    from stimulus_engine.grid.continuum import even_materials
+
+    cache = Path(cache) if cache is not None else out / ".cache"
     chars = {c.name: load_character(c, cache, source) for c in grid.characters}
+    grid = even_materials(grid, cache, lambda probe, folder: _probe_images(probe, folder, source, cache))
     albedos = {name: character_albedo(ch, source, cache) for name, ch in chars.items()}
     _check_shared_uv(grid, chars, source)
     images = plan_images(grid)
@@ -268,13 +292,15 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid") -> tuple[pd
         rows.append({"file": im.file, "character": im.character, "shape": im.shape, "shape_label": im.shape_label,
                      "stylisation": im.stylisation, "material": im.material.name,
                      "material_style": im.material.style, "material_from": im.albedo_from,
+                     "material_amount": im.material.amount_for(im.albedo_from) if im.material.style == "painted"
+                     else float("nan"),
                      "expression": im.expression, "emotion": im.emotion, "lighting": im.lighting,
                      "shading": im.shading, "geometry_hash": gh, "albedo_hash": look.albedo_hash,
                      "maps_hash": look.maps_hash, "input_hash": ih, "camera": _camera_text(cam),
                      "width": r.width, "height": r.height})
     for p in plan_photos(grid):
         rows.append({"file": p.file, "character": p.character, "shape": "photograph", "shape_label": "photograph",
-                     "stylisation": len(grid.shapes), "material": "photograph", "material_style": "photograph",
+                     "stylisation": len(grid.shapes), "material": "photograph", "material_style": "photograph", "material_amount": float("nan"),
                      "material_from": p.character, "expression": p.expression, "emotion": p.emotion,
                      "lighting": "photograph", "shading": "photograph", "geometry_hash": "", "albedo_hash": "",
                      "maps_hash": "", "input_hash": sha(GRID_VERSION, "photo", file_sha(p.source), r.width, r.height),

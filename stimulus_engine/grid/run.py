@@ -13,6 +13,7 @@ import pandas as pd
 
 from appeal.atomic import atomic_write_text
 from appeal.logs import logger
+from stimulus_engine.grid.continuum import continuum_table, write_continuum
 from stimulus_engine.grid.prepare import prepare_grid
 from stimulus_engine.grid.sheets import write_sheets
 from stimulus_engine.grid.worker import place_photo, render_item
@@ -56,7 +57,8 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     -------
     manifest : DataFrame
     sheets : list of Path
-        The contact sheets written.
+        The contact sheets written, then the continuum's figure (``continuum.png``, its table
+        ``continuum.csv`` beside it).
     """
     from appeal.parallel import parallel_map
 
@@ -89,10 +91,14 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     manifest["seconds"] = [round(status[f][1], 4) for f in manifest["file"]]
     manifest["status"] = [status[f][0] for f in manifest["file"]]
     manifest = manifest.drop(columns=[c for c in manifest.columns if c.startswith("_")])
+    continuum = continuum_table(out, manifest, grid)
+    if not continuum.empty:  # each measured image's identity distance to its character's realistic level
+        manifest["identity_to_realistic"] = manifest["file"].map(
+            continuum.drop_duplicates("file").set_index("file")["identity_to_realistic"])
     atomic_write_text(out / "manifest.csv", manifest.to_csv(index=False))
     atomic_write_text(out / "landmarks.csv", landmarks.to_csv(index=False))
     atomic_write_text(out / "grid.json", json.dumps(grid.model_dump(mode="json"), indent=2))
-    sheets = write_sheets(out, manifest, grid)
+    sheets = write_sheets(out, manifest, grid) + write_continuum(out, continuum, grid)[1:]
     if res.failures:
         logger.warning(res.summary())
     return manifest, sheets

@@ -10,10 +10,17 @@ Example (``protocols/grids/exp1a_shape_material.yaml``)::
         ict: data:ict-facekit               # a registered dataset: appeal data fetch ict-facekit
         identity: identity000
     shapes: [0.0, 0.5, 1.0]                 # stylisation levels (0 realistic ... 1 cartoon)
-    materials: [original, blur50, flat]     # albedo styles, or {name, style, from_character}
+    materials: [original, blur50, flat]     # albedo styles, or {name, style, from_character},
+                                            # or {levels: 5}: evenly spaced, measured (below)
     expressions: [neutral, anger, happiness, sadness, surprise]
     lighting: [gi_soft]
     shading: [pbr]
+
+``materials: {levels: N}`` asks for N levels of one continuous family (``painted``: detail
+removal, then colour flattening; :mod:`stimulus_engine.stylisation.materials`) from the original
+to painted regions, spaced so that consecutive levels differ equally in the rendered image
+(:mod:`stimulus_engine.grid.continuum`); they are named ``original``, ``paint1`` ...
+``paint{N-1}``.
 
 Relative paths resolve against the grid file's folder; ``data:NAME[/file]`` names a registered
 dataset (:mod:`appeal.datasets`).
@@ -21,15 +28,15 @@ dataset (:mod:`appeal.datasets`).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
-__all__ = ["CharacterSpec", "GridFile", "MaterialSpec", "MeshSpec", "PhotoSpec", "RenderSettings", "shape_label"]
+__all__ = ["CharacterSpec", "GridFile", "MaterialContinuum", "MaterialSpec", "MeshSpec", "PhotoSpec", "RenderSettings", "shape_label"]
 
-_STYLES = ("original", "blur25", "blur50", "bilateral", "flat")
+_STYLES = ("original", "blur25", "blur50", "bilateral", "flat", "painted")
 _LIGHTING = ("direct_hard", "direct_soft", "gi_soft", "flat")
 
 
@@ -167,14 +174,53 @@ class MaterialSpec(StudyModel):
     ``procedural_maps: true`` paints a skin-pore normal map and a specular map by code where no
     file is given. Without either, a mesh character's own (transferred) maps are used. Maps are
     stylised with the albedo (blurred for ``blur25``/``blur50``, flat for ``flat``).
+    ``amount`` (0..1) places a ``painted`` material along its family, one value or one per
+    albedo character (as :class:`MaterialContinuum` levels are measured out).
     """
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
-    style: Literal["original", "blur25", "blur50", "bilateral", "flat"] = "original"
+    style: Literal["original", "blur25", "blur50", "bilateral", "flat", "painted"] = "original"
+    amount: float | dict[str, float] = Field(1.0)
     from_character: str | None = None
     normal_map: InputFile | None = None
     specular_map: InputFile | None = None
     procedural_maps: bool = False
+
+    @field_validator("amount")
+    @classmethod
+    def _amount(cls, v: float | dict[str, float]) -> float | dict[str, float]:
+        for x in (v.values() if isinstance(v, dict) else [v]):
+            if not 0.0 <= x <= 1.0:
+                raise ValueError(f"amount must be within 0..1 (got {x})")
+        return v
+
+    def amount_for(self, character: str) -> float:
+        """The amount for the albedo of ``character``."""
+        return self.amount.get(character, 1.0) if isinstance(self.amount, dict) else self.amount
+
+
+class MaterialContinuum(StudyModel):
+    """``materials: {levels: N}``: N levels of the ``painted`` family from the original to painted
+    regions, evenly spaced by the rendered image's distance (:mod:`stimulus_engine.grid.continuum`);
+    ``order: painted_first`` lists them the other way round (to pair with shapes listed from
+    the cartoon, as the ERP grid does)."""
+
+    levels: int = Field(ge=2, le=12)
+    family: Literal["painted"] = "painted"
+    order: Literal["original_first", "painted_first"] = "original_first"
+
+    def names(self) -> list[str]:
+        """The level names, in the grid's order."""
+        names = ["original"] + [f"paint{k}" for k in range(1, self.levels)]
+        return names if self.order == "original_first" else names[::-1]
+
+    def specs(self) -> list[MaterialSpec]:
+        """The levels as materials, spaced evenly by amount until measured."""
+        n = self.levels - 1
+        out = [MaterialSpec(name="original" if k == 0 else f"paint{k}", style="painted", amount=k / n)
+               for k in range(self.levels)]
+        return out if self.order == "original_first" else out[::-1]
+
 
 
 class PhotoSpec(StudyModel):
@@ -280,7 +326,7 @@ class GridFile(StudyModel):
     description: str = ""
     characters: list[CharacterSpec] = Field(min_length=1)
     shapes: list[float] = Field(min_length=1)
-    materials: list[str | MaterialSpec] = Field(min_length=1)
+    materials: Annotated[list[str | MaterialSpec], Field(min_length=1)] | MaterialContinuum
     expressions: list[str] = Field(min_length=1)
     lighting: list[Literal["direct_hard", "direct_soft", "gi_soft", "flat"]] = Field(default_factory=lambda: ["gi_soft"],
                                                                                   min_length=1)
@@ -321,8 +367,8 @@ class GridFile(StudyModel):
 
     @field_validator("materials")
     @classmethod
-    def _materials(cls, v: list[str | MaterialSpec]) -> list[str | MaterialSpec]:
-        for m in v:
+    def _materials(cls, v: list[str | MaterialSpec] | MaterialContinuum) -> list[str | MaterialSpec] | MaterialContinuum:
+        for m in ([] if isinstance(v, MaterialContinuum) else v):
             if isinstance(m, str) and m not in _STYLES:
                 raise ValueError(f"unknown material '{m}' (expected one of: {', '.join(_STYLES)}, "
                                  "or a mapping with name/style/from_character)")
@@ -343,9 +389,9 @@ class GridFile(StudyModel):
             missing = [e for e in self.expressions if e not in p.files]
             if missing:
                 raise ValueError(f"photographs of '{p.character}': no file for expression(s) {', '.join(missing)}")
-        if self.pair_materials_with_shapes and len(self.materials) != len(self.shapes):
+        if self.pair_materials_with_shapes and len(self.material_specs()) != len(self.shapes):
             raise ValueError(f"pair_materials_with_shapes needs one material per shape level "
-                             f"(got {len(self.materials)} materials for {len(self.shapes)} shapes)")
+                             f"(got {len(self.material_specs())} materials for {len(self.shapes)} shapes)")
         if self.n_images() == 0:
             raise ValueError("the grid would produce 0 images")
         return self
@@ -361,11 +407,13 @@ class GridFile(StudyModel):
 
     def material_specs(self) -> list[MaterialSpec]:
         """Materials as :class:`MaterialSpec` (a plain style name becomes ``{name: style, style: style}``)."""
+        if isinstance(self.materials, MaterialContinuum):
+            return self.materials.specs()
         return [MaterialSpec(name=m, style=m) if isinstance(m, str) else m for m in self.materials]
 
     def n_images(self) -> int:
         """Number of rendered images plus photographs."""
-        n_mat = 1 if self.pair_materials_with_shapes else len(self.materials)
+        n_mat = 1 if self.pair_materials_with_shapes else len(self.material_specs())
         n = (len(self.characters) * len(self.shapes) * n_mat * len(self.expressions)
              * len(self.lighting) * len(self.shading))
         return n + sum(len(self.expressions) for _ in self.photographs)

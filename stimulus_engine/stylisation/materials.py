@@ -9,6 +9,11 @@ Albedo stylisation (thesis ch. 5 & §6.3, material levels 1a …):
 ``bilateral``  edge-preserving blur (OpenCV bilateral filter, repeated): skin detail goes,
     region borders stay.
 ``flat``  a "cartoon" albedo: every region becomes its mean colour.
+``painted``  one continuous family from the original (``amount`` 0) to painted regions (1):
+    detail removal (a region-wise Gaussian blur growing to :data:`PAINT_BLUR_AT_4K` px at 4k
+    by ``amount`` :data:`PAINT_BLUR_UNTIL`), then colour flattening (the blurred albedo blended
+    into each region's mean colour). A grid spaces its levels by measured image distance
+    (:mod:`stimulus_engine.grid.continuum`), not by ``amount``.
 
 :data:`MATERIAL_LEVELS` orders them as a five-step material-stylisation axis (0 = original …
 4 = flat). :func:`stylise_map` stylises a character's normal and specular maps
@@ -35,9 +40,12 @@ __all__ = [
 ]
 
 #: Albedo stylisations.
-MATERIAL_STYLES: tuple[str, ...] = ("original", "blur25", "blur50", "bilateral", "flat")
+MATERIAL_STYLES: tuple[str, ...] = ("original", "blur25", "blur50", "bilateral", "flat", "painted")
 #: Material stylisation levels 0..4 (thesis: realistic → cartoon albedo).
-MATERIAL_LEVELS: dict[int, str] = dict(enumerate(MATERIAL_STYLES))
+MATERIAL_LEVELS: dict[int, str] = dict(enumerate(MATERIAL_STYLES[:5]))
+#: ``painted``: the blur's kernel at full detail removal (px at 4k, as the thesis's blur25 and
+#: blur50) and the amount where it is reached; from there on the colours flatten.
+PAINT_BLUR_AT_4K, PAINT_BLUR_UNTIL = 100, 0.5
 
 def _gauss_sigma(kernel_at_4k: int, size: int) -> float:
     """σ of the thesis's kernel (px at 4096) scaled to ``size``, with OpenCV's kernel→σ rule."""
@@ -76,7 +84,41 @@ def _regions(masks: dict[str, np.ndarray], shape: tuple[int, int]) -> list[np.nd
     return out
 
 
-def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] | None = None) -> np.ndarray:
+def _region_blur(f: np.ndarray, regions: list[np.ndarray], sigma: float) -> np.ndarray:
+    """Each region blurred on its own (normalised convolution), the regions put back together."""
+    out = np.zeros_like(f)
+    for w in regions:
+        if not w.any():
+            continue
+        num = _gaussian_wrap(f * w[..., None], sigma)
+        den = _gaussian_wrap(w, sigma)[..., None]
+        out += w[..., None] * num / np.maximum(den, 1e-6)
+    return out
+
+
+def _region_means(f: np.ndarray, regions: list[np.ndarray]) -> np.ndarray:
+    """Every region its mean colour."""
+    out = np.zeros_like(f)
+    for w in regions:
+        if w.sum() > 0:
+            out += w[..., None] * ((f * w[..., None]).sum(axis=(0, 1)) / w.sum())
+    return out
+
+
+def _painted(f: np.ndarray, regions: list[np.ndarray], amount: float) -> np.ndarray:
+    """The ``painted`` family at ``amount`` (see the module docstring)."""
+    if amount <= 0:
+        return f
+    sigma = _gauss_sigma(PAINT_BLUR_AT_4K, f.shape[1]) * min(amount / PAINT_BLUR_UNTIL, 1.0)
+    blurred = _region_blur(f, regions, max(sigma, 0.3))
+    if amount <= PAINT_BLUR_UNTIL:
+        return blurred
+    w = (amount - PAINT_BLUR_UNTIL) / (1.0 - PAINT_BLUR_UNTIL)
+    return (1 - w) * blurred + w * _region_means(f, regions)
+
+
+def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] | None = None,
+                   amount: float = 1.0) -> np.ndarray:
     """Stylise an albedo texture.
 
     Parameters
@@ -86,6 +128,9 @@ def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] 
         One of :data:`MATERIAL_STYLES`.
     masks : dict of str to (H, W) float arrays, optional
         Regions stylised separately (``lips``, ``brows``, ``hair``); the rest is skin.
+    amount : float
+        How far along the ``painted`` family (0 the original .. 1 painted regions); other
+        styles ignore it.
 
     Returns
     -------
@@ -100,15 +145,12 @@ def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] 
         return img.copy()
     f = img.astype(np.float64)
     regions = _regions(masks or {}, img.shape[:2])
+    if not 0.0 <= amount <= 1.0:
+        raise ValueError(f"material amount must be within 0..1 (got {amount})")
     if style in ("blur25", "blur50"):
-        sigma = _gauss_sigma(25 if style == "blur25" else 50, img.shape[1])
-        out = np.zeros_like(f)
-        for w in regions:
-            if not w.any():
-                continue
-            num = _gaussian_wrap(f * w[..., None], sigma)
-            den = _gaussian_wrap(w, sigma)[..., None]
-            out += w[..., None] * num / np.maximum(den, 1e-6)
+        out = _region_blur(f, regions, _gauss_sigma(25 if style == "blur25" else 50, img.shape[1]))
+    elif style == "painted":
+        out = _painted(f, regions, amount)
     elif style == "bilateral":
         d = max(5, int(round(img.shape[1] / 128)) | 1)
         out8 = img.copy()
@@ -116,15 +158,12 @@ def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] 
             out8 = cv2.bilateralFilter(out8, d, 35, d * 2)
         return out8
     else:  # flat
-        out = np.zeros_like(f)
-        for w in regions:
-            if w.sum() > 0:
-                mean = (f * w[..., None]).sum(axis=(0, 1)) / w.sum()
-                out += w[..., None] * mean
+        out = _region_means(f, regions)
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def stylise_map(image: np.ndarray, kind: str, style: str, masks: dict[str, np.ndarray] | None = None) -> np.ndarray:
+def stylise_map(image: np.ndarray, kind: str, style: str, masks: dict[str, np.ndarray] | None = None,
+                amount: float = 1.0) -> np.ndarray:
     """Stylise a normal or specular map with the albedo's operator (:func:`stylise_albedo`).
 
     Normal maps are stylised as vectors (the RGB codes are filtered, then renormalised), so a
@@ -134,20 +173,21 @@ def stylise_map(image: np.ndarray, kind: str, style: str, masks: dict[str, np.nd
         return np.asarray(image, np.uint8).copy()
     if kind == "specular":
         g = np.asarray(image, np.uint8)
-        return stylise_albedo(np.repeat(g[..., None], 3, axis=2), style, masks)[..., 0].copy()
-    out = stylise_albedo(image, style, masks).astype(np.float64) / 255 * 2 - 1
+        return stylise_albedo(np.repeat(g[..., None], 3, axis=2), style, masks, amount)[..., 0].copy()
+    out = stylise_albedo(image, style, masks, amount).astype(np.float64) / 255 * 2 - 1
     out[..., 2] = np.maximum(out[..., 2], 1e-3)
     out /= np.linalg.norm(out, axis=-1, keepdims=True)
     return np.clip(np.rint((out + 1) / 2 * 255), 0, 255).astype(np.uint8)
 
 
 def stylise_material(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] | None = None,
-                     maps: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+                     maps: dict[str, np.ndarray] | None = None,
+                     amount: float = 1.0) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """A material's albedo and maps stylised with one operator (one call per material).
 
     Parameters
     ----------
-    albedo, style, masks
+    albedo, style, masks, amount
         As for :func:`stylise_albedo`; the maps use ``masks`` only when every mask has the
         albedo's size.
     maps : dict, optional
@@ -162,8 +202,8 @@ def stylise_material(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray
     masks = masks or {}
     size = np.shape(albedo)[:2]
     map_masks = masks if all(np.shape(v) == size for v in masks.values()) else {}
-    return (stylise_albedo(albedo, style, masks),
-            {kind: stylise_map(a, kind, style, map_masks) for kind, a in (maps or {}).items()})
+    return (stylise_albedo(albedo, style, masks, amount),
+            {kind: stylise_map(a, kind, style, map_masks, amount) for kind, a in (maps or {}).items()})
 
 
 def maps_hash(normal: np.ndarray | None, specular: np.ndarray | None) -> str:

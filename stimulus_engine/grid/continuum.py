@@ -1,0 +1,285 @@
+"""The stylisation continuum of a grid: levels spaced by measurement, and its report.
+
+**Even material steps.** ``materials: {levels: N}`` (:class:`~stimulus_engine.grid.schema.MaterialContinuum`)
+asks for N levels of the ``painted`` family (:mod:`stimulus_engine.stylisation.materials`).
+:func:`even_materials` renders each character's realistic neutral face wearing
+:data:`CANDIDATES` amounts of the family, measures the image distance between every two of
+consecutive ones (:func:`~stimulus_engine.stylisation.image_distance.ssim_distance` inside the
+face's oval, at the grid's own size and lighting) and picks the N amounts whose consecutive
+images differ by equal distances (:func:`even_amounts`, interpolating between the candidates). A parameter
+spaced evenly is not a look spaced evenly: the thesis's blur25 -> blur50 -> bilateral -> flat
+steps differ by 0.018, 0.010, 0.011 and 0.100 on james and 0.003, 0.002, 0.003 and 0.045 on
+Lee Perry-Smith.
+
+**The report.** :func:`continuum_table` measures a rendered grid along its continuum, per
+character: each shape level (first material, neutral) and each material level (realistic
+shape) against the realistic level and the next one, by image distance and by identity
+distance (:mod:`~stimulus_engine.stylisation.identity`: dlib's face descriptor; the same person
+within 0.6), and the identity distance to every other character's realistic level;
+:func:`plot_continuum` draws it. :func:`write_continuum` writes ``continuum.csv`` and
+``continuum.png`` beside the contact sheets.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from stimulus_engine.grid.schema import GridFile, MaterialContinuum, MaterialSpec
+
+__all__ = ["CANDIDATES", "continuum_table", "even_amounts", "even_materials", "plot_continuum", "write_continuum"]
+
+logger = logging.getLogger(__name__)
+
+#: Amounts of the family rendered to measure it out.
+CANDIDATES: tuple[float, ...] = tuple(np.linspace(0.0, 1.0, 9).round(4))
+#: Then the levels themselves are rendered and re-spaced by their own steps, at most this many
+#: times, until the largest step is within this factor of the smallest.
+REFINE, EVEN_ENOUGH = 3, 1.2
+
+
+def even_amounts(candidates: np.ndarray, steps: np.ndarray, levels: int) -> np.ndarray:
+    """``levels`` amounts from the first candidate to the last whose consecutive images differ equally.
+
+    ``1 - SSIM`` grows with the square of a small change (SSIM is 1 and flat at identity), so
+    its square root is what adds up along a family: the candidates' cumulative sum of
+    ``sqrt(step)`` is the family's length, and the levels divide it into equal parts (linear
+    between candidates); each level's step is then the same ``(length / (levels - 1))**2``
+    where the family runs straight.
+
+    Parameters
+    ----------
+    candidates : (K,) array
+        Increasing amounts.
+    steps : (K - 1,) array
+        Distance between the images of consecutive candidates.
+    levels : int
+
+    Returns
+    -------
+    (levels,) array
+        Increasing, from ``candidates[0]`` to ``candidates[-1]``.
+
+    Examples
+    --------
+    >>> t = np.linspace(0, 1, 9)
+    >>> look = np.where(t < 0.75, 0.1 * t, 0.075 + 3 * (t - 0.75))  # little change until 0.75, then much
+    >>> np.round(even_amounts(t, np.diff(look) ** 2, 3), 3)           # half the length: just past the knee
+    array([0.   , 0.862, 1.   ])
+    """
+    t = np.asarray(candidates, np.float64)
+    length = np.concatenate([[0.0], np.cumsum(np.sqrt(np.maximum(np.asarray(steps, np.float64), 0.0)))])
+    if length[-1] <= 0:
+        return np.linspace(t[0], t[-1], levels)
+    keep = np.concatenate([[True], np.diff(length) > 0])  # np.interp needs increasing lengths
+    return np.interp(np.linspace(0.0, length[-1], levels), length[keep], t[keep])
+
+
+def _probe(grid: GridFile, character: str, amounts: tuple[float, ...]) -> GridFile:
+    """A grid of one character's realistic neutral face wearing each amount of the family."""
+    shape = min(grid.shapes)
+    expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
+    mats = [MaterialSpec(name=f"c{i}", style="painted", amount=float(a)) for i, a in enumerate(amounts)]
+    return grid.model_copy(update={"name": f"{grid.name}_probe", "characters": [c for c in grid.characters
+                                                                                if c.name == character],
+                                   "shapes": [shape], "materials": mats, "expressions": [expression],
+                                   "lighting": grid.lighting[:1], "shading": grid.shading[:1],
+                                   "pair_materials_with_shapes": False, "photographs": []})
+
+
+def _mask(grid: GridFile) -> np.ndarray:
+    from stimulus_engine.stylisation.image_distance import face_mask
+
+    r = grid.render
+    return face_mask(r.width, r.height, r.eye_row, r.face_fraction)
+
+
+def even_materials(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], list[np.ndarray]]) -> GridFile:
+    """``grid`` with its :class:`MaterialContinuum` measured out: explicit ``painted`` materials
+    whose amounts (one per character) give equal image steps (see the module docstring); a grid
+    with listed materials is returned as it is.
+
+    Parameters
+    ----------
+    grid : GridFile
+    cache : Path
+        The grid's input cache; the measurement is kept in ``cache/continuum``.
+    render : callable
+        ``render(probe_grid, folder)``: the probe grid's images, in material order (the grid's
+        own preparation and renderer: :func:`stimulus_engine.grid.prepare.prepare_grid` passes it).
+    """
+    from stimulus_engine.grid.cache import GRID_VERSION, sha
+    from stimulus_engine.stylisation.image_distance import ssim_distance
+
+    cont = grid.materials
+    if not isinstance(cont, MaterialContinuum):
+        return grid
+    cache = Path(cache)
+    mask = _mask(grid)
+    amounts: dict[str, list[float]] = {}
+    for c in grid.characters:
+        key = sha(GRID_VERSION, "continuum", _probe(grid, c.name, CANDIDATES).model_dump_json(), cont.levels)
+        stored = cache / "continuum" / f"{key}.json"
+        if stored.exists():
+            amounts[c.name] = json.loads(stored.read_text())["amounts"]
+            continue
+
+        def steps(at: np.ndarray, round_: int) -> np.ndarray:
+            images = render(_probe(grid, c.name, tuple(float(a) for a in at)), cache / "continuum" / key / str(round_))
+            return np.array([ssim_distance(a, b, mask) for a, b in zip(images, images[1:])])
+
+        record = {"candidates": list(CANDIDATES), "candidate_steps": steps(np.asarray(CANDIDATES), 0).round(6).tolist()}
+        levels = even_amounts(np.asarray(CANDIDATES), np.asarray(record["candidate_steps"]), cont.levels)
+        for round_ in range(1, REFINE + 1):  # measure the levels themselves, re-space them by what they show
+            measured = steps(levels, round_)
+            record[f"round{round_}"] = {"amounts": levels.round(4).tolist(), "steps": measured.round(6).tolist()}
+            if measured.max() <= EVEN_ENOUGH * measured.min() or round_ == REFINE:
+                break
+            levels = even_amounts(levels, measured, cont.levels)
+        amounts[c.name] = record["amounts"] = [round(float(a), 4) for a in levels]
+        stored.parent.mkdir(parents=True, exist_ok=True)
+        stored.write_text(json.dumps(record))
+        logger.info("%s: material levels of %s at amounts %s (steps %s)", grid.name, c.name, amounts[c.name],
+                    ", ".join(f"{x:.4f}" for x in measured))
+    specs = [MaterialSpec(name=s.name, style="painted", amount={c: amounts[c][k] for c in amounts})
+             for k, s in enumerate(MaterialContinuum(levels=cont.levels).specs())]
+    return grid.model_copy(update={"materials": specs if cont.order == "original_first" else specs[::-1]})
+
+
+def _slices(grid: GridFile, manifest: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:
+    """(character, factor, rows from the realistic end) of each continuum the report measures: the
+    shape levels (the first material; with paired materials, each shape with its own: factor
+    ``shape+material``) and the material levels (the realistic shape); neutral (or the first
+    expression), the first lighting and shading."""
+    expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
+    m = manifest[manifest["status"].isin(["rendered", "up to date"])]
+    m = m[(m["expression"] == expression) & (m["lighting"] == grid.lighting[0]) & (m["shading"] == grid.shading[0])
+          & (m["shape"] != "photograph")]
+    mats = [s.name for s in grid.material_specs()]
+    out = []
+    for ch in dict.fromkeys(m["character"]):
+        own = m[m["character"] == ch].copy()
+        own["shape"] = own["shape"].astype(float)
+        if grid.pair_materials_with_shapes:
+            out.append((ch, "shape+material", own.sort_values("shape")))
+            continue
+        out.append((ch, "shape", own[own["material"] == mats[0]].sort_values("shape")))
+        if len(mats) > 1:
+            real = own[own["shape"] == own["shape"].min()]
+            out.append((ch, "material", real.set_index("material").loc[[n for n in _material_order(grid)
+                                                                         if n in set(real["material"])]].reset_index()))
+    return out
+
+
+def _material_order(grid: GridFile) -> list[str]:
+    """Material names from the realistic end: a continuum's by amount, listed ones as listed."""
+    specs = grid.material_specs()
+    if isinstance(grid.materials, MaterialContinuum):
+        specs = sorted(specs, key=lambda s: s.amount_for(grid.characters[0].name))
+    return [s.name for s in specs]
+
+
+def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile) -> pd.DataFrame:
+    """The continuum of a rendered grid, one row per (character, factor, level) (module docstring).
+
+    Columns: character, factor (``shape``, ``material`` or ``shape+material``), position (0 at
+    the realistic end), level (its shape value or material name), file, image_to_realistic,
+    image_to_next (the image distance to the next level; empty at the last), identity_to_realistic
+    (to the same factor's realistic level), identity_to_nearest_other (the least identity
+    distance to another character's realistic level of the same factor), same_person (identity
+    to realistic within :data:`~stimulus_engine.stylisation.identity.SAME_PERSON`).
+    """
+    from PIL import Image
+
+    from stimulus_engine.stylisation.identity import SAME_PERSON, face_descriptor, framing_box, identity_distance
+    from stimulus_engine.stylisation.image_distance import ssim_distance
+
+    r = grid.render
+    mask = _mask(grid)
+    box = framing_box(r.width, r.height, r.eye_row, r.face_fraction)
+    images: dict[str, np.ndarray] = {}
+    descriptors: dict[str, np.ndarray] = {}
+
+    def image(f: str) -> np.ndarray:
+        if f not in images:
+            with Image.open(Path(out) / f) as im:
+                images[f] = np.asarray(im.convert("RGB"))
+        return images[f]
+
+    def descriptor(f: str) -> np.ndarray:
+        if f not in descriptors:
+            descriptors[f] = face_descriptor(image(f), box)
+        return descriptors[f]
+
+    slices = _slices(grid, manifest)
+    realistic = {(ch, factor): rows["file"].iloc[0] for ch, factor, rows in slices}
+    table = []
+    for ch, factor, rows in slices:
+        files = list(rows["file"])
+        levels = list(rows["material"] if factor == "material" else rows["shape"])
+        others = [f for (c, fac), f in realistic.items() if fac == factor and c != ch]
+        for i, f in enumerate(files):
+            to_real = identity_distance(descriptor(files[0]), descriptor(f))
+            table.append({
+                "character": ch, "factor": factor, "position": i, "level": levels[i], "file": f,
+                "image_to_realistic": ssim_distance(image(files[0]), image(f), mask),
+                "image_to_next": ssim_distance(image(f), image(files[i + 1]), mask) if i + 1 < len(files) else np.nan,
+                "identity_to_realistic": to_real,
+                "identity_to_nearest_other": min((identity_distance(descriptor(o), descriptor(f)) for o in others),
+                                                 default=np.nan),
+                "same_person": bool(to_real <= SAME_PERSON)})
+    return pd.DataFrame(table)
+
+
+def plot_continuum(table: pd.DataFrame, path: Path) -> Path:
+    """Image step and identity distance along each continuum, a panel per factor (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from stimulus_engine.stylisation.identity import SAME_PERSON
+
+    factors = list(dict.fromkeys(table["factor"]))
+    fig, axes = plt.subplots(2, len(factors), figsize=(4.2 * len(factors), 6.4), squeeze=False,
+                             constrained_layout=True)
+    for j, factor in enumerate(factors):
+        sub = table[table["factor"] == factor]
+        for ch, g in sub.groupby("character", sort=False):
+            line = axes[0, j].plot(g["position"][:-1] + 0.5, g["image_to_next"][:-1], marker="o", label=str(ch))[0]
+            axes[1, j].plot(g["position"], g["identity_to_realistic"], marker="o", color=line.get_color(), label=str(ch))
+            axes[1, j].plot(g["position"], g["identity_to_nearest_other"], ls="--", color=line.get_color(), alpha=0.6)
+        labels = sub.drop_duplicates("position").sort_values("position")["level"].astype(str)
+        for ax in axes[:, j]:
+            ax.set_xticks(range(len(labels)), [str(x)[:9] for x in labels], rotation=30, fontsize=8)
+        axes[0, j].set_title(f"{factor}: step between neighbouring levels")
+        axes[0, j].set_ylabel("1 - SSIM (luma, face oval)")
+        axes[0, j].set_ylim(bottom=0)
+        axes[1, j].axhline(SAME_PERSON, color="grey", lw=0.8)
+        axes[1, j].set_title(f"{factor}: identity distance (dlib)")
+        axes[1, j].set_ylabel("to own realistic (solid), other's (dashed)")
+        axes[0, j].legend(fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def write_continuum(out: Path, table: pd.DataFrame, grid: GridFile) -> list[Path]:
+    """``continuum.csv`` and ``continuum.png`` (of :func:`continuum_table`) in ``out``, each step logged."""
+    from appeal.atomic import atomic_write_text
+
+    if table.empty:
+        return []
+    for (ch, factor), g in table.groupby(["character", "factor"], sort=False):
+        steps = g["image_to_next"].dropna()
+        logger.info("%s: %s %s steps %s (largest / smallest %.2f); identity to realistic %s", grid.name, ch, factor,
+                    ", ".join(f"{x:.4f}" for x in steps), steps.max() / max(steps.min(), 1e-12) if len(steps) else 1.0,
+                    ", ".join(f"{x:.2f}" for x in g["identity_to_realistic"]))
+    csv = atomic_write_text(Path(out) / "continuum.csv", table.to_csv(index=False, float_format="%.5f"))
+    return [csv, plot_continuum(table, Path(out) / "continuum.png")]

@@ -1,0 +1,121 @@
+"""The stylisation continuum: the painted material family, image and identity distances, levels
+spaced by measured image steps, and the continuum report of a rendered grid."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from PIL import Image
+
+from stimulus_engine.grid.continuum import even_amounts
+from stimulus_engine.stylisation.image_distance import face_mask, ssim_distance
+from stimulus_engine.stylisation.materials import stylise_albedo
+
+
+def _texture(seed: int = 0) -> np.ndarray:
+    """A skin-like albedo: a smooth gradient with fine speckle (pores) and a darker blotch."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:256, 0:256] / 256.0
+    base = np.stack([180 + 30 * x, 130 + 20 * y, 110 + 10 * x * y], axis=2)
+    base += rng.normal(0, 12, (256, 256, 1))
+    base[100:140, 60:120] -= 40
+    return np.clip(base, 0, 255).astype(np.uint8)
+
+
+def test_painted_runs_from_the_original_to_the_regions_means():
+    img = _texture()
+    lips = np.zeros(img.shape[:2])
+    lips[180:220, 90:170] = 1.0
+    masks = {"lips": lips}
+    assert np.array_equal(stylise_albedo(img, "painted", masks, amount=0.0), img)
+    assert np.array_equal(stylise_albedo(img, "painted", masks, amount=1.0), stylise_albedo(img, "flat", masks))
+    # detail goes first (the speckle's contrast falls), then the colours flatten: the distance to
+    # the original grows along the family
+    d = [ssim_distance(img, stylise_albedo(img, "painted", masks, amount=a)) for a in np.linspace(0, 1, 6)]
+    assert d[0] == 0 and all(b > a for a, b in zip(d, d[1:])), d
+    with pytest.raises(ValueError, match="amount"):
+        stylise_albedo(img, "painted", masks, amount=1.5)
+
+
+def test_ssim_distance_is_zero_for_one_image_and_grows_with_blur():
+    import cv2
+
+    img = _texture(1)
+    mask = face_mask(256, 256, 0.4, 0.5)
+    assert mask.shape == (256, 256) and 0.2 < mask.mean() < 0.8
+    d = [ssim_distance(img, cv2.GaussianBlur(img, (0, 0), s), mask) for s in (0.5, 1.0, 2.0)]
+    assert ssim_distance(img, img, mask) == pytest.approx(0.0, abs=1e-12)
+    assert d[0] < d[1] < d[2] <= 1.0
+    with pytest.raises(ValueError, match="differ in size"):
+        ssim_distance(img, img[:100])
+
+
+def test_even_amounts_equalise_the_steps_of_a_knee():
+    """A family that barely changes until 0.75 and then changes fast: equal amounts give one huge
+    step; the even amounts give equal steps of the measured (quadratic) distance."""
+    t = np.linspace(0, 1, 9)
+    look = np.where(t < 0.75, 0.1 * t, 0.075 + 3 * (t - 0.75))
+    dist = lambda a, b: (np.interp(b, t, look) - np.interp(a, t, look)) ** 2  # noqa: E731
+    plain = np.linspace(0, 1, 5)
+    even = even_amounts(t, dist(t[:-1], t[1:]), 5)
+    assert even[0] == 0 and even[-1] == 1 and np.all(np.diff(even) > 0)
+    plain_steps, even_steps = dist(plain[:-1], plain[1:]), dist(even[:-1], even[1:])
+    assert plain_steps.max() / plain_steps.min() > 100
+    assert even_steps.max() / even_steps.min() < 1.05, even_steps
+    # no change measured at all: the amounts stay evenly spaced
+    assert np.allclose(even_amounts(t, np.zeros(8), 3), [0, 0.5, 1])
+
+
+def test_dlib_descriptors_tell_people_apart_on_london_photographs(shared_data):
+    """The identity measure on real photographs: one person neutral and smiling lies within dlib's
+    same-person threshold, two people beyond it (measured 0.28 and 0.78-0.96)."""
+    from stimulus_engine.stylisation.identity import SAME_PERSON, face_descriptor, identity_distance
+
+    d = shared_data / "faces2d" / "london-frl"
+    desc = {n: face_descriptor(np.asarray(Image.open(d / n).convert("RGB")))
+            for n in ("neutral_front/001_03.jpg", "smiling_front/001_08.jpg", "neutral_front/002_03.jpg",
+                      "neutral_front/005_03.jpg")}
+    same = identity_distance(desc["neutral_front/001_03.jpg"], desc["smiling_front/001_08.jpg"])
+    others = [identity_distance(desc["neutral_front/001_03.jpg"], desc[n])
+              for n in ("neutral_front/002_03.jpg", "neutral_front/005_03.jpg")]
+    assert same < SAME_PERSON < min(others), (same, others)
+    with pytest.raises(ValueError, match="no face"):
+        face_descriptor(np.full((200, 200, 3), 128, np.uint8))
+
+
+@pytest.mark.render
+@pytest.mark.slow
+def test_a_material_continuum_is_measured_out_into_even_steps(tmp_path):
+    """``materials: {levels: 4}`` on a procedural head: the levels' amounts are measured per
+    character, the rendered steps between neighbouring material levels (realistic shape, neutral)
+    are within 1.5x of each other, and the grid's continuum report lists them with identity
+    distances (same person at every material level)."""
+    from appeal.studyfile import validate_data
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid.schema import GridFile
+
+    spec = {"kind": "grid", "name": "cont", "characters": [
+        {"name": "a", "procedural": {"seed": 3, "texture_size": 512, "resolution": 64}}],
+        "shapes": [0.0, 1.0], "materials": {"levels": 4}, "expressions": ["neutral"],
+        "render": {"width": 480, "height": 360}}
+    grid = validate_data(spec, GridFile, source="cont.yaml")
+    assert [m.name for m in grid.material_specs()] == ["original", "paint1", "paint2", "paint3"]
+    manifest, sheets = run_grid(grid, tmp_path, n_jobs=1)
+    assert len(manifest) == 8 and sheets[-1].name == "continuum.png" and sheets[-1].is_file()
+    amounts = manifest[manifest["shape"] == 0].set_index("material")["material_amount"]
+    assert amounts["original"] == 0 and amounts["paint3"] == 1 and amounts.is_monotonic_increasing
+    record = json.loads(next((tmp_path / ".cache" / "continuum").glob("*.json")).read_text())
+    assert record["amounts"] == amounts.tolist()
+    table = pd.read_csv(tmp_path / "continuum.csv")
+    mat = table[table["factor"] == "material"].sort_values("position")
+    assert list(mat["level"]) == ["original", "paint1", "paint2", "paint3"]
+    steps = mat["image_to_next"].dropna()
+    assert steps.max() <= 1.5 * steps.min(), steps.tolist()
+    assert mat["same_person"].all() and mat["identity_to_realistic"].iloc[0] == 0
+    shape = table[table["factor"] == "shape"]
+    assert list(shape["level"].astype(float)) == [0.0, 1.0] and shape["image_to_realistic"].iloc[1] > 0
+    # the manifest carries each measured image's identity distance
+    assert manifest.set_index("file").loc[mat["file"], "identity_to_realistic"].notna().all()
