@@ -25,13 +25,16 @@ def _texture(seed: int = 0) -> np.ndarray:
     return np.clip(base, 0, 255).astype(np.uint8)
 
 
-def test_painted_runs_from_the_original_to_the_regions_means():
+def test_painted_runs_from_the_original_to_painted_regions():
     img = _texture()
     lips = np.zeros(img.shape[:2])
     lips[180:220, 90:170] = 1.0
     masks = {"lips": lips}
     assert np.array_equal(stylise_albedo(img, "painted", masks, amount=0.0), img)
-    assert np.array_equal(stylise_albedo(img, "painted", masks, amount=1.0), stylise_albedo(img, "flat", masks))
+    # the end: painted regions, half their mean colour, half the blurred albedo's gradients
+    flat, end = stylise_albedo(img, "flat", masks).astype(float), stylise_albedo(img, "painted", masks, amount=1.0)
+    blurred = stylise_albedo(img, "painted", masks, amount=0.5).astype(float)
+    assert np.abs(end - (flat + blurred) / 2).max() <= 1.0
     # detail goes first (the speckle's contrast falls), then the colours flatten: the distance to
     # the original grows along the family
     d = [ssim_distance(img, stylise_albedo(img, "painted", masks, amount=a)) for a in np.linspace(0, 1, 6)]
@@ -119,3 +122,43 @@ def test_a_material_continuum_is_measured_out_into_even_steps(tmp_path):
     assert list(shape["level"].astype(float)) == [0.0, 1.0] and shape["image_to_realistic"].iloc[1] > 0
     # the manifest carries each measured image's identity distance
     assert manifest.set_index("file").loc[mat["file"], "identity_to_realistic"].notna().all()
+
+
+def _neutral_slice(name: str):
+    """A shipped grid cut to what its continuum is measured on: neutral, the first lighting and shading."""
+    from appeal.assets import protocols_dir
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid.schema import GridFile
+
+    grid = load_study_file(protocols_dir() / "grids" / f"{name}.yaml", GridFile)
+    return grid, grid.model_copy(update={"expressions": ["neutral"], "lighting": grid.lighting[:1],
+                                         "shading": grid.shading[:1], "photographs": []})
+
+
+@pytest.mark.render
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["exp1a_shape_material", "exp2_stylisation", "erp_stylisation"])
+def test_the_shipped_continua_step_evenly_and_keep_the_person(name, tmp_path):
+    """The shipped Exp. 1a, Exp. 2 and ERP grids (neutral): neighbouring shape levels and
+    neighbouring material levels differ by image steps within 1.5x of each other (the ERP grid's
+    paired shape+material levels likewise); along each continuum the identity distance to the
+    realistic level grows, stays within dlib's same-person 0.6 up to the middle of the scale, and
+    every level is nearer its own character's realistic level than any other character's."""
+    from stimulus_engine.grid import run_grid
+
+    grid, cut = _neutral_slice(name)
+    assert grid.n_images() == {"exp1a_shape_material": 45, "exp2_stylisation": 250, "erp_stylisation": 36}[name]
+    run_grid(cut, tmp_path, n_jobs=2)
+    table = pd.read_csv(tmp_path / "continuum.csv")
+    factors = {"exp1a_shape_material": {"shape", "material"}, "exp2_stylisation": {"shape", "material"},
+               "erp_stylisation": {"shape+material"}}[name]
+    assert set(table["factor"]) == factors
+    for (ch, factor), g in table.groupby(["character", "factor"]):
+        g = g.sort_values("position")
+        steps = g["image_to_next"].dropna()
+        assert steps.max() <= 1.5 * steps.min(), (ch, factor, steps.round(4).tolist())
+        ident = g["identity_to_realistic"].to_numpy()
+        assert np.all(np.diff(ident) > 0), (ch, factor, ident.round(3))
+        assert (ident[: len(ident) // 2 + 1] <= 0.6).all(), (ch, factor, ident.round(3))
+        other = g["identity_to_nearest_other"].to_numpy()
+        assert np.isnan(other).all() or (ident < other).all(), (ch, factor, ident.round(3), other.round(3))

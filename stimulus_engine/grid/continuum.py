@@ -30,9 +30,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stimulus_engine.grid.schema import GridFile, MaterialContinuum, MaterialSpec
+from stimulus_engine.grid.schema import GridFile, MaterialContinuum, MaterialSpec, ShapeContinuum
 
-__all__ = ["CANDIDATES", "continuum_table", "even_amounts", "even_materials", "plot_continuum", "write_continuum"]
+__all__ = ["CANDIDATES", "common_levels", "continuum_table", "even_amounts", "even_materials", "even_shapes", "plot_continuum",
+           "write_continuum"]
 
 logger = logging.getLogger(__name__)
 
@@ -41,16 +42,22 @@ CANDIDATES: tuple[float, ...] = tuple(np.linspace(0.0, 1.0, 9).round(4))
 #: Then the levels themselves are rendered and re-spaced by their own steps, at most this many
 #: times, until the largest step is within this factor of the smallest.
 REFINE, EVEN_ENOUGH = 3, 1.2
+#: How a shape step's image distance grows with the step (:func:`even_amounts`): on the ERP
+#: grid's james, 0 -> 0.156 measured 0.137 where 0 -> 0.125 gave 0.124 and 0.125 -> 0.25 0.093.
+SHAPE_POWER = 0.5
 
 
-def even_amounts(candidates: np.ndarray, steps: np.ndarray, levels: int) -> np.ndarray:
+def even_amounts(candidates: np.ndarray, steps: np.ndarray, levels: int, power: float = 2.0) -> np.ndarray:
     """``levels`` amounts from the first candidate to the last whose consecutive images differ equally.
 
     ``1 - SSIM`` grows with the square of a small change (SSIM is 1 and flat at identity), so
-    its square root is what adds up along a family: the candidates' cumulative sum of
-    ``sqrt(step)`` is the family's length, and the levels divide it into equal parts (linear
-    between candidates); each level's step is then the same ``(length / (levels - 1))**2``
-    where the family runs straight.
+    for small changes its square root is what adds up along a family: the candidates'
+    cumulative sum of ``step ** (1 / power)`` is the family's length, and the levels divide it
+    into equal parts (linear between candidates); each level's step is then the same
+    ``(length / (levels - 1)) ** power`` where the family runs straight. ``power`` 2 fits the
+    materials' small changes; a shape's change misaligns the features and saturates (two shape
+    steps together measured less than either alone plus half the other): 0.5 fits it
+    (:data:`SHAPE_POWER`).
 
     Parameters
     ----------
@@ -59,6 +66,8 @@ def even_amounts(candidates: np.ndarray, steps: np.ndarray, levels: int) -> np.n
     steps : (K - 1,) array
         Distance between the images of consecutive candidates.
     levels : int
+    power : float
+        How the distance grows with the change (above).
 
     Returns
     -------
@@ -73,16 +82,60 @@ def even_amounts(candidates: np.ndarray, steps: np.ndarray, levels: int) -> np.n
     array([0.   , 0.862, 1.   ])
     """
     t = np.asarray(candidates, np.float64)
-    length = np.concatenate([[0.0], np.cumsum(np.sqrt(np.maximum(np.asarray(steps, np.float64), 0.0)))])
+    length = np.concatenate([[0.0], np.cumsum(np.maximum(np.asarray(steps, np.float64), 0.0) ** (1.0 / power))])
     if length[-1] <= 0:
         return np.linspace(t[0], t[-1], levels)
     keep = np.concatenate([[True], np.diff(length) > 0])  # np.interp needs increasing lengths
     return np.interp(np.linspace(0.0, length[-1], levels), length[keep], t[keep])
 
 
+def common_levels(candidates: np.ndarray, steps: np.ndarray, levels: int, power: float = 2.0,
+                  mixes: int = 21) -> np.ndarray:
+    """One set of ``levels`` amounts for several characters, each of whose images steps differently
+    (``steps``: (characters, K - 1)): spaced evenly along a mixture of the characters' normalised
+    lengths (:func:`even_amounts`), the mixture chosen so that the worst character's largest step
+    is the least multiple of its smallest (each character's steps predicted from its measured
+    length between the candidates).
+
+    Examples
+    --------
+    >>> t = np.linspace(0, 1, 5)
+    >>> same = np.array([[1.0, 1.0, 1.0, 1.0], [4.0, 4.0, 4.0, 4.0]])  # one scaled by 4: no compromise
+    >>> np.round(common_levels(t, same, 3), 3)
+    array([0. , 0.5, 1. ])
+    """
+    t = np.asarray(candidates, np.float64)
+    root = np.maximum(np.atleast_2d(np.asarray(steps, np.float64)), 0.0) ** (1.0 / power)
+    length = np.concatenate([np.zeros((len(root), 1)), np.cumsum(root, axis=1)], axis=1)
+    share = root / np.maximum(length[:, -1:], 1e-12)  # each character's length, normalised to 1
+
+    def worst(at: np.ndarray) -> float:
+        pred = np.diff(np.array([np.interp(at, t, row) for row in length]), axis=1) ** power
+        return float(np.max(pred.max(axis=1) / np.maximum(pred.min(axis=1), 1e-12)))
+
+    best = None
+    for weights in _mixtures(len(root), mixes):
+        at = even_amounts(t, (weights @ share) ** power, levels, power)
+        score = worst(at)
+        if best is None or score < best[0] - 1e-12:
+            best = (score, at)
+    return best[1]
+
+
+def _mixtures(n: int, steps: int) -> list[np.ndarray]:
+    """Weights of ``n`` characters to try: equal ones, and for two characters every mix in ``steps``
+    steps; for more, each character's alone and half with the equal mix."""
+    equal = np.full(n, 1.0 / n)
+    if n == 1:
+        return [equal]
+    if n == 2:
+        return [np.array([a, 1 - a]) for a in np.linspace(0, 1, steps)]
+    return [equal] + [np.eye(n)[i] for i in range(n)] + [(np.eye(n)[i] + equal) / 2 for i in range(n)]
+
+
 def _probe(grid: GridFile, character: str, amounts: tuple[float, ...]) -> GridFile:
     """A grid of one character's realistic neutral face wearing each amount of the family."""
-    shape = min(grid.shapes)
+    shape = min(grid.shape_levels())
     expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
     mats = [MaterialSpec(name=f"c{i}", style="painted", amount=float(a)) for i, a in enumerate(amounts)]
     return grid.model_copy(update={"name": f"{grid.name}_probe", "characters": [c for c in grid.characters
@@ -149,6 +202,82 @@ def even_materials(grid: GridFile, cache: Path, render: Callable[[GridFile, Path
     specs = [MaterialSpec(name=s.name, style="painted", amount={c: amounts[c][k] for c in amounts})
              for k, s in enumerate(MaterialContinuum(levels=cont.levels).specs())]
     return grid.model_copy(update={"materials": specs if cont.order == "original_first" else specs[::-1]})
+
+
+def _paired_material(grid: GridFile, position: float) -> MaterialSpec:
+    """The material worn at ``position`` (0 realistic .. 1 most stylised) along the scale: with
+    materials paired with shapes and measured out (``painted``), the amount interpolated between
+    the levels (per character); otherwise the realistic end's material."""
+    specs = grid.material_specs()
+    order = sorted(range(len(specs)), key=lambda i: grid.shape_levels()[i]) if grid.pair_materials_with_shapes \
+        else [0]
+    ends = [specs[i] for i in order]
+    if not grid.pair_materials_with_shapes or any(m.style != "painted" for m in ends):
+        return ends[0]
+    u = np.linspace(0.0, 1.0, len(ends))
+    names = [c.name for c in grid.characters]
+    return MaterialSpec(name="m", style="painted",
+                        amount={c: float(np.interp(position, u, [m.amount_for(c) for m in ends])) for c in names})
+
+
+def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], list[np.ndarray]]) -> GridFile:
+    """``grid`` with its :class:`ShapeContinuum` measured out: explicit shape values, the same for
+    every character, whose neighbouring levels differ by equal image steps (averaged over the
+    characters: the square roots of their steps, as :func:`even_amounts`), each rendered neutral
+    wearing its paired material (:func:`_paired_material`; measure the materials first,
+    :func:`even_materials`). Candidates, then the levels re-spaced by their own steps, as for
+    materials; cached in ``cache/continuum``."""
+    from stimulus_engine.grid.cache import GRID_VERSION, sha
+    from stimulus_engine.stylisation.image_distance import ssim_distance
+
+    cont = grid.shapes
+    if not isinstance(cont, ShapeContinuum):
+        return grid
+    cache = Path(cache)
+    mask = _mask(grid)
+    expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
+    names = [c.name for c in grid.characters]
+
+    def probe(at: np.ndarray) -> GridFile:
+        mats = [_paired_material(grid, float(a)).model_copy(update={"name": f"c{i}"}) for i, a in enumerate(at)]
+        return grid.model_copy(update={"name": f"{grid.name}_probe", "shapes": [float(a) for a in at],
+                                       "materials": mats, "pair_materials_with_shapes": True,
+                                       "expressions": [expression], "lighting": grid.lighting[:1],
+                                       "shading": grid.shading[:1], "photographs": []})
+
+    key = sha(GRID_VERSION, "shapes", probe(np.asarray(CANDIDATES)).model_dump_json(), cont.levels)
+    stored = cache / "continuum" / f"{key}.json"
+    if stored.exists():
+        values = json.loads(stored.read_text())["values"]
+    else:
+        def steps(at: np.ndarray, round_: int) -> np.ndarray:
+            """Per character (rows), the steps between neighbouring shapes ``at``."""
+            images = render(probe(at), cache / "continuum" / key / str(round_))
+            per = np.array_split(np.arange(len(images)), len(names))
+            return np.array([[ssim_distance(images[a], images[b], mask) for a, b in zip(rows, rows[1:])]
+                             for rows in per])
+
+        first = steps(np.asarray(CANDIDATES), 0)
+        record = {"candidates": list(CANDIDATES), "candidate_steps": first.round(6).tolist()}
+        levels = common_levels(np.asarray(CANDIDATES), first, cont.levels, SHAPE_POWER)
+        for round_ in range(1, REFINE + 1):
+            measured = steps(levels, round_)
+            record[f"round{round_}"] = {"values": levels.round(4).tolist(), "steps": measured.round(6).tolist()}
+            worst = max(row.max() / max(row.min(), 1e-12) for row in measured)
+            if worst <= EVEN_ENOUGH or round_ == REFINE:
+                break
+            levels = common_levels(levels, measured, cont.levels, SHAPE_POWER)
+        values = record["values"] = [round(float(a), 4) for a in levels]
+        stored.parent.mkdir(parents=True, exist_ok=True)
+        stored.write_text(json.dumps(record))
+        logger.info("%s: shape levels at %s", grid.name, values)
+    return grid.model_copy(update={"shapes": values if cont.order == "realistic_first" else values[::-1]})
+
+
+def measured(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], list[np.ndarray]]) -> GridFile:
+    """``grid`` with its material and shape continua measured out (:func:`even_materials`, then
+    :func:`even_shapes`, which renders the shapes in the measured materials)."""
+    return even_shapes(even_materials(grid, cache, render), cache, render)
 
 
 def _slices(grid: GridFile, manifest: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:

@@ -73,7 +73,7 @@ def plan_images(grid: GridFile) -> list[PlannedImage]:
     stylisation = grid.stylisation_index()
     out = []
     for c in grid.characters:
-        for pos, level in enumerate(grid.shapes):
+        for pos, level in enumerate(grid.shape_levels()):
             label = shape_label(level)
             for expr in grid.expressions:
                 canon = resolve_expression(expr)

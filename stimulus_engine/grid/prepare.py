@@ -33,7 +33,7 @@ from stimulus_engine.grid.worker import RenderItem
 from stimulus_engine.grid.schema import GridFile, MaterialSpec
 from stimulus_engine.render.vignette import face_oval
 
-__all__ = ["PreparedMaterial", "prepare_grid"]
+__all__ = ["PreparedMaterial", "measured_grid", "prepare_grid"]
 
 
 @dataclass(frozen=True)
@@ -211,12 +211,21 @@ def _probe_images(probe: GridFile, folder: Path, source: str, cache: Path) -> li
     return images
 
 
+def measured_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path | None = None) -> GridFile:
+    """``grid`` with its material and shape continua measured out
+    (:func:`stimulus_engine.grid.continuum.measured`: the probes prepared in ``out/.cache`` or
+    ``cache`` and rendered here); a grid of listed levels as it is."""
+    from stimulus_engine.grid.continuum import measured
+
+    cache = Path(cache) if cache is not None else Path(out) / ".cache"
+    return measured(grid, cache, lambda probe, folder: _probe_images(probe, folder, source, cache))
+
+
 def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid",
                  cache: Path | None = None) -> tuple[pd.DataFrame, list[RenderItem], pd.DataFrame]:
     """Prepare the inputs of every image in ``out/.cache`` (or ``cache``) and list the images.
 
-    A :class:`~stimulus_engine.grid.schema.MaterialContinuum` is measured out first
-    (:func:`~stimulus_engine.grid.continuum.even_materials`).
+    Material and shape continua are measured out first (:func:`measured_grid`).
 
     Returns
     -------
@@ -233,11 +242,9 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid",
     from stimulus_engine.characters.skin_clearance import eyes_behind_skin, inside_behind_skin
     from stimulus_engine.stylisation.shape import stylise
 
-    from stimulus_engine.grid.continuum import even_materials
-
     cache = Path(cache) if cache is not None else out / ".cache"
     chars = {c.name: load_character(c, cache, source) for c in grid.characters}
-    grid = even_materials(grid, cache, lambda probe, folder: _probe_images(probe, folder, source, cache))
+    grid = measured_grid(grid, out, source=source, cache=cache)
     albedos = {name: character_albedo(ch, source, cache) for name, ch in chars.items()}
     _check_shared_uv(grid, chars, source)
     images = plan_images(grid)
@@ -300,7 +307,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid",
                      "width": r.width, "height": r.height})
     for p in plan_photos(grid):
         rows.append({"file": p.file, "character": p.character, "shape": "photograph", "shape_label": "photograph",
-                     "stylisation": len(grid.shapes), "material": "photograph", "material_style": "photograph", "material_amount": float("nan"),
+                     "stylisation": len(grid.shape_levels()), "material": "photograph", "material_style": "photograph", "material_amount": float("nan"),
                      "material_from": p.character, "expression": p.expression, "emotion": p.emotion,
                      "lighting": "photograph", "shading": "photograph", "geometry_hash": "", "albedo_hash": "",
                      "maps_hash": "", "input_hash": sha(GRID_VERSION, "photo", file_sha(p.source), r.width, r.height),

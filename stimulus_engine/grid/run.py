@@ -14,7 +14,7 @@ import pandas as pd
 from appeal.atomic import atomic_write_text
 from appeal.logs import logger
 from stimulus_engine.grid.continuum import continuum_table, write_continuum
-from stimulus_engine.grid.prepare import prepare_grid
+from stimulus_engine.grid.prepare import measured_grid, prepare_grid
 from stimulus_engine.grid.sheets import write_sheets
 from stimulus_engine.grid.worker import place_photo, render_item
 from stimulus_engine.grid.schema import GridFile
@@ -63,6 +63,7 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     from appeal.parallel import parallel_map
 
     out = Path(out)
+    grid = measured_grid(grid, out, source=source)  # the continua's levels, for the sheets and the report too
     manifest, items, landmarks = prepare_grid(grid, out, source=source)
     previous = previous_hashes(out)
     status = {}

@@ -16,7 +16,8 @@ Example (``protocols/grids/exp1a_shape_material.yaml``)::
     lighting: [gi_soft]
     shading: [pbr]
 
-``materials: {levels: N}`` asks for N levels of one continuous family (``painted``: detail
+``shapes: {levels: N}`` asks for N shape levels spaced by measured image steps, the same for
+every character (:class:`ShapeContinuum`). ``materials: {levels: N}`` asks for N levels of one continuous family (``painted``: detail
 removal, then colour flattening; :mod:`stimulus_engine.stylisation.materials`) from the original
 to painted regions, spaced so that consecutive levels differ equally in the rendered image
 (:mod:`stimulus_engine.grid.continuum`); they are named ``original``, ``paint1`` ...
@@ -34,7 +35,7 @@ from pydantic import Field, field_validator, model_validator
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
-__all__ = ["CharacterSpec", "GridFile", "MaterialContinuum", "MaterialSpec", "MeshSpec", "PhotoSpec", "RenderSettings", "shape_label"]
+__all__ = ["CharacterSpec", "GridFile", "MaterialContinuum", "MaterialSpec", "MeshSpec", "ShapeContinuum", "PhotoSpec", "RenderSettings", "shape_label"]
 
 _STYLES = ("original", "blur25", "blur50", "bilateral", "flat", "painted")
 _LIGHTING = ("direct_hard", "direct_soft", "gi_soft", "flat")
@@ -223,6 +224,22 @@ class MaterialContinuum(StudyModel):
 
 
 
+class ShapeContinuum(StudyModel):
+    """``shapes: {levels: N}``: N shape levels from the realistic (0) to the most stylised (1),
+    spaced so that neighbouring levels differ equally in the rendered image (with a paired
+    material, in both together), the same values for every character
+    (:func:`stimulus_engine.grid.continuum.even_shapes`); ``order: cartoon_first`` lists them from
+    the cartoon."""
+
+    levels: int = Field(ge=2, le=12)
+    order: Literal["realistic_first", "cartoon_first"] = "realistic_first"
+
+    def values(self) -> list[float]:
+        """The levels, spaced evenly by value until measured, in the grid's order."""
+        v = [round(k / (self.levels - 1), 4) for k in range(self.levels)]
+        return v if self.order == "realistic_first" else v[::-1]
+
+
 class PhotoSpec(StudyModel):
     """Photographs shown as the top stylisation level (ERP set, thesis §7.3): one per expression."""
 
@@ -325,7 +342,7 @@ class GridFile(StudyModel):
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
     description: str = ""
     characters: list[CharacterSpec] = Field(min_length=1)
-    shapes: list[float] = Field(min_length=1)
+    shapes: Annotated[list[float], Field(min_length=1)] | ShapeContinuum
     materials: Annotated[list[str | MaterialSpec], Field(min_length=1)] | MaterialContinuum
     expressions: list[str] = Field(min_length=1)
     lighting: list[Literal["direct_hard", "direct_soft", "gi_soft", "flat"]] = Field(default_factory=lambda: ["gi_soft"],
@@ -346,7 +363,9 @@ class GridFile(StudyModel):
 
     @field_validator("shapes")
     @classmethod
-    def _levels(cls, v: list[float]) -> list[float]:
+    def _levels(cls, v: list[float] | ShapeContinuum) -> list[float] | ShapeContinuum:
+        if isinstance(v, ShapeContinuum):
+            return v
         bad = [x for x in v if not 0.0 <= x <= 1.0]
         if bad:
             raise ValueError(f"stylisation levels must be within 0..1 (got {bad[0]})")
@@ -389,9 +408,9 @@ class GridFile(StudyModel):
             missing = [e for e in self.expressions if e not in p.files]
             if missing:
                 raise ValueError(f"photographs of '{p.character}': no file for expression(s) {', '.join(missing)}")
-        if self.pair_materials_with_shapes and len(self.material_specs()) != len(self.shapes):
+        if self.pair_materials_with_shapes and len(self.material_specs()) != len(self.shape_levels()):
             raise ValueError(f"pair_materials_with_shapes needs one material per shape level "
-                             f"(got {len(self.material_specs())} materials for {len(self.shapes)} shapes)")
+                             f"(got {len(self.material_specs())} materials for {len(self.shape_levels())} shapes)")
         if self.n_images() == 0:
             raise ValueError("the grid would produce 0 images")
         return self
@@ -403,7 +422,12 @@ class GridFile(StudyModel):
         towards the cartoon), counting up towards the realistic end, whatever order ``shapes`` lists
         the levels in; photographs get ``len(shapes)``, above every rendered level.
         """
-        return {level: i for i, level in enumerate(sorted(self.shapes, reverse=True))}
+        return {level: i for i, level in enumerate(sorted(self.shape_levels(), reverse=True))}
+
+    def shape_levels(self) -> list[float]:
+        """The shape levels in the grid's order (a :class:`ShapeContinuum`'s before it is measured:
+        evenly by value)."""
+        return self.shapes.values() if isinstance(self.shapes, ShapeContinuum) else list(self.shapes)
 
     def material_specs(self) -> list[MaterialSpec]:
         """Materials as :class:`MaterialSpec` (a plain style name becomes ``{name: style, style: style}``)."""
@@ -414,6 +438,6 @@ class GridFile(StudyModel):
     def n_images(self) -> int:
         """Number of rendered images plus photographs."""
         n_mat = 1 if self.pair_materials_with_shapes else len(self.material_specs())
-        n = (len(self.characters) * len(self.shapes) * n_mat * len(self.expressions)
+        n = (len(self.characters) * len(self.shape_levels()) * n_mat * len(self.expressions)
              * len(self.lighting) * len(self.shading))
         return n + sum(len(self.expressions) for _ in self.photographs)

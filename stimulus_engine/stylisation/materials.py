@@ -12,7 +12,7 @@ Albedo stylisation (thesis ch. 5 & §6.3, material levels 1a …):
 ``painted``  one continuous family from the original (``amount`` 0) to painted regions (1):
     detail removal (a region-wise Gaussian blur growing to :data:`PAINT_BLUR_AT_4K` px at 4k
     by ``amount`` :data:`PAINT_BLUR_UNTIL`), then colour flattening (the blurred albedo blended
-    into each region's mean colour). A grid spaces its levels by measured image distance
+    half-way into each region's mean colour by amount 1: gradient regions, :data:`PAINT_FLAT_SHARE`). A grid spaces its levels by measured image distance
     (:mod:`stimulus_engine.grid.continuum`), not by ``amount``.
 
 :data:`MATERIAL_LEVELS` orders them as a five-step material-stylisation axis (0 = original …
@@ -46,6 +46,11 @@ MATERIAL_LEVELS: dict[int, str] = dict(enumerate(MATERIAL_STYLES[:5]))
 #: ``painted``: the blur's kernel at full detail removal (px at 4k, as the thesis's blur25 and
 #: blur50) and the amount where it is reached; from there on the colours flatten.
 PAINT_BLUR_AT_4K, PAINT_BLUR_UNTIL = 100, 0.5
+#: ... and at amount 1 each region is this share its mean colour, the rest the blurred albedo's
+#: gradients (painted regions that keep the brows and the face's shading in the paint: wholly
+#: flat, the ERP grid's most stylised Lee Perry-Smith lost his brows and lay 0.756 from his
+#: realistic face, farther than from james's, 0.746; at a half share 0.72, and james 0.70 -> 0.58).
+PAINT_FLAT_SHARE = 0.5
 
 def _gauss_sigma(kernel_at_4k: int, size: int) -> float:
     """σ of the thesis's kernel (px at 4096) scaled to ``size``, with OpenCV's kernel→σ rule."""
@@ -113,7 +118,7 @@ def _painted(f: np.ndarray, regions: list[np.ndarray], amount: float) -> np.ndar
     blurred = _region_blur(f, regions, max(sigma, 0.3))
     if amount <= PAINT_BLUR_UNTIL:
         return blurred
-    w = (amount - PAINT_BLUR_UNTIL) / (1.0 - PAINT_BLUR_UNTIL)
+    w = PAINT_FLAT_SHARE * (amount - PAINT_BLUR_UNTIL) / (1.0 - PAINT_BLUR_UNTIL)
     return (1 - w) * blurred + w * _region_means(f, regions)
 
 
