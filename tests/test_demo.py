@@ -76,7 +76,8 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     assert not missing, missing
     # the embedded real face, drawn as itself for every shape and expression
     scan = pd.read_csv(out / "grid" / "scan" / "manifest.csv")
-    assert len(scan) == 24 and (scan.status == "rendered").all()
+    assert len(scan) == 36 and (scan.status == "rendered").all()  # 3 shapes x 3 measured materials x 4 expressions
+    assert (out / "grid" / "scan" / "continuum.png").is_file()
     assert "grid/scan/contact_sheet_expressions.png" in links
     assert "part_morph/part_morph_sheet.png" in links  # the cartoon's eyes on the real face
 

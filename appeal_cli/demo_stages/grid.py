@@ -14,7 +14,7 @@ def _run(out: Path, seed: int) -> ReportSection:
     from appeal.studyfile import validate_data
     from stimulus_engine.grid import run_grid
     from stimulus_engine.data import EMBEDDED_SCAN
-    from stimulus_engine.grid.schema import CharacterSpec, GridFile
+    from stimulus_engine.grid.schema import CharacterSpec, GridFile, MaterialContinuum
     from stimulus_engine.stylisation.neoteny import neoteny_table, plot_neoteny
 
     import pandas as pd
@@ -46,7 +46,7 @@ def _run(out: Path, seed: int) -> ReportSection:
         "characters": [validate_data({"name": "james", "procedural": {"seed": seed, "texture_size": 512, "resolution": 64},
                                       "mesh": {"file": str(EMBEDDED_SCAN), "region": "front", "topology": "scan"}},
                                      CharacterSpec, source=Path("demo_grid.yaml"))],
-        "materials": ["original", "blur50"], "lighting": ["gi_soft"]})
+        "materials": MaterialContinuum(levels=3), "lighting": ["gi_soft"]})
     _, scan_sheets = run_grid(scan, out / "scan", n_jobs=2)
     table = neoteny_table(pd.read_csv(out / "landmarks.csv"))
     atomic_write_text(out / "neoteny.csv", table.to_csv(index=False))
@@ -57,7 +57,9 @@ def _run(out: Path, seed: int) -> ReportSection:
             "its lips — with its landmarks found automatically, posed through a procedural head's rig for shape "
             "stylisation levels 0, 0.5, 1 (artist-free operator: larger eyes, smaller nose and mouth, shorter jaw, "
             "larger cranium, smoother skin) and FACS-recipe expressions carried onto the stylised shapes by "
-            "deformation transfer (`scan/`). Then "
+            "deformation transfer, and three material levels of one painted family spaced by measured image "
+            "steps, with the continuum's report (`scan/continuum.png`: the step between neighbouring levels "
+            "and each level's face-recognition distance to the realistic one). Then "
             f"{n} images of two procedurally generated, textured heads (no downloaded assets): the same shapes and "
             "expressions, materials original / blurred / flat / albedo of the other head. Every face is framed "
             "with the same size and eye position. Manifest: `manifest.csv`.")
