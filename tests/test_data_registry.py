@@ -249,7 +249,7 @@ def test_exp2_renders_from_fetched_data_only(shared_data, empty_data, tmp_path, 
     """Without shared/data (APPEAL_DATA empty) a shipped grid fails validation naming the datasets;
     after `appeal data fetch --for` from the loopback server it renders (one image per character)."""
     grid = yaml.safe_load((ROOT / "protocols/grids/exp2_stylisation.yaml").read_text())
-    grid.update(shapes=[0.0], materials=[grid["materials"][0]], expressions=["neutral"], lighting=grid["lighting"][:1],
+    grid.update(shapes=[0.0], materials=["original"], expressions=["neutral"], lighting=grid["lighting"][:1],
                 shading=grid["shading"][:1], render={"width": 256, "height": 192})
     small = tmp_path / "exp2_small.yaml"
     small.write_text(yaml.safe_dump(grid))

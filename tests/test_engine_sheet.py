@@ -24,7 +24,7 @@ def test_variants_and_cut_down_grid(shared_data, tmp_path):
     assert [v[:2] for v in variants_for(["pyrender", "cycles"])][-1] == ("cycles", "pbr")
     g = engine_grid(_grid(shared_data, tmp_path), "pyrender", shading="skin")
     assert g.n_images() == len(SHEET_EXPRESSIONS) * len(SHEET_LIGHTING)
-    assert g.shading == ["skin"] and g.shapes == [0.0] and g.materials[0] == "original"
+    assert g.shading == ["skin"] and g.shapes == [0.0] and g.material_specs()[0].name == "original"
     with pytest.raises(AppealInputError, match="--character: 'nobody' is not in the grid"):
         engine_grid(g, "pyrender", "nobody")
 

@@ -88,7 +88,7 @@ def prepared(tmp_path_factory):
     done = []
     for path in GRIDS:
         grid = load_study_file(path, GridFile)
-        grid = grid.model_copy(update={"materials": grid.materials[:1], "lighting": grid.lighting[:1],
+        grid = grid.model_copy(update={"materials": grid.material_specs()[:1], "lighting": grid.lighting[:1],
                                        "shading": grid.shading[:1], "photographs": [], "pair_materials_with_shapes": False})
         manifest, items, _ = prepare_grid(grid, out, source=path.name)
         chars = {c.name: load_character(c, out / ".cache", path.name) for c in grid.characters}

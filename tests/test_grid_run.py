@@ -180,7 +180,8 @@ def test_shipped_grids_and_protocols_number_stylisation_levels_the_same_way():
     for path in grids:
         grid = load_study_file(path, GridFile)
         index = grid.stylisation_index()
-        assert [index[lv] for lv in sorted(grid.shapes, reverse=True)] == list(range(len(grid.shapes))), path.name
+        levels = grid.shape_levels()
+        assert [index[lv] for lv in sorted(levels, reverse=True)] == list(range(len(levels))), path.name
     for path in sorted(protocols_dir().glob("*.yaml")):
         stimuli = yaml.safe_load(path.read_text()).get("stimuli", {})
         listed = (stimuli.get("levels") or {}).get("shape")

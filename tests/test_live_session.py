@@ -170,7 +170,7 @@ def session_files(out: Path) -> tuple[pd.DataFrame, dict, pd.DataFrame]:
 # protocol -> factor levels of a small drawn stimulus set, the dialog answers in YAML order,
 # the expected participants.tsv values, the keys pressed, the expected responses
 CASES = {
-    "exp1a_shape_material": ({"shape": [1.0, 0.0], "material": ["flat", "original"], "expression": ["neutral"]},
+    "exp1a_shape_material": ({"shape": [1.0, 0.0], "material": ["paint2", "original"], "expression": ["neutral"]},
                              ["31", "m", None, "d", "b"],
                              {"age": "31", "gender": "male", "games": "n/a", "vfx_movies": "daily",
                               "graphics_knowledge": "basic"},
@@ -186,7 +186,7 @@ CASES = {
                       {"age": "45", "gender": "female", "games": "monthly", "vfx_movies": "weekly",
                        "graphics_knowledge": "expert"},
                       ["space", "7"], None),
-    "exp3_expressions": ({"character": ["c1"], "shape": [1.0, 0.0], "material": ["flat"],
+    "exp3_expressions": ({"character": ["c1"], "shape": [1.0, 0.0], "material": ["paint4"],
                           "expression": ["sadness", "neutral"]},
                          ["22", "d", None, None, "g"],
                          {"age": "22", "gender": "diverse", "games": "n/a", "vfx_movies": "n/a",
@@ -231,7 +231,7 @@ def test_live_session_mouse_then_escape_and_printed_resume(tmp_path, display):
     'Continue with:' command, pasted as is, resumes (no dialog) and finishes; the report's onset
     asynchronies are taken within each part and its labels do not overlap."""
     protocol = protocols_dir() / "exp2_stylisation.yaml"
-    stimuli = small_stimuli(tmp_path, {"character": ["c1"], "shape": [1.0, 0.0], "material": ["flat", "original"],
+    stimuli = small_stimuli(tmp_path, {"character": ["c1"], "shape": [1.0, 0.0], "material": ["paint4", "original"],
                                        "expression": ["neutral", "happiness"]})
     out = tmp_path / "sub-02"
     beh_file = out / "sub-02_ses-1_task-exp2_beh.tsv"

@@ -197,17 +197,17 @@ def test_exp1c_three_passes_in_different_orders(tmp_path, grid2_manifest):
 
 
 def test_selection_match_by_declared_level_order(grid2_manifest, tmp_path):
-    """The grid's own level names: shape 1.0 ~ flat (most stylised), 0.0 ~ original (realistic)."""
+    """The grid's own level names: shape 1.0 ~ paint4 (most stylised), 0.0 ~ original (realistic)."""
     df = pd.read_csv(grid2_manifest)
     df["shape"] = df["shape"].map({0: "1.0", 1: "0.5", 2: "0.0"})
-    df["material"] = df["material"].map({0: "flat", 1: "blur50", 2: "original"})
+    df["material"] = df["material"].map({0: "paint4", 1: "paint2", 2: "original"})
     named = grid2_manifest.parent / "named.csv"
     df.to_csv(named, index=False)
     proto = load_protocol(protocols_dir() / "exp2_stylisation.yaml")
     full = load_stimuli(proto.stimuli, override=named, apply_select=False)
     anchors = select_stimuli(full, proto.anchors.select).table
-    assert sorted(set(zip(anchors["shape"], anchors["material"]))) == [("0", "original"), ("0.5", "blur50"), ("1", "flat")]
-    assert full.levels("shape") == ["1", "0.5", "0"] and full.levels("material") == ["flat", "blur50", "original"]
+    assert sorted(set(zip(anchors["shape"], anchors["material"]))) == [("0", "original"), ("0.5", "paint2"), ("1", "paint4")]
+    assert full.levels("shape") == ["1", "0.5", "0"] and full.levels("material") == ["paint4", "paint2", "original"]
 
 
 def test_selection_match_uses_level_numbers():

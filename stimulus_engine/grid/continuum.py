@@ -388,7 +388,8 @@ def plot_continuum(table: pd.DataFrame, path: Path) -> Path:
             ax.set_xticks(range(len(labels)), [str(x)[:9] for x in labels], rotation=30, fontsize=8)
         axes[0, j].set_title(f"{factor}: step between neighbouring levels")
         axes[0, j].set_ylabel("1 - SSIM (luma, face oval)")
-        axes[0, j].set_ylim(bottom=0)
+        top = sub["image_to_next"].max()  # NaN with a single level
+        axes[0, j].set_ylim(0, 1.15 * float(top) if top > 0 else 1.0)  # the points inside the frame
         axes[1, j].axhline(SAME_PERSON, color="grey", lw=0.8)
         axes[1, j].set_title(f"{factor}: identity distance (dlib)")
         axes[1, j].set_ylabel("to own realistic (solid), other's (dashed)")

@@ -43,7 +43,7 @@ def engine_grid(grid: GridFile, engine: str, character: str | None = None, shadi
                                f"{', '.join(c.name for c in grid.characters)})")
     render = grid.render.model_copy(update={"engine": engine})
     return grid.model_copy(update={
-        "characters": chars, "shapes": [0.0], "materials": grid.materials[:1],
+        "characters": chars, "shapes": [0.0], "materials": grid.material_specs()[:1],
         "pair_materials_with_shapes": False, "expressions": list(SHEET_EXPRESSIONS),
         "lighting": list(SHEET_LIGHTING), "shading": [shading], "render": render, "photographs": [],
     })
