@@ -306,9 +306,10 @@ def _slices(grid: GridFile, manifest: pd.DataFrame) -> list[tuple[str, str, pd.D
 
 
 def _material_order(grid: GridFile) -> list[str]:
-    """Material names from the realistic end: a continuum's by amount, listed ones as listed."""
+    """Material names from the realistic end: ``painted`` levels (a continuum's) by amount, listed
+    styles as listed."""
     specs = grid.material_specs()
-    if isinstance(grid.materials, MaterialContinuum):
+    if all(s.style == "painted" for s in specs):
         specs = sorted(specs, key=lambda s: s.amount_for(grid.characters[0].name))
     return [s.name for s in specs]
 
