@@ -17,6 +17,9 @@ with the lids' shadow, one glint per eye and Kajiya-Kay hair (b1d00c5): 69.8 and
 (b10fd2c): 89.9 and 87.9 s against 59.2 and 57.5 s, ratio 1.52 -- over the bound; with the
 images rendered in runs that share an albedo (no re-upload of a 2400 x 1600 texture per image)
 and a table-driven linear-light downsample: 84.1 and 84.2 s against 59.0 and 57.1 s, ratio 1.45.
+With the material continuum measured on the cold run (issue 28, 96f7518: 9 candidate renders and
+up to 3 rounds of the levels per character, cached for later runs): 194.3 s against 67.5 s,
+ratio 2.88 (one repeat) -- over the bound on a first run.
 
 Run:  .venv/bin/python benchmarks/grid_speed.py [--grid protocols/grids/exp2_stylisation.yaml]
           [--base e309ec3] [--repeats 2]
