@@ -133,6 +133,34 @@ def _mixtures(n: int, steps: int) -> list[np.ndarray]:
     return [equal] + [np.eye(n)[i] for i in range(n)] + [(np.eye(n)[i] + equal) / 2 for i in range(n)]
 
 
+def _refined(stored: Path, name: str, steps: Callable[[np.ndarray, int], np.ndarray],
+             space: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> list[float]:
+    """Levels measured out, or read back from ``stored`` (JSON, under ``name``).
+
+    ``steps(at, round)`` renders amounts ``at`` and returns the steps between neighbours (one
+    row per character, or one row); ``space(at, steps)`` places the levels from measured
+    amounts. First the :data:`CANDIDATES`, then the levels themselves, re-spaced by their own
+    steps up to :data:`REFINE` times until the worst row's largest step is within
+    :data:`EVEN_ENOUGH` of its smallest; every round is kept in the record.
+    """
+    if stored.exists():
+        return json.loads(stored.read_text())[name]
+    first = steps(np.asarray(CANDIDATES), 0)
+    record: dict = {"candidates": list(CANDIDATES), "candidate_steps": first.round(6).tolist()}
+    levels = space(np.asarray(CANDIDATES), first)
+    for round_ in range(1, REFINE + 1):  # measure the levels themselves, re-space them by what they show
+        measured = steps(levels, round_)
+        record[f"round{round_}"] = {name: levels.round(4).tolist(), "steps": measured.round(6).tolist()}
+        worst = max(row.max() / max(row.min(), 1e-12) for row in np.atleast_2d(measured))
+        if worst <= EVEN_ENOUGH or round_ == REFINE:
+            break
+        levels = space(levels, measured)
+    record[name] = [round(float(a), 4) for a in levels]
+    stored.parent.mkdir(parents=True, exist_ok=True)
+    stored.write_text(json.dumps(record))
+    return record[name]
+
+
 def _probe(grid: GridFile, character: str, amounts: tuple[float, ...]) -> GridFile:
     """A grid of one character's realistic neutral face wearing each amount of the family."""
     shape = min(grid.shape_levels())
@@ -177,28 +205,14 @@ def even_materials(grid: GridFile, cache: Path, render: Callable[[GridFile, Path
     amounts: dict[str, list[float]] = {}
     for c in grid.characters:
         key = sha(GRID_VERSION, "continuum", _probe(grid, c.name, CANDIDATES).model_dump_json(), cont.levels)
-        stored = cache / "continuum" / f"{key}.json"
-        if stored.exists():
-            amounts[c.name] = json.loads(stored.read_text())["amounts"]
-            continue
 
         def steps(at: np.ndarray, round_: int) -> np.ndarray:
             images = render(_probe(grid, c.name, tuple(float(a) for a in at)), cache / "continuum" / key / str(round_))
             return np.array([ssim_distance(a, b, mask) for a, b in zip(images, images[1:])])
 
-        record = {"candidates": list(CANDIDATES), "candidate_steps": steps(np.asarray(CANDIDATES), 0).round(6).tolist()}
-        levels = even_amounts(np.asarray(CANDIDATES), np.asarray(record["candidate_steps"]), cont.levels)
-        for round_ in range(1, REFINE + 1):  # measure the levels themselves, re-space them by what they show
-            measured = steps(levels, round_)
-            record[f"round{round_}"] = {"amounts": levels.round(4).tolist(), "steps": measured.round(6).tolist()}
-            if measured.max() <= EVEN_ENOUGH * measured.min() or round_ == REFINE:
-                break
-            levels = even_amounts(levels, measured, cont.levels)
-        amounts[c.name] = record["amounts"] = [round(float(a), 4) for a in levels]
-        stored.parent.mkdir(parents=True, exist_ok=True)
-        stored.write_text(json.dumps(record))
-        logger.info("%s: material levels of %s at amounts %s (steps %s)", grid.name, c.name, amounts[c.name],
-                    ", ".join(f"{x:.4f}" for x in measured))
+        amounts[c.name] = _refined(cache / "continuum" / f"{key}.json", "amounts", steps,
+                                   lambda at, measured: even_amounts(at, measured, cont.levels))
+        logger.info("%s: material levels of %s at amounts %s", grid.name, c.name, amounts[c.name])
     specs = [MaterialSpec(name=s.name, style="painted", amount={c: amounts[c][k] for c in amounts})
              for k, s in enumerate(MaterialContinuum(levels=cont.levels).specs())]
     return grid.model_copy(update={"materials": specs if cont.order == "original_first" else specs[::-1]})
@@ -246,31 +260,17 @@ def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], 
                                        "shading": grid.shading[:1], "photographs": []})
 
     key = sha(GRID_VERSION, "shapes", probe(np.asarray(CANDIDATES)).model_dump_json(), cont.levels)
-    stored = cache / "continuum" / f"{key}.json"
-    if stored.exists():
-        values = json.loads(stored.read_text())["values"]
-    else:
-        def steps(at: np.ndarray, round_: int) -> np.ndarray:
-            """Per character (rows), the steps between neighbouring shapes ``at``."""
-            images = render(probe(at), cache / "continuum" / key / str(round_))
-            per = np.array_split(np.arange(len(images)), len(names))
-            return np.array([[ssim_distance(images[a], images[b], mask) for a, b in zip(rows, rows[1:])]
-                             for rows in per])
 
-        first = steps(np.asarray(CANDIDATES), 0)
-        record = {"candidates": list(CANDIDATES), "candidate_steps": first.round(6).tolist()}
-        levels = common_levels(np.asarray(CANDIDATES), first, cont.levels, SHAPE_POWER)
-        for round_ in range(1, REFINE + 1):
-            measured = steps(levels, round_)
-            record[f"round{round_}"] = {"values": levels.round(4).tolist(), "steps": measured.round(6).tolist()}
-            worst = max(row.max() / max(row.min(), 1e-12) for row in measured)
-            if worst <= EVEN_ENOUGH or round_ == REFINE:
-                break
-            levels = common_levels(levels, measured, cont.levels, SHAPE_POWER)
-        values = record["values"] = [round(float(a), 4) for a in levels]
-        stored.parent.mkdir(parents=True, exist_ok=True)
-        stored.write_text(json.dumps(record))
-        logger.info("%s: shape levels at %s", grid.name, values)
+    def steps(at: np.ndarray, round_: int) -> np.ndarray:
+        """Per character (rows), the steps between neighbouring shapes ``at``."""
+        images = render(probe(at), cache / "continuum" / key / str(round_))
+        per = np.array_split(np.arange(len(images)), len(names))
+        return np.array([[ssim_distance(images[a], images[b], mask) for a, b in zip(rows, rows[1:])]
+                         for rows in per])
+
+    values = _refined(cache / "continuum" / f"{key}.json", "values", steps,
+                      lambda at, measured: common_levels(at, measured, cont.levels, SHAPE_POWER))
+    logger.info("%s: shape levels at %s", grid.name, values)
     return grid.model_copy(update={"shapes": values if cont.order == "realistic_first" else values[::-1]})
 
 

@@ -195,14 +195,22 @@ def _landmark_rows(ch: Character, im: PlannedImage, vertices: np.ndarray) -> lis
             for name, pt in ch.rig.landmark_points(vertices.astype(np.float64)).items()]
 
 
-def _probe_images(probe: GridFile, folder: Path, source: str, cache: Path) -> list[np.ndarray]:
-    """A small grid's images, prepared with the grid's cache and rendered here, in manifest order
-    (the measurements of :func:`~stimulus_engine.grid.continuum.even_materials`)."""
+def _characters(grid: GridFile, cache: Path, source: str,
+                loaded: dict[str, Character] | None) -> dict[str, Character]:
+    """The grid's characters by name: ``loaded`` if given, else each loaded from ``cache``."""
+    return loaded or {c.name: load_character(c, cache, source) for c in grid.characters}
+
+
+def _probe_images(probe: GridFile, folder: Path, source: str, cache: Path,
+                  chars: dict[str, Character]) -> list[np.ndarray]:
+    """A small grid's images, prepared with the grid's cache and its loaded ``chars`` and rendered
+    here, in manifest order (the measurements of :mod:`~stimulus_engine.grid.continuum`)."""
     from PIL import Image
 
     from stimulus_engine.grid.worker import render_item
 
-    _, items, _ = prepare_grid(probe, folder, source=source, cache=cache)
+    _, items, _ = prepare_grid(probe, folder, source=source, cache=cache,
+                               characters={c.name: chars[c.name] for c in probe.characters})
     images = []
     for it in items:
         render_item(it)
@@ -211,19 +219,26 @@ def _probe_images(probe: GridFile, folder: Path, source: str, cache: Path) -> li
     return images
 
 
-def measured_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path | None = None) -> GridFile:
+def measured_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path | None = None,
+                  characters: dict[str, Character] | None = None) -> GridFile:
     """``grid`` with its material and shape continua measured out
     (:func:`stimulus_engine.grid.continuum.measured`: the probes prepared in ``out/.cache`` or
-    ``cache`` and rendered here); a grid of listed levels as it is."""
+    ``cache``, with the grid's ``characters`` loaded once, and rendered here); a grid of listed
+    levels as it is."""
     from stimulus_engine.grid.continuum import measured
+    from stimulus_engine.grid.schema import MaterialContinuum, ShapeContinuum
 
+    if not isinstance(grid.materials, MaterialContinuum) and not isinstance(grid.shapes, ShapeContinuum):
+        return grid
     cache = Path(cache) if cache is not None else Path(out) / ".cache"
-    return measured(grid, cache, lambda probe, folder: _probe_images(probe, folder, source, cache))
+    chars = _characters(grid, cache, source, characters)
+    return measured(grid, cache, lambda probe, folder: _probe_images(probe, folder, source, cache, chars))
 
 
-def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid",
-                 cache: Path | None = None) -> tuple[pd.DataFrame, list[RenderItem], pd.DataFrame]:
-    """Prepare the inputs of every image in ``out/.cache`` (or ``cache``) and list the images.
+def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path | None = None,
+                 characters: dict[str, Character] | None = None) -> tuple[pd.DataFrame, list[RenderItem], pd.DataFrame]:
+    """Prepare the inputs of every image in ``out/.cache`` (or ``cache``) and list the images
+    (``characters``: the grid's, already loaded).
 
     Material and shape continua are measured out first (:func:`measured_grid`).
 
@@ -243,8 +258,8 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid",
     from stimulus_engine.stylisation.shape import stylise
 
     cache = Path(cache) if cache is not None else out / ".cache"
-    chars = {c.name: load_character(c, cache, source) for c in grid.characters}
-    grid = measured_grid(grid, out, source=source, cache=cache)
+    chars = _characters(grid, cache, source, characters)
+    grid = measured_grid(grid, out, source=source, cache=cache, characters=chars)
     albedos = {name: character_albedo(ch, source, cache) for name, ch in chars.items()}
     _check_shared_uv(grid, chars, source)
     images = plan_images(grid)
@@ -278,10 +293,11 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid",
                 topo = ch.scan.topology
                 if im.character not in uppers:
                     uppers[im.character] = upper_teeth(topo.vertices, topo.faces, topo.face_part, topo.part_names)
-                drawn = ch.scan.pose(np.load(geometry[gkey][0]))
+                posed = np.load(geometry[gkey][0])
+                drawn = ch.scan.pose(posed)
                 if target is not None:  # the drawn eyeballs follow the rig's only nearly: aim them too
                     drawn = aim_eyes(topo.landmarks, drawn, target)
-                rig_pose = ch.rig.landmark_points(np.load(geometry[gkey][0]))
+                rig_pose = ch.rig.landmark_points(posed)
                 drawn = show_upper_incisors(drawn, topo.faces, topo.face_part, topo.part_names,
                                             uppers[im.character], rig_pose["mouth_left"], rig_pose["mouth_right"],
                                             float(np.linalg.norm(rig_pose["eye_left"] - rig_pose["eye_right"])))
@@ -307,7 +323,8 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid",
                      "width": r.width, "height": r.height})
     for p in plan_photos(grid):
         rows.append({"file": p.file, "character": p.character, "shape": "photograph", "shape_label": "photograph",
-                     "stylisation": len(grid.shape_levels()), "material": "photograph", "material_style": "photograph", "material_amount": float("nan"),
+                     "stylisation": len(grid.shape_levels()), "material": "photograph",
+                     "material_style": "photograph", "material_amount": float("nan"),
                      "material_from": p.character, "expression": p.expression, "emotion": p.emotion,
                      "lighting": "photograph", "shading": "photograph", "geometry_hash": "", "albedo_hash": "",
                      "maps_hash": "", "input_hash": sha(GRID_VERSION, "photo", file_sha(p.source), r.width, r.height),

@@ -210,11 +210,6 @@ class MaterialContinuum(StudyModel):
     family: Literal["painted"] = "painted"
     order: Literal["original_first", "painted_first"] = "original_first"
 
-    def names(self) -> list[str]:
-        """The level names, in the grid's order."""
-        names = ["original"] + [f"paint{k}" for k in range(1, self.levels)]
-        return names if self.order == "original_first" else names[::-1]
-
     def specs(self) -> list[MaterialSpec]:
         """The levels as materials, spaced evenly by amount until measured."""
         n = self.levels - 1
