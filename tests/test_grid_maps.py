@@ -128,6 +128,28 @@ def test_stylise_map_follows_the_albedo_operator():
                           stylise_albedo(np.dstack([spec] * 3), "blur25")[..., 0])
 
 
+@pytest.mark.parametrize("style", ["original", "blur25", "bilateral", "flat", "painted"])
+def test_stylise_material_filters_albedo_and_maps_together_as_each_alone(style):
+    """One stack of the albedo's and the maps' channels gives what each texture stylised on its
+    own gives, byte for byte (regions, an unused part, a partial amount)."""
+    from stimulus_engine.stylisation.materials import stylise_material
+
+    rng = np.random.default_rng(3)
+    albedo = rng.integers(0, 256, (60, 90, 3), dtype=np.uint8)
+    normal = rng.integers(0, 256, (60, 90, 3), dtype=np.uint8)
+    normal[..., 2] = 220
+    spec = rng.integers(0, 256, (60, 90), dtype=np.uint8)
+    masks = {"lips": (rng.random((60, 90)) > 0.8).astype(np.float32), "unused": np.zeros((60, 90), np.float32)}
+    masks["unused"][:9] = 1.0
+    masks["lips"][:9] = 0.0  # disjoint, as a scan's regions are
+    a, maps = stylise_material(albedo, style, masks, {"normal": normal, "specular": spec}, 0.7)
+    assert np.array_equal(a, stylise_albedo(albedo, style, masks, 0.7))
+    assert np.array_equal(maps["normal"], stylise_map(normal, "normal", style, masks, 0.7))
+    assert np.array_equal(maps["specular"], stylise_map(spec, "specular", style, masks, 0.7))
+    if style not in ("original", "bilateral"):  # the region filters
+        assert np.array_equal(a[:9], albedo[:9])  # unused texels stay as they are
+
+
 def test_procedural_detail_maps():
     rig = procedural_head(seed=3, texture_size=256, resolution=48)
     normal, spec = rig_detail_maps(rig, seed=3)
@@ -213,14 +235,27 @@ def test_grid_map_errors_are_one_line_and_before_rendering(tmp_path, capsys):
     assert any("normal_map" in line and "file not found" in line for line in exc.value.lines), exc.value.lines
 
 
-def test_wrap_gaussian_equals_scipy_gaussian_filter():
+def test_region_blur_equals_scipy_normalised_convolution_with_periodic_borders():
+    """Each region's blur over its own window (wrapping around the texture's borders) is the
+    whole-image normalised convolution of scipy's ``gaussian_filter(mode="wrap")``; texels of
+    the ``unused`` mask stay as they are."""
     from scipy.ndimage import gaussian_filter
 
-    from stimulus_engine.stylisation.materials import _gaussian_wrap
+    from stimulus_engine.stylisation.materials import _region_blur, _regions
 
     rng = np.random.default_rng(1)
-    for shape in [(40, 56, 3), (33, 33)]:
-        a = rng.random(shape) * 255
+    for h, w in [(40, 56), (33, 33)]:
+        f = rng.random((h, w, 3)) * 255
+        lips = np.zeros((h, w))
+        lips[-6:, :5] = 1.0  # a region across the corner: its window wraps around both borders
+        lips[:3, -4:] = 0.5
+        unused = np.zeros((h, w))
+        unused[10:14, 20:30] = 1.0
+        regions = _regions({"lips": lips, "unused": unused}, (h, w))
         for sigma in (0.3, 1.29, 2.225, 6.0):  # incl. the blur25/blur50 sigmas at 1024 px
-            ref = gaussian_filter(a, sigma=(sigma, sigma, 0)[: a.ndim], mode="wrap")
-            assert np.abs(_gaussian_wrap(a, sigma) - ref).max() < 1e-9
+            ref = f * unused[..., None]
+            for wt in regions:
+                num = gaussian_filter(f * wt[..., None], sigma=(sigma, sigma, 0), mode="wrap")
+                den = gaussian_filter(wt, sigma=sigma, mode="wrap")[..., None]
+                ref += wt[..., None] * num / np.maximum(den, 1e-6)
+            assert np.abs(_region_blur(f, regions, sigma) - ref).max() < 1e-3
