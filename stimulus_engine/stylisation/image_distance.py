@@ -6,8 +6,10 @@ K2 0.03) of the images' luma, averaged over the oval around the framed face
 (:func:`stimulus_engine.render.vignette.face_oval`, where every level of a grid puts the face:
 the eyes are framed within 2 px). SSIM compares local means, contrasts and structure, so it
 sees pores, stubble and shading detail go (which the mean colour does not) and a flat albedo's
-lost gradients; inside the oval it ignores the garment and the background. scikit-image's
-``structural_similarity`` computes it (agreeing with the MATLAB reference implementation).
+lost gradients; inside the oval it ignores the garment and the background. It is scikit-image's
+``structural_similarity`` (which agrees with the MATLAB reference implementation; tested equal
+to 1e-9), its five Gaussian filters run as OpenCV separable filters: a continuum's measurement
+compares dozens of images, and scipy's filters were three quarters of a comparison's time.
 """
 
 from __future__ import annotations
@@ -49,10 +51,19 @@ def ssim_distance(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) 
         0 for identical images; about 0.01 for a just-visible change of skin detail at stimulus
         size, up to 1 for unrelated ones.
     """
-    from skimage.metrics import structural_similarity
+    import cv2
 
     if np.shape(a) != np.shape(b):
         raise ValueError(f"images differ in size: {np.shape(a)} and {np.shape(b)}")
-    _, smap = structural_similarity(luma(a), luma(b), data_range=255.0, gaussian_weights=True, sigma=1.5,
-                                    use_sample_covariance=False, full=True)
+    x, y = luma(a), luma(b)
+    k = np.exp(-0.5 * (np.arange(-5, 6) / 1.5) ** 2)  # scipy's sigma 1.5 truncated at 3.5 sigma, as skimage
+    k /= k.sum()
+
+    def mean(img: np.ndarray) -> np.ndarray:  # scipy's mode "reflect" is OpenCV's BORDER_REFLECT
+        return cv2.sepFilter2D(img, cv2.CV_64F, k, k, borderType=cv2.BORDER_REFLECT)
+
+    ux, uy = mean(x), mean(y)
+    vx, vy, vxy = mean(x * x) - ux * ux, mean(y * y) - uy * uy, mean(x * y) - ux * uy
+    c1, c2 = (0.01 * 255.0) ** 2, (0.03 * 255.0) ** 2
+    smap = (2 * ux * uy + c1) * (2 * vxy + c2) / ((ux * ux + uy * uy + c1) * (vx + vy + c2))
     return float(1.0 - (smap[mask].mean() if mask is not None else smap.mean()))
