@@ -63,8 +63,20 @@ class MapResult(Generic[R]):
         return f"{n - len(self.failures)} of {n} items done ({self.backend}); failed: {names}"
 
 
+#: How much a local worker's memory may grow over its first item's before loky restarts it as
+#: leaking (loky's own bound is 300 MB). A render worker keeps the textures it drew (a scan's
+#: albedo, normal and specular maps are 11 MB each, mipmapped on the GPU side too) to draw the
+#: next image of the same material without uploading them again; at 300 MB loky restarted it
+#: every few dozen images (re-importing pyrender and making a new OpenGL context, seconds each),
+#: warning "A worker stopped while some jobs were given to the executor".
+WORKER_MEMORY_GROWTH = 3 * 2**30
+
+
 def _call(func: Callable[[Any], Any], item: Any) -> tuple[bool, Any, str]:
     """Run ``func(item)``; return (ok, value-or-error-line, traceback). Runs in workers."""
+    from joblib.externals.loky import process_executor
+
+    process_executor._MAX_MEMORY_LEAK_SIZE = WORKER_MEMORY_GROWTH  # read by the worker loop after each item
     try:
         return True, func(item), ""
     except Exception as exc:  # noqa: BLE001 - collected and reported by the caller

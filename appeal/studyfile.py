@@ -247,14 +247,23 @@ def format_validation_error(exc: ValidationError, source: str | Path, model: typ
     list of str
         One line per problem.
     """
-    lines = []
+    branches = _model_names(StudyModel)  # a union's model branch: 'shapes.ShapeContinuum.levels'
+    errors = []
     for err in exc.errors(include_url=False):
         loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
         # drop union-branch tags pydantic inserts (e.g. 'list[float]', 'constrained-str')
-        loc = tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p.endswith("-str"))))
-        err = dict(err, loc=loc)
-        lines.append(f"{source}: {_loc_to_path(loc)}: {_message(err, model)}")
-    return list(dict.fromkeys(lines))
+        loc = tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p.endswith("-str") or p in branches)))
+        errors.append(dict(err, loc=loc))
+    # a union's branch of the wrong kind ("expected list" for a mapping) says nothing when the
+    # branch of the right kind has its own complaint inside
+    deeper = {e["loc"][:k] for e in errors for k in range(len(e["loc"]))}
+    errors = [e for e in errors if not (e["type"].endswith("_type") and e["loc"] in deeper)]
+    return list(dict.fromkeys(f"{source}: {_loc_to_path(e['loc'])}: {_message(e, model)}" for e in errors))
+
+
+def _model_names(cls: type) -> set[str]:
+    """The names of ``cls`` and every subclass of it."""
+    return {cls.__name__}.union(*(_model_names(sub) for sub in cls.__subclasses__()))
 
 
 # --------------------------------------------------------------------------- entry points

@@ -38,12 +38,17 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
     (DIR/continuum.csv and .png: per character, the image step between neighbouring shape and
     material levels and each level's identity distance to the realistic one, dlib's face
     descriptor, same person within 0.6). materials: {levels: 5} asks for five levels of one
-    painted family spaced by measured image steps. With --resume, images whose inputs are
-    unchanged are kept. All input problems are reported before rendering.
+    painted family spaced by measured image steps; the run prints the levels it measured as the
+    grid file's materials.measured (and shapes.measured) that pin them, as the shipped grids do.
+    With --resume, images whose inputs are unchanged are kept. All input problems are reported
+    before rendering.
     """
+    import json
+
     from appeal.outputs import output_run
     from appeal.studyfile import load_study_file
     from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid.continuum import pins
     from stimulus_engine.grid.schema import GridFile
 
     spec = load_study_file(grid_file, GridFile)
@@ -55,6 +60,9 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
         for s in sheets:
             click.echo(f"continuum: {s} (table {s.with_suffix('.csv')})" if s.name == "continuum.png"
                        else f"contact sheet: {s}")
+        measured = pins(spec, manifest.attrs["grid"])
+        for factor, pin in measured.items():  # a study's levels belong in its protocol
+            click.echo(f"{factor} measured; to keep these levels, write in {grid_file}:  {factor}: {json.dumps(pin)}")
         if n_ok < len(manifest):
             bad = manifest[~manifest["status"].isin(["rendered", "up to date"])]
             raise click.ClickException(f"{len(bad)} image(s) failed, first: {bad.iloc[0]['file']}: {bad.iloc[0]['status']}")

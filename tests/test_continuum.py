@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from stimulus_engine.grid.continuum import even_amounts
+from stimulus_engine.grid.continuum import even_amounts, pins
 from stimulus_engine.stylisation.image_distance import face_mask, ssim_distance
 from stimulus_engine.stylisation.materials import stylise_albedo
 
@@ -54,6 +54,21 @@ def test_ssim_distance_is_zero_for_one_image_and_grows_with_blur():
     assert d[0] < d[1] < d[2] <= 1.0
     with pytest.raises(ValueError, match="differ in size"):
         ssim_distance(img, img[:100])
+
+
+def test_ssim_distance_is_scikit_image_structural_similarity():
+    from skimage.metrics import structural_similarity
+
+    from stimulus_engine.stylisation.image_distance import luma
+
+    rng = np.random.default_rng(4)
+    a = rng.integers(0, 256, (61, 83, 3), dtype=np.uint8)
+    b = np.clip(a.astype(int) + rng.integers(-40, 41, a.shape), 0, 255).astype(np.uint8)
+    mask = rng.random((61, 83)) > 0.3
+    _, ref = structural_similarity(luma(a), luma(b), data_range=255.0, gaussian_weights=True, sigma=1.5,
+                                   use_sample_covariance=False, full=True)
+    assert ssim_distance(a, b, mask) == pytest.approx(1.0 - ref[mask].mean(), abs=1e-9)
+    assert ssim_distance(a, b) == pytest.approx(1.0 - ref.mean(), abs=1e-9)
 
 
 def test_even_amounts_equalise_the_steps_of_a_knee():
@@ -111,7 +126,7 @@ def test_a_material_continuum_is_measured_out_into_even_steps(tmp_path):
     amounts = manifest[manifest["shape"] == 0].set_index("material")["material_amount"]
     assert amounts["original"] == 0 and amounts["paint3"] == 1 and amounts.is_monotonic_increasing
     record = json.loads(next((tmp_path / ".cache" / "continuum").glob("*.json")).read_text())
-    assert record["amounts"] == amounts.tolist()
+    assert record["amounts"] == [amounts.tolist()]  # a row per character
     table = pd.read_csv(tmp_path / "continuum.csv")
     mat = table[table["factor"] == "material"].sort_values("position")
     assert list(mat["level"]) == ["original", "paint1", "paint2", "paint3"]
@@ -122,6 +137,34 @@ def test_a_material_continuum_is_measured_out_into_even_steps(tmp_path):
     assert list(shape["level"].astype(float)) == [0.0, 1.0] and shape["image_to_realistic"].iloc[1] > 0
     # the manifest carries each measured image's identity distance
     assert manifest.set_index("file").loc[mat["file"], "identity_to_realistic"].notna().all()
+    # the contact sheet captions each measured image with its identity distance (a caption row)
+    from stimulus_engine.grid.sheets import write_sheets
+
+    captioned = Image.open(tmp_path / "contact_sheet.png").size
+    write_sheets(tmp_path, manifest.drop(columns="identity_to_realistic"), grid)
+    plain = Image.open(tmp_path / "contact_sheet.png").size
+    assert captioned[1] > plain[1]
+    # the levels measured, pinned in the grid file, are used as they are: nothing measured again
+    pinned = pins(grid, manifest.attrs["grid"])
+    assert pinned == {"materials": {"levels": 4, "measured": {"a": amounts.round(4).tolist()}}}
+    again = validate_data({**spec, "materials": pinned["materials"]}, GridFile, source="cont.yaml")
+    assert pins(again, again) == {}
+    manifest2, _ = run_grid(again, tmp_path / "pinned", n_jobs=1)
+    assert not (tmp_path / "pinned" / ".cache" / "continuum").exists()
+    assert np.allclose(manifest2[manifest2["shape"] == 0].set_index("material")["material_amount"], amounts, atol=1e-4)
+
+
+@pytest.mark.parametrize("measured", [[0.0, 0.5], [0.0, 0.6, 0.4, 1.0], [0.1, 0.2, 0.3, 1.0]])
+def test_pinned_levels_that_are_not_levels_are_one_line_errors(measured):
+    from appeal.studyfile import StudyFileError, validate_data
+    from stimulus_engine.grid.schema import GridFile
+
+    spec = {"kind": "grid", "name": "cont", "characters": [{"name": "a", "procedural": {}}], "shapes": [0.0],
+            "materials": {"levels": 4, "measured": {"a": measured}}, "expressions": ["neutral"]}
+    with pytest.raises(StudyFileError) as err:
+        validate_data(spec, GridFile, source="cont.yaml")
+    assert str(err.value).startswith("cont.yaml: materials.measured: a: expected 4 increasing values from 0 to 1")
+    assert "\n" not in str(err.value)
 
 
 def _neutral_slice(name: str):

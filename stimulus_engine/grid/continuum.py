@@ -32,13 +32,13 @@ import pandas as pd
 
 from stimulus_engine.grid.schema import GridFile, MaterialContinuum, MaterialSpec, ShapeContinuum
 
-__all__ = ["CANDIDATES", "common_levels", "continuum_table", "even_amounts", "even_materials", "even_shapes", "plot_continuum",
-           "write_continuum"]
+__all__ = ["CANDIDATES", "common_levels", "continuum_table", "even_amounts", "even_materials", "even_shapes", "pins",
+           "plot_continuum", "write_continuum"]
 
 logger = logging.getLogger(__name__)
 
 #: Amounts of the family rendered to measure it out.
-CANDIDATES: tuple[float, ...] = tuple(np.linspace(0.0, 1.0, 9).round(4))
+CANDIDATES: tuple[float, ...] = tuple(np.linspace(0.0, 1.0, 5).round(4))
 #: Then the levels themselves are rendered and re-spaced by their own steps, at most this many
 #: times, until the largest step is within this factor of the smallest.
 REFINE, EVEN_ENOUGH = 3, 1.2
@@ -133,44 +133,56 @@ def _mixtures(n: int, steps: int) -> list[np.ndarray]:
     return [equal] + [np.eye(n)[i] for i in range(n)] + [(np.eye(n)[i] + equal) / 2 for i in range(n)]
 
 
-def _refined(stored: Path, name: str, steps: Callable[[np.ndarray, int], np.ndarray],
-             space: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> list[float]:
+def _refined(stored: Path, name: str, start: np.ndarray, steps: Callable[[np.ndarray], np.ndarray],
+             space: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> list:
     """Levels measured out, or read back from ``stored`` (JSON, under ``name``).
 
-    ``steps(at, round)`` renders amounts ``at`` and returns the steps between neighbours (one
-    row per character, or one row); ``space(at, steps)`` places the levels from measured
-    amounts. First the :data:`CANDIDATES`, then the levels themselves, re-spaced by their own
-    steps up to :data:`REFINE` times until the worst row's largest step is within
-    :data:`EVEN_ENOUGH` of its smallest; every round is kept in the record.
+    ``steps(at)`` renders amounts ``at`` (the :data:`CANDIDATES` for all characters, or a row of
+    them per character) and returns the steps between neighbours (one row per character);
+    ``space(at, steps)`` places the levels from measured amounts. First ``start``, then the
+    levels themselves, re-spaced by their own steps up to :data:`REFINE` times until the worst
+    row's largest step is within :data:`EVEN_ENOUGH` of its smallest; every round is kept in the
+    record.
     """
     if stored.exists():
         return json.loads(stored.read_text())[name]
-    first = steps(np.asarray(CANDIDATES), 0)
-    record: dict = {"candidates": list(CANDIDATES), "candidate_steps": first.round(6).tolist()}
-    levels = space(np.asarray(CANDIDATES), first)
+    first = steps(start)
+    record: dict = {"candidates": start.tolist(), "candidate_steps": first.round(6).tolist()}
+    levels = space(start, first)
     for round_ in range(1, REFINE + 1):  # measure the levels themselves, re-space them by what they show
-        measured = steps(levels, round_)
+        measured = steps(levels)
         record[f"round{round_}"] = {name: levels.round(4).tolist(), "steps": measured.round(6).tolist()}
         worst = max(row.max() / max(row.min(), 1e-12) for row in np.atleast_2d(measured))
         if worst <= EVEN_ENOUGH or round_ == REFINE:
             break
         levels = space(levels, measured)
-    record[name] = [round(float(a), 4) for a in levels]
+    record[name] = np.round(levels, 4).tolist()
     stored.parent.mkdir(parents=True, exist_ok=True)
     stored.write_text(json.dumps(record))
     return record[name]
 
 
-def _probe(grid: GridFile, character: str, amounts: tuple[float, ...]) -> GridFile:
-    """A grid of one character's realistic neutral face wearing each amount of the family."""
+def _probe(grid: GridFile, amounts: np.ndarray) -> GridFile:
+    """A grid of every character's realistic neutral face wearing each amount of the family
+    (``amounts``: a row of them per character)."""
     shape = min(grid.shape_levels())
     expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
-    mats = [MaterialSpec(name=f"c{i}", style="painted", amount=float(a)) for i, a in enumerate(amounts)]
-    return grid.model_copy(update={"name": f"{grid.name}_probe", "characters": [c for c in grid.characters
-                                                                                if c.name == character],
-                                   "shapes": [shape], "materials": mats, "expressions": [expression],
-                                   "lighting": grid.lighting[:1], "shading": grid.shading[:1],
-                                   "pair_materials_with_shapes": False, "photographs": []})
+    names = [c.name for c in grid.characters]
+    mats = [MaterialSpec(name=f"c{i}", style="painted", amount={c: float(a) for c, a in zip(names, column)})
+            for i, column in enumerate(np.asarray(amounts).T)]
+    return grid.model_copy(update={"name": f"{grid.name}_probe", "shapes": [shape], "materials": mats,
+                                   "expressions": [expression], "lighting": grid.lighting[:1],
+                                   "shading": grid.shading[:1], "pair_materials_with_shapes": False,
+                                   "photographs": []})
+
+
+def _per_character(images: list[np.ndarray], characters: int, mask: np.ndarray) -> np.ndarray:
+    """The image steps between neighbouring levels, a row per character (a probe's images come
+    character by character)."""
+    from stimulus_engine.stylisation.image_distance import ssim_distance
+
+    rows = np.array_split(np.arange(len(images)), characters)
+    return np.array([[ssim_distance(images[a], images[b], mask) for a, b in zip(r, r[1:])] for r in rows])
 
 
 def _mask(grid: GridFile) -> np.ndarray:
@@ -180,7 +192,7 @@ def _mask(grid: GridFile) -> np.ndarray:
     return face_mask(r.width, r.height, r.eye_row, r.face_fraction)
 
 
-def even_materials(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], list[np.ndarray]]) -> GridFile:
+def even_materials(grid: GridFile, cache: Path, render: Callable[[GridFile], list[np.ndarray]]) -> GridFile:
     """``grid`` with its :class:`MaterialContinuum` measured out: explicit ``painted`` materials
     whose amounts (one per character) give equal image steps (see the module docstring); a grid
     with listed materials is returned as it is.
@@ -191,28 +203,29 @@ def even_materials(grid: GridFile, cache: Path, render: Callable[[GridFile, Path
     cache : Path
         The grid's input cache; the measurement is kept in ``cache/continuum``.
     render : callable
-        ``render(probe_grid, folder)``: the probe grid's images, in material order (the grid's
-        own preparation and renderer: :func:`stimulus_engine.grid.prepare.prepare_grid` passes it).
+        ``render(probe_grid)``: the probe grid's images, character by character and in material
+        order (the grid's own preparation and renderer: :func:`stimulus_engine.grid.prepare.measured_grid`
+        passes it). Every character is measured in the same probes, one per round, so that the
+        workers share out the stylisation and rendering of all of them.
     """
     from stimulus_engine.grid.cache import GRID_VERSION, sha
-    from stimulus_engine.stylisation.image_distance import ssim_distance
 
     cont = grid.materials
     if not isinstance(cont, MaterialContinuum):
         return grid
-    cache = Path(cache)
     mask = _mask(grid)
-    amounts: dict[str, list[float]] = {}
-    for c in grid.characters:
-        key = sha(GRID_VERSION, "continuum", _probe(grid, c.name, CANDIDATES).model_dump_json(), cont.levels)
-
-        def steps(at: np.ndarray, round_: int) -> np.ndarray:
-            images = render(_probe(grid, c.name, tuple(float(a) for a in at)), cache / "continuum" / key / str(round_))
-            return np.array([ssim_distance(a, b, mask) for a, b in zip(images, images[1:])])
-
-        amounts[c.name] = _refined(cache / "continuum" / f"{key}.json", "amounts", steps,
-                                   lambda at, measured: even_amounts(at, measured, cont.levels))
-        logger.info("%s: material levels of %s at amounts %s", grid.name, c.name, amounts[c.name])
+    amounts = {c.name: cont.measured[c.name] for c in grid.characters if c.name in cont.measured}
+    todo = grid.model_copy(update={"characters": [c for c in grid.characters if c.name not in amounts]})
+    if todo.characters:  # measured together: one probe per round
+        names = [c.name for c in todo.characters]
+        start = np.tile(np.asarray(CANDIDATES), (len(names), 1))
+        key = sha(GRID_VERSION, "materials", _probe(todo, start).model_dump_json(), cont.levels)
+        at = _refined(Path(cache) / "continuum" / f"{key}.json", "amounts", start,
+                      lambda at: _per_character(render(_probe(todo, at)), len(names), mask),
+                      lambda at, measured: np.array([even_amounts(a, m, cont.levels) for a, m in zip(at, measured)]))
+        amounts.update(zip(names, at))
+        for c in names:
+            logger.info("%s: material levels of %s measured at amounts %s", grid.name, c, amounts[c])
     specs = [MaterialSpec(name=s.name, style="painted", amount={c: amounts[c][k] for c in amounts})
              for k, s in enumerate(MaterialContinuum(levels=cont.levels).specs())]
     return grid.model_copy(update={"materials": specs if cont.order == "original_first" else specs[::-1]})
@@ -234,7 +247,7 @@ def _paired_material(grid: GridFile, position: float) -> MaterialSpec:
                         amount={c: float(np.interp(position, u, [m.amount_for(c) for m in ends])) for c in names})
 
 
-def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], list[np.ndarray]]) -> GridFile:
+def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile], list[np.ndarray]]) -> GridFile:
     """``grid`` with its :class:`ShapeContinuum` measured out: explicit shape values, the same for
     every character, whose neighbouring levels differ by equal image steps (averaged over the
     characters: the square roots of their steps, as :func:`even_amounts`), each rendered neutral
@@ -242,11 +255,13 @@ def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], 
     :func:`even_materials`). Candidates, then the levels re-spaced by their own steps, as for
     materials; cached in ``cache/continuum``."""
     from stimulus_engine.grid.cache import GRID_VERSION, sha
-    from stimulus_engine.stylisation.image_distance import ssim_distance
 
     cont = grid.shapes
     if not isinstance(cont, ShapeContinuum):
         return grid
+    if cont.measured is not None:
+        values = list(cont.measured)
+        return grid.model_copy(update={"shapes": values if cont.order == "realistic_first" else values[::-1]})
     cache = Path(cache)
     mask = _mask(grid)
     expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
@@ -260,24 +275,45 @@ def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], 
                                        "shading": grid.shading[:1], "photographs": []})
 
     key = sha(GRID_VERSION, "shapes", probe(np.asarray(CANDIDATES)).model_dump_json(), cont.levels)
-
-    def steps(at: np.ndarray, round_: int) -> np.ndarray:
-        """Per character (rows), the steps between neighbouring shapes ``at``."""
-        images = render(probe(at), cache / "continuum" / key / str(round_))
-        per = np.array_split(np.arange(len(images)), len(names))
-        return np.array([[ssim_distance(images[a], images[b], mask) for a, b in zip(rows, rows[1:])]
-                         for rows in per])
-
-    values = _refined(cache / "continuum" / f"{key}.json", "values", steps,
+    values = _refined(cache / "continuum" / f"{key}.json", "values", np.asarray(CANDIDATES),
+                      lambda at: _per_character(render(probe(at)), len(names), mask),
                       lambda at, measured: common_levels(at, measured, cont.levels, SHAPE_POWER))
-    logger.info("%s: shape levels at %s", grid.name, values)
+    logger.info("%s: shape levels measured at %s", grid.name, values)
     return grid.model_copy(update={"shapes": values if cont.order == "realistic_first" else values[::-1]})
 
 
-def measured(grid: GridFile, cache: Path, render: Callable[[GridFile, Path], list[np.ndarray]]) -> GridFile:
+def measured(grid: GridFile, cache: Path, render: Callable[[GridFile], list[np.ndarray]]) -> GridFile:
     """``grid`` with its material and shape continua measured out (:func:`even_materials`, then
     :func:`even_shapes`, which renders the shapes in the measured materials)."""
     return even_shapes(even_materials(grid, cache, render), cache, render)
+
+
+def pins(spec: GridFile, grid: GridFile) -> dict[str, dict]:
+    """The levels ``grid`` measured for the continua ``spec`` (its grid file) left to measure, as
+    the ``measured`` fields that pin them: ``{"materials": {...}, "shapes": {...}}`` (only the
+    factors with something measured).
+
+    Examples
+    --------
+    >>> from stimulus_engine.grid.schema import CharacterSpec
+    >>> spec = GridFile(kind="grid", name="g", characters=[CharacterSpec(name="a", procedural={})],
+    ...                 shapes={"levels": 3}, materials=["original"], expressions=["neutral"])
+    >>> pins(spec, spec.model_copy(update={"shapes": [0.0, 0.31, 1.0]}))
+    {'shapes': {'levels': 3, 'measured': [0.0, 0.31, 1.0]}}
+    """
+    out: dict[str, dict] = {}
+    cont = spec.materials
+    if isinstance(cont, MaterialContinuum):
+        todo = [c.name for c in spec.characters if c.name not in cont.measured]
+        if todo:
+            specs = grid.material_specs()
+            measured = {**cont.measured, **{c: sorted(round(m.amount_for(c), 4) for m in specs) for c in todo}}
+            out["materials"] = {**cont.model_dump(exclude_defaults=True), "measured": measured}
+    shapes = spec.shapes
+    if isinstance(shapes, ShapeContinuum) and shapes.measured is None:
+        out["shapes"] = {**shapes.model_dump(exclude_defaults=True),
+                         "measured": sorted(round(float(v), 4) for v in grid.shape_levels())}
+    return out
 
 
 def _slices(grid: GridFile, manifest: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:

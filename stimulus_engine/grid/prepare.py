@@ -10,12 +10,16 @@ is found here, before any rendering.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from appeal.atomic import atomic_write_text
 from appeal.errors import AppealInputError
 from stimulus_engine.grid.cache import (
     GRID_VERSION,
@@ -99,19 +103,42 @@ def _material_maps(m: MaterialSpec, ch: Character, size: tuple[int, int], cache:
     return found
 
 
+def _albedo_key(albedo: tuple[np.ndarray, dict]) -> str:
+    """Content key of a character's unstylised albedo and its region masks."""
+    from stimulus_engine.stylisation.materials import albedo_hash
+
+    img, masks = albedo
+    return sha(albedo_hash(img), *[(k, albedo_hash(np.ascontiguousarray(masks[k]))) for k in sorted(masks)])
+
+
 def _prepare_material(m: MaterialSpec, ch: Character, albedo: tuple[np.ndarray, dict], cache: Path,
-                      source: str) -> PreparedMaterial:
-    """Stylise the material on the character's albedo once and keep the PNGs in the cache."""
+                      source: str, key: str = "") -> PreparedMaterial:
+    """Stylise the material on the character's albedo once and keep the PNGs in the cache.
+
+    With the albedo's content ``key`` (:func:`_albedo_key`) the result is remembered in
+    ``cache/looks``: a material met again (a continuum's probes, then its grid; a re-run) is not
+    stylised again.
+    """
     from stimulus_engine.stylisation.materials import albedo_hash, maps_hash, stylise_material
 
     img, masks = albedo
-    styl, maps = stylise_material(img, m.style, masks, _material_maps(m, ch, img.shape[:2], cache, source),
-                                  m.amount_for(ch.spec.name))
+    unstyled = _material_maps(m, ch, img.shape[:2], cache, source)
+    amount = m.amount_for(ch.spec.name)
+    memo = cache / "looks" / f"{sha(GRID_VERSION, key, maps_hash(unstyled.get('normal'), unstyled.get('specular')), m.style, amount)}.json"
+    if key and memo.exists():
+        look = PreparedMaterial(**json.loads(memo.read_text()))
+        if all(Path(p).exists() for p in (look.albedo_png, look.normal_png, look.specular_png) if p):
+            return look
+    styl, maps = stylise_material(img, m.style, masks, unstyled, amount)
     ah = albedo_hash(styl)
     paths = {kind: str(save_png_once(a if a.ndim == 3 else np.repeat(a[..., None], 3, axis=2),
                                      cache / "maps" / f"{kind}_{albedo_hash(a)}.png")) for kind, a in maps.items()}
-    return PreparedMaterial(str(save_png_once(styl, cache / "albedo" / f"{ah}.png")), ah, paths.get("normal", ""),
+    look = PreparedMaterial(str(save_png_once(styl, cache / "albedo" / f"{ah}.png")), ah, paths.get("normal", ""),
                             paths.get("specular", ""), maps_hash(maps.get("normal"), maps.get("specular")))
+    if key:
+        memo.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(memo, json.dumps(asdict(look)))
+    return look
 
 
 def level_up(eye_right: np.ndarray, eye_left: np.ndarray, view_dir: tuple[float, float, float] = (0.0, 0.0, 1.0)
@@ -201,20 +228,32 @@ def _characters(grid: GridFile, cache: Path, source: str,
     return loaded or {c.name: load_character(c, cache, source) for c in grid.characters}
 
 
-def _probe_images(probe: GridFile, folder: Path, source: str, cache: Path,
-                  chars: dict[str, Character]) -> list[np.ndarray]:
-    """A small grid's images, prepared with the grid's cache and its loaded ``chars`` and rendered
-    here, in manifest order (the measurements of :mod:`~stimulus_engine.grid.continuum`)."""
+def _probe_images(probe: GridFile, source: str, cache: Path, chars: dict[str, Character]) -> list[np.ndarray]:
+    """A small grid's images, prepared with the grid's cache and its loaded ``chars``, in manifest
+    order (the measurements of :mod:`~stimulus_engine.grid.continuum`). Each image is kept in
+    ``cache/continuum/images`` under its input hash, so a level measured again (a continuum's
+    ends, in every round) is not rendered again; the rest are rendered by the local workers."""
     from PIL import Image
 
+    from appeal.parallel import parallel_map
     from stimulus_engine.grid.worker import render_item
 
-    _, items, _ = prepare_grid(probe, folder, source=source, cache=cache,
-                               characters={c.name: chars[c.name] for c in probe.characters})
+    scratch = cache / "continuum" / "render"
+    manifest, items, _ = prepare_grid(probe, scratch, source=source, cache=cache,
+                                      characters={c.name: chars[c.name] for c in probe.characters})
+    kept = [cache / "continuum" / "images" / f"{h}.png" for h in manifest["input_hash"]]
+    todo = [(it, k) for it, k in zip(items, kept) if not k.exists()]
+    res = parallel_map(render_item, [it for it, _ in todo], desc="measuring the continuum",
+                       labels=[it.file for it, _ in todo])
+    if res.failures:
+        raise AppealInputError(f"{source}: measuring the stylisation continuum: {res.failures[0].label}: "
+                               f"{res.failures[0].error}")
+    for it, k in todo:
+        k.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(Path(it.out_dir) / it.file, k)
     images = []
-    for it in items:
-        render_item(it)
-        with Image.open(Path(it.out_dir) / it.file) as im:
+    for k in kept:
+        with Image.open(k) as im:
             images.append(np.asarray(im.convert("RGB")))
     return images
 
@@ -232,7 +271,7 @@ def measured_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Pat
         return grid
     cache = Path(cache) if cache is not None else Path(out) / ".cache"
     chars = _characters(grid, cache, source, characters)
-    return measured(grid, cache, lambda probe, folder: _probe_images(probe, folder, source, cache, chars))
+    return measured(grid, cache, lambda probe: _probe_images(probe, source, cache, chars))
 
 
 def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path | None = None,
@@ -263,8 +302,11 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
     albedos = {name: character_albedo(ch, source, cache) for name, ch in chars.items()}
     _check_shared_uv(grid, chars, source)
     images = plan_images(grid)
-    looks = {(src, m.name): _prepare_material(m, chars[src], albedos[src], cache, source)
-             for src, m in material_sources(images)}
+    sources = material_sources(images)
+    keys = {src: _albedo_key(albedos[src]) for src in dict.fromkeys(src for src, _ in sources)}
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:  # numpy, OpenCV and zlib let go of the GIL
+        looks = dict(zip(((src, m.name) for src, m in sources), pool.map(
+            lambda sm: _prepare_material(sm[1], chars[sm[0]], albedos[sm[0]], cache, source, keys[sm[0]]), sources)))
     r = grid.render
     rows, items, lm_rows = [], [], []
     rig_files: dict[str, Path] = {}

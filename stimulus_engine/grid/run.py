@@ -13,6 +13,7 @@ import pandas as pd
 
 from appeal.atomic import atomic_write_text
 from appeal.logs import logger
+from stimulus_engine.grid.characters import load_character
 from stimulus_engine.grid.continuum import continuum_table, write_continuum
 from stimulus_engine.grid.prepare import measured_grid, prepare_grid
 from stimulus_engine.grid.sheets import write_sheets
@@ -56,6 +57,8 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     Returns
     -------
     manifest : DataFrame
+        Its ``attrs["grid"]`` is the grid as rendered: continua measured out into listed levels
+        (:func:`stimulus_engine.grid.continuum.pins` turns them into a grid file's pins).
     sheets : list of Path
         The contact sheets written, then the continuum's figure (``continuum.png``, its table
         ``continuum.csv`` beside it).
@@ -63,8 +66,9 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     from appeal.parallel import parallel_map
 
     out = Path(out)
-    grid = measured_grid(grid, out, source=source)  # the continua's levels, for the sheets and the report too
-    manifest, items, landmarks = prepare_grid(grid, out, source=source)
+    chars = {c.name: load_character(c, out / ".cache", source) for c in grid.characters}  # loaded once
+    grid = measured_grid(grid, out, source=source, characters=chars)  # the continua's levels, for the sheets and the report too
+    manifest, items, landmarks = prepare_grid(grid, out, source=source, characters=chars)
     previous = previous_hashes(out)
     status = {}
     todo = []
@@ -99,6 +103,7 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     atomic_write_text(out / "manifest.csv", manifest.to_csv(index=False))
     atomic_write_text(out / "landmarks.csv", landmarks.to_csv(index=False))
     atomic_write_text(out / "grid.json", json.dumps(grid.model_dump(mode="json"), indent=2))
+    manifest.attrs["grid"] = grid
     sheets = write_sheets(out, manifest, grid) + write_continuum(out, continuum, grid)[1:]
     if res.failures:
         logger.warning(res.summary())

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
@@ -200,6 +200,13 @@ class MaterialSpec(StudyModel):
         return self.amount.get(character, 1.0) if isinstance(self.amount, dict) else self.amount
 
 
+def _check_measured(at: list[float], levels: int, prefix: str) -> None:
+    """A continuum's pinned levels: ``levels`` increasing values from 0 to 1."""
+    if len(at) != levels or at[0] != 0 or at[-1] != 1 or any(b <= a for a, b in zip(at, at[1:])):
+        raise ValueError(f"{prefix}expected {levels} increasing values from 0 to 1 (the levels a run measured), "
+                         f"got {at}")
+
+
 class MaterialContinuum(StudyModel):
     """``materials: {levels: N}``: N levels of the ``painted`` family from the original to painted
     regions, evenly spaced by the rendered image's distance (:mod:`stimulus_engine.grid.continuum`);
@@ -209,6 +216,17 @@ class MaterialContinuum(StudyModel):
     levels: int = Field(ge=2, le=12)
     family: Literal["painted"] = "painted"
     order: Literal["original_first", "painted_first"] = "original_first"
+    #: The amounts measured for a character (``levels`` of them, from the original, as a run
+    #: reports them): that character's levels are not measured again. A study's stimuli are part
+    #: of its protocol, so the shipped grids pin theirs (the tests check that they still step evenly).
+    measured: dict[str, list[float]] = Field(default_factory=dict)
+
+    @field_validator("measured")
+    @classmethod
+    def _measured_levels(cls, v: dict[str, list[float]], info: ValidationInfo) -> dict[str, list[float]]:
+        for name, at in v.items():
+            _check_measured(at, info.data.get("levels", len(at)), f"{name}: ")
+        return v
 
     def specs(self) -> list[MaterialSpec]:
         """The levels as materials, spaced evenly by amount until measured."""
@@ -228,6 +246,16 @@ class ShapeContinuum(StudyModel):
 
     levels: int = Field(ge=2, le=12)
     order: Literal["realistic_first", "cartoon_first"] = "realistic_first"
+    #: The values measured (``levels`` of them, from the realistic end, as a run reports them):
+    #: given, they are not measured again (see :class:`MaterialContinuum`).
+    measured: list[float] | None = None
+
+    @field_validator("measured")
+    @classmethod
+    def _measured_levels(cls, v: list[float] | None, info: ValidationInfo) -> list[float] | None:
+        if v is not None:
+            _check_measured(v, info.data.get("levels", len(v)), "")
+        return v
 
     def values(self) -> list[float]:
         """The levels, spaced evenly by value until measured, in the grid's order."""
