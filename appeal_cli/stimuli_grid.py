@@ -29,7 +29,7 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
     (original, blur25, blur50, bilateral, flat, painted, an albedo from another character,
     or {levels: N} evenly spaced),
     expressions (FACS recipes: neutral, anger, happiness, sadness, surprise, ...), lighting
-    presets (direct_hard, direct_soft, gi_soft, flat) and shading (pbr, phong).
+    presets (direct_hard, direct_soft, gi_soft, flat) and shading (pbr, phong, skin, toon: cel-shaded).
 
     \b
     Writes DIR/images/*.png (1024 x 768 by default, 50% grey background, every face framed

@@ -266,3 +266,32 @@ def test_the_inside_of_an_open_mouth_agrees_between_the_engines(tmp_path):
         assert seen.sum() > 20, name
         a, b = py[seen].astype(float).mean(), cy[seen].astype(float).mean()
         assert 0.75 < a / b < 1.25, (name, a, b)
+
+
+@needs_cycles
+def test_toon_shading_is_cel_shaded_in_cycles_too(tmp_path):
+    """``toon`` reaches Cycles as Toon BSDFs (the scene's record says so): a sphere lit from the
+    side shows a few flat tones there, where ``skin`` (subsurface scattering) shades it smoothly."""
+    import trimesh
+
+    from stimulus_engine.characters.render_parts import _new_material
+    from stimulus_engine.render import LightSpec, RenderPart
+    from stimulus_engine.render.cycles import render_cycles
+    from stimulus_engine.render.scene_export import _material_record
+
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=10.0)
+    cam = CameraSpec((0.0, 0.0, 80.0), (0.0, 0.0, 0.0), 20.0)
+    side = ([LightSpec("directional", (-1.0, 0.0, -0.6), 2.0)], 0.3)
+    images = {}
+    for shading in ("skin", "toon"):
+        mat = _new_material(shading, (0.85, 0.62, 0.52, 1.0), None, 0.62, scatter=True)
+        assert _material_record("skin", mat, tmp_path, 0)["toon"] is (shading == "toon")
+        images[shading] = render_cycles([RenderPart(sphere, material=mat, name="skin")], width=120, height=120,
+                                        lighting=side, camera=cam, samples=16)
+    ball = np.abs(images["skin"].astype(int) - 128).sum(axis=-1) > 12
+    luma = {k: im[..., :3].astype(float) @ np.array([0.299, 0.587, 0.114]) for k, im in images.items()}
+
+    def tones(v: np.ndarray) -> float:  # share of the sphere in its three fullest 6-level bins
+        return float(np.sort(np.bincount((v[ball] // 6).astype(int)))[-3:].sum() / ball.sum())
+
+    assert tones(luma["toon"]) > tones(luma["skin"]) + 0.2, (tones(luma["toon"]), tones(luma["skin"]))

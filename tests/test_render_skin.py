@@ -71,11 +71,12 @@ shapes: [0.0]
 materials: [original]
 expressions: [neutral]
 lighting: [direct_soft]
-shading: [pbr, skin, phong]
+shading: [pbr, skin, phong, toon]
 render: {width: 96, height: 72}
 """)
     manifest, _ = run_grid(load_study_file(p, GridFile), tmp_path / "out", n_jobs=1)
-    assert (manifest["status"] == "rendered").all() and set(manifest["shading"]) == {"pbr", "skin", "phong"}
+    assert (manifest["status"] == "rendered").all() and set(manifest["shading"]) == {"pbr", "skin", "phong", "toon"}
+    assert len(set(manifest["input_hash"])) == 4
 
 
 def test_patch_refuses_another_pyrender_shader():
@@ -173,3 +174,34 @@ def test_hair_highlights_run_across_the_strands(shading):
         rows, cols = np.nonzero(bright)
         shapes[name] = np.ptp(rows) / max(np.ptp(cols), 1)
     assert shapes["strands"] > 3 and shapes["isotropic"] < 2, shapes
+
+
+def _tones(image: np.ndarray, keep: np.ndarray, k: int = 3, width: int = 6) -> float:
+    """The share of the ``keep`` pixels whose luma falls in the ``k`` fullest bins ``width`` wide."""
+    luma = image[..., :3].astype(float) @ np.array([0.299, 0.587, 0.114])
+    counts = np.bincount((luma[keep] // width).astype(int))
+    return float(np.sort(counts)[-k:].sum() / keep.sum())
+
+
+def test_toon_shading_paints_the_light_in_a_few_flat_bands():
+    """A sphere lit from the side (a key light and ambient light): ``skin`` shades it in a smooth
+    ramp, ``toon`` in a few flat tones with narrow edges (a lit side, a shadow side), as bright,
+    with the scattering's warmth and the tone curve kept; under a dome of a dozen lights
+    (``gi_soft``) as bright and warm as ``skin`` too."""
+    from stimulus_engine.render import lighting_preset
+
+    def flat_share(image: np.ndarray, sphere: np.ndarray) -> float:
+        inside = sphere[:, 1:-1] & sphere[:, 2:] & sphere[:, :-2]
+        return float((np.diff(image[..., 1].astype(int), axis=1)[:, :-1][inside] == 0).mean())
+
+    side = ([LightSpec("directional", (-1.0, 0.0, -0.6), 2.0)], 0.3)
+    for lights in (side, lighting_preset("gi_soft")):
+        skin, toon = _sphere("skin", True, lighting=lights), _sphere("toon", True, lighting=lights)
+        sphere = np.abs(skin.astype(int) - 128).sum(axis=-1) > 0
+        assert abs(toon[sphere].mean() - skin[sphere].mean()) < 20
+        assert (toon[sphere][:, 0] > toon[sphere][:, 2] + 10).all()  # skin-warm, not grey
+    sphere = np.abs(_sphere("skin", True, lighting=side).astype(int) - 128).sum(axis=-1) > 0
+    skin, toon = _sphere("skin", True, lighting=side), _sphere("toon", True, lighting=side)
+    assert _tones(toon, sphere) > 0.7 and _tones(skin, sphere) < 0.5, (_tones(toon, sphere), _tones(skin, sphere))
+    assert flat_share(toon, sphere) > 2 * flat_share(skin, sphere)  # flat inside the bands
+    assert np.array_equal(toon, _sphere("toon", True, lighting=side))  # deterministic

@@ -370,7 +370,7 @@ class GridFile(StudyModel):
     expressions: list[str] = Field(min_length=1)
     lighting: list[Literal["direct_hard", "direct_soft", "gi_soft", "flat"]] = Field(default_factory=lambda: ["gi_soft"],
                                                                                   min_length=1)
-    shading: list[Literal["pbr", "phong", "skin"]] = Field(default_factory=lambda: ["pbr"], min_length=1)
+    shading: list[Literal["pbr", "phong", "skin", "toon"]] = Field(default_factory=lambda: ["pbr"], min_length=1)
     pair_materials_with_shapes: bool = False
     photographs: list[PhotoSpec] = Field(default_factory=list)
     render: RenderSettings = Field(default_factory=RenderSettings)

@@ -89,8 +89,8 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
 
     rig = load_rig(item.rig_npz)
     v = np.load(item.geometry_npy).astype(np.float64)
-    # baked ambient visibility: skin shading's ambient light, and a mouth's inside in every shading
-    inside_only = item.shading != "skin"
+    # baked ambient visibility: skin (and toon) shading's ambient light, and a mouth's inside in every shading
+    inside_only = item.shading not in ("skin", "toon")
     wanted = not inside_only or any(p in rig.part_names for p in INSIDE_PARTS)
     occlusion = _occlusion(rig, v, item.geometry_npy, inside_only) if wanted and item.engine == "pyrender" else None
     parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,

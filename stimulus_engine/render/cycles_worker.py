@@ -109,7 +109,34 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
         bsdf.inputs["Coat Roughness"].default_value = 0.02
     elif name == "teeth":  # enamel: glossy, no scattering (a thin shell glowed orange with it)
         bsdf.inputs["Roughness"].default_value = 0.25
+    if rec.get("toon") and name not in ("eyes", "eye", "sclera", "iris", "cornea") and not rec.get("alpha_blend"):
+        _toon(nodes, links, bsdf)
     return mat
+
+
+#: The ``toon`` shading's Toon BSDFs (Cycles' cel shading, per light): the lit area's angular
+#: size and its edge's softness, and the share of a glossy toon highlight.
+TOON_SIZE, TOON_SMOOTH, TOON_GLOSS = 0.7, 0.08, 0.08
+
+
+def _toon(nodes, links, bsdf) -> None:
+    """Put a cel-shaded surface in place of ``bsdf``: a diffuse Toon BSDF fed what fed its base
+    colour and normal, with a little glossy Toon BSDF for a hard-edged highlight."""
+    diffuse, gloss, mix = nodes.new("ShaderNodeBsdfToon"), nodes.new("ShaderNodeBsdfToon"), nodes.new("ShaderNodeMixShader")
+    diffuse.component, gloss.component = "DIFFUSE", "GLOSSY"
+    diffuse.inputs["Size"].default_value, diffuse.inputs["Smooth"].default_value = TOON_SIZE, TOON_SMOOTH
+    gloss.inputs["Size"].default_value, gloss.inputs["Smooth"].default_value = 0.15, TOON_SMOOTH
+    diffuse.inputs["Color"].default_value = bsdf.inputs["Base Color"].default_value
+    for link in list(bsdf.inputs["Base Color"].links):
+        links.new(link.from_socket, diffuse.inputs["Color"])
+    for link in list(bsdf.inputs["Normal"].links):
+        links.new(link.from_socket, diffuse.inputs["Normal"])
+        links.new(link.from_socket, gloss.inputs["Normal"])
+    mix.inputs["Fac"].default_value = TOON_GLOSS
+    links.new(diffuse.outputs["BSDF"], mix.inputs[1])
+    links.new(gloss.outputs["BSDF"], mix.inputs[2])
+    for link in list(bsdf.outputs["BSDF"].links):
+        links.new(mix.outputs["Shader"], link.to_socket)
 
 
 #: Principled Hair BSDF settings: longitudinal and azimuthal roughness, and the share of the

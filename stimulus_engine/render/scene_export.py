@@ -61,7 +61,8 @@ def _material_record(name: str, mat: Any, folder: Path, index: int) -> dict:
     # pyrender culls the back faces of single-sided materials (ICT's lash shells, the inside of
     # the mouth): the path tracer must hide them too
     rec: dict[str, Any] = {"name": name, "roughness": 0.6, "alpha_blend": False,
-                           "double_sided": bool(getattr(mat, "doubleSided", False))}
+                           "double_sided": bool(getattr(mat, "doubleSided", False)),
+                           "toon": "TOON_CEL" in getattr(mat, "appeal_defines", {})}  # the toon shading
     if mat is None:
         rec["base_color"] = [0.7, 0.7, 0.7, 1.0]
         return rec

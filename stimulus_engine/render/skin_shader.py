@@ -32,7 +32,14 @@ flat normal map, without which pyrender does not pass the tangents on)
     :data:`HAIR_SHIFTS` (a white one, and one tinted by the hair's colour), each
     ``sin(t, h) ** exponent`` (:data:`HAIR_EXPONENTS`, :data:`HAIR_SPECULAR`): bands of sheen
     across the strands, where the isotropic lobe put round patches on the cards.
-``TONEMAP_FILMIC`` (every part of a ``skin`` render)
+``TOON_CEL`` (every part of a ``toon`` render)
+    Cel shading: the light a fragment receives, all lights and the ambient together (its colour
+    over its albedo's, in luminance), is posterised in steps of :data:`TOON_STOPS` photographic
+    stops, each band's edge a soft ramp :data:`TOON_EDGE` of a step wide, and the colour scaled
+    to the band's light (hue kept). Posterising the sum rather than each light keeps two or three
+    broad tones under a dome of a dozen lights (``gi_soft``), as an animated film paints a face:
+    a lit side, a shadow side, a darker crease. Applied before the tone curve.
+``TONEMAP_FILMIC`` (every part of a ``skin`` or ``toon`` render)
     The linear colour goes through the ACES filmic curve (Narkowicz 2015 fit, exposure
     :data:`EXPOSURE`) and the exact sRGB encoding instead of pyrender's clipped ``pow(1/2.2)``:
     highlights roll off instead of burning out.
@@ -41,7 +48,7 @@ flat normal map, without which pyrender does not pass the tangents on)
 from __future__ import annotations
 
 __all__ = ["SCATTER_WRAP", "EXPOSURE", "GLINT_SPREAD", "HAIR_EXPONENTS", "HAIR_SHIFTS", "HAIR_SPECULAR", "HUE_KEEP",
-           "skin_fragment_shader"]
+           "TOON_EDGE", "TOON_STOPS", "skin_fragment_shader"]
 
 #: Per-channel wrap of the diffuse cosine (R, G, B): how far light reaches past the terminator.
 SCATTER_WRAP = (0.45, 0.18, 0.10)
@@ -63,6 +70,11 @@ GLINT_SPREAD = 0.5
 HAIR_SHIFTS = (0.08, -0.12)
 HAIR_EXPONENTS = (80.0, 16.0)
 HAIR_SPECULAR = (0.06, 0.5)
+
+#: Cel shading: the width of a band of light in photographic stops, and the share of a band its
+#: soft edge takes.
+TOON_STOPS = 1.0
+TOON_EDGE = 0.12
 
 _FUNCTIONS = """
 vec3 compute_skin(vec3 n, vec3 v, vec3 l, float roughness, float metalness, vec3 f0, vec3 c_diff, vec3 albedo,
@@ -177,6 +189,17 @@ vec3 aces_filmic(vec3 x)
     return clamp(mix(aces_curve(x), by_luminance, HUE_KEEP), 0.0, 1.0);
 }
 
+vec3 cel_bands(vec3 c, vec3 albedo)
+{
+    // the light on the fragment in stops, posterised: flat bands with soft edges
+    vec3 lum = vec3(0.2126, 0.7152, 0.0722);
+    float light = max(dot(c, lum), 1e-5) / max(dot(albedo, lum), 0.02);
+    float x = log2(light) / TOON_STOPS;
+    float k = floor(x);
+    float band = k + smoothstep(0.5 - TOON_EDGE, 0.5 + TOON_EDGE, x - k);
+    return c * (exp2(band * TOON_STOPS) / light);
+}
+
 vec3 linear_to_srgb(vec3 c)
 {
     return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
@@ -215,7 +238,10 @@ _GLINT = """#ifdef EYE_GLINT
 #endif
 """ + _POINT_LOOP
 _OUTPUT = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
-_TONEMAPPED = """#ifdef TONEMAP_FILMIC
+_TONEMAPPED = """#ifdef TOON_CEL
+    color.xyz = cel_bands(color.xyz, base_color.xyz);
+#endif
+#ifdef TONEMAP_FILMIC
     frag_color = vec4(linear_to_srgb(aces_filmic(color.xyz)), clamp(color.a * base_color.a, 0.0, 1.0));
 #else
 """ + _OUTPUT + "#endif\n"
@@ -235,7 +261,8 @@ def skin_fragment_shader(text: str) -> str:
         raise RuntimeError("pyrender's mesh.frag changed: the skin shader patch was written for pyrender 0.1.45")
     functions = (_FUNCTIONS.replace("SCATTER_WRAP", ", ".join(f"{w:.4f}" for w in SCATTER_WRAP))
                  .replace("EXPOSURE", f"{EXPOSURE:.4f}").replace("HUE_KEEP", f"{HUE_KEEP:.4f}")
-                 .replace("GLINT_SPREAD", f"{GLINT_SPREAD:.4f}"))
+                 .replace("GLINT_SPREAD", f"{GLINT_SPREAD:.4f}").replace("TOON_STOPS", f"{TOON_STOPS:.4f}")
+                 .replace("TOON_EDGE", f"{TOON_EDGE:.4f}"))
     for k in (0, 1):
         functions = (functions.replace(f"HAIR_SHIFT_{k + 1}", f"{HAIR_SHIFTS[k]:.4f}")
                      .replace(f"HAIR_EXPONENT_{k + 1}", f"{HAIR_EXPONENTS[k]:.4f}")
