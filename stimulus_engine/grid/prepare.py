@@ -216,6 +216,20 @@ def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
     return gp, gh
 
 
+def _eye_style(grid: GridFile, im: PlannedImage) -> tuple[float, float] | tuple[()]:
+    """(iris scale, paint) of the image's stylised eyes (:mod:`stimulus_engine.stylisation.eyes`):
+    the iris grows with the shape level, the paint is a ``painted`` material's amount (``flat``
+    paints fully); () where the eyes stay as modelled."""
+    from stimulus_engine.stylisation.eyes import IRIS_SCALE_AT_CARTOON
+
+    if not grid.render.stylised_eyes:
+        return ()
+    m = im.material
+    paint = m.amount_for(im.albedo_from) if m.style == "painted" else 1.0 if m.style == "flat" else 0.0
+    scale = 1.0 + (IRIS_SCALE_AT_CARTOON - 1.0) * float(im.shape)
+    return () if scale == 1.0 and paint == 0.0 else (round(scale, 4), round(float(paint), 4))
+
+
 def _landmark_rows(ch: Character, im: PlannedImage, vertices: np.ndarray) -> list[dict]:
     return [{"character": im.character, "shape": im.shape, "stylisation": im.stylisation, "expression": im.expression,
              "landmark": name, "x": pt[0], "y": pt[1], "z": pt[2]}
@@ -348,12 +362,14 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
                 save_npy(gp, drawn.astype(np.float32))
         look = looks[im.albedo_from, im.material.name]
         extra = () if look.maps_hash == "none" else (look.maps_hash,)  # hashes without maps as before
-        ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(), *extra)
+        eyes = _eye_style(grid, im)
+        ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(exclude={"stylised_eyes"}),
+                 *extra, *((("eyes",) + eyes) if eyes else ()))  # the eyes' style where it changes them
         items.append(RenderItem(im.file, str(out), str(rig_files[im.character]), str(gp), look.albedo_png,
                                 im.lighting, im.shading, cam, r.width, r.height, r.shadows, tuple(r.background),
                                 look.normal_png, look.specular_png, r.engine, r.samples, r.seed,
                                 face_oval(r.width, r.height, r.eye_row, r.face_fraction) if r.vignette else (),
-                                r.supersample))
+                                r.supersample, eyes))
         rows.append({"file": im.file, "character": im.character, "shape": im.shape, "shape_label": im.shape_label,
                      "stylisation": im.stylisation, "material": im.material.name,
                      "material_style": im.material.style, "material_from": im.albedo_from,

@@ -292,6 +292,11 @@ class RenderSettings(StudyModel):
     ``model`` (as the rig and its expressions leave the eyeballs), or a point ``[x, y, z]`` in the
     scene's frame (centimetres, the frame of the manifest's ``camera`` column).
 
+    ``stylised_eyes``: the eyes follow the stylisation (default): the iris grows with the shape
+    level (1.3 times at the cartoon end) and is painted with a ``painted`` material's amount (a
+    flat iris with a dark rim, a plain white: :mod:`stimulus_engine.stylisation.eyes`); false keeps
+    every level's eyes photographic.
+
     ``framing``: ``head_and_shoulders`` (default: the eyes at ``eye_row`` 0.36 of the height from
     the top, the face (forehead to chin) ``face_fraction`` 0.42 of it, so the neck, shoulders
     and garment show; a portrait) or ``head`` (0.45 and 0.70: the face fills the frame, as in the
@@ -316,6 +321,7 @@ class RenderSettings(StudyModel):
     background: tuple[float, float, float] = (0.5, 0.5, 0.5)
     intensity: float = Field(1.0, ge=0, le=2)
     gaze: Literal["camera", "model"] | tuple[float, float, float] = "camera"
+    stylised_eyes: bool = True
 
     @model_validator(mode="before")
     @classmethod

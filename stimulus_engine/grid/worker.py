@@ -8,6 +8,7 @@ tracer, in its own Python), both drawing the same parts from the same camera.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from collections.abc import Callable
@@ -45,6 +46,7 @@ class RenderItem:
     seed: int = 0
     vignette: tuple = ()
     supersample: float = 1.0
+    eye_style: tuple = ()  # (iris scale, paint) of stylised eyes (stimulus_engine.stylisation.eyes); () as modelled
 
 
 @functools.lru_cache(maxsize=16)
@@ -56,6 +58,14 @@ def _image(path: str) -> np.ndarray:
 @functools.lru_cache(maxsize=16)
 def _grey(path: str) -> np.ndarray:
     return np.ascontiguousarray(_image(path)[..., 0])
+
+
+@functools.lru_cache(maxsize=8)
+def _eye_texture(rig_npz: str, iris_scale: float, paint: float) -> np.ndarray:
+    """The rig's eye texture stylised (one array per style: the renderer keeps it on the GPU)."""
+    from stimulus_engine.stylisation.eyes import stylised_eye_texture
+
+    return stylised_eye_texture(load_rig(rig_npz).part_textures["eye"], iris_scale, paint)
 
 
 def _map_image(path: str, kind: str) -> np.ndarray | None:
@@ -88,6 +98,8 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     from stimulus_engine.characters.render_parts import INSIDE_PARTS
 
     rig = load_rig(item.rig_npz)
+    if item.eye_style and "eye" in rig.part_textures:
+        rig = dataclasses.replace(rig, part_textures={**rig.part_textures, "eye": _eye_texture(item.rig_npz, *item.eye_style)})
     v = np.load(item.geometry_npy).astype(np.float64)
     # baked ambient visibility: skin (and toon) shading's ambient light, and a mouth's inside in every shading
     inside_only = item.shading not in ("skin", "toon")
