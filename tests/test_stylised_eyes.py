@@ -76,3 +76,19 @@ def test_a_grid_stylises_the_eyes_with_its_shape_and_painted_material(tmp_path):
     assert all(it.eye_style == () for it in items2)
     same = manifest2["input_hash"] == manifest["input_hash"]
     assert list(same) == [s == () for s in style.values()]  # only the stylised images changed inputs
+
+
+def test_painted_lashes_get_a_bold_lid_line_along_their_roots():
+    from stimulus_engine.parts.eyelashes import lash_texture
+    from stimulus_engine.stylisation.eyes import LID_LINE, bold_lash_texture
+
+    lashes = lash_texture(128)
+    assert bold_lash_texture(lashes, 0.0) is lashes
+    bold = bold_lash_texture(lashes, 1.0)
+    root = bold[-int(0.5 * LID_LINE * 128):]  # the bottom rows: the roots
+    assert (root[..., 3] == 255).all() and root[..., :3].max() < 40  # a solid dark line
+    assert np.array_equal(bold[: int((1 - LID_LINE) * 128) - 1], lashes[: int((1 - LID_LINE) * 128) - 1])  # tips as they were
+    half = bold_lash_texture(lashes, 0.5)
+    assert 120 <= int(half[-1, :, 3].min()) <= 135  # half a line: half opaque where no lash was
+    with pytest.raises(ValueError, match="paint"):
+        bold_lash_texture(lashes, 1.5)

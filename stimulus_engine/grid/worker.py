@@ -46,7 +46,7 @@ class RenderItem:
     seed: int = 0
     vignette: tuple = ()
     supersample: float = 1.0
-    eye_style: tuple = ()  # (iris scale, paint) of stylised eyes (stimulus_engine.stylisation.eyes); () as modelled
+    eye_style: tuple = ()  # (iris scale, paint) of stylised eyes and lashes (stimulus_engine.stylisation.eyes); () as modelled
 
 
 @functools.lru_cache(maxsize=16)
@@ -61,11 +61,16 @@ def _grey(path: str) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=8)
-def _eye_texture(rig_npz: str, iris_scale: float, paint: float) -> np.ndarray:
-    """The rig's eye texture stylised (one array per style: the renderer keeps it on the GPU)."""
-    from stimulus_engine.stylisation.eyes import stylised_eye_texture
+def _eye_textures(rig_npz: str, iris_scale: float, paint: float) -> dict[str, np.ndarray]:
+    """The rig's eye and lash textures stylised (:mod:`stimulus_engine.stylisation.eyes`; one
+    array per style: the renderer keeps it on the GPU)."""
+    from stimulus_engine.stylisation.eyes import bold_lash_texture, stylised_eye_texture
 
-    return stylised_eye_texture(load_rig(rig_npz).part_textures["eye"], iris_scale, paint)
+    own = load_rig(rig_npz).part_textures
+    out = {"eye": stylised_eye_texture(own["eye"], iris_scale, paint)} if "eye" in own else {}
+    if "lashes" in own:
+        out["lashes"] = bold_lash_texture(own["lashes"], paint)
+    return out
 
 
 def _map_image(path: str, kind: str) -> np.ndarray | None:
@@ -98,8 +103,8 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     from stimulus_engine.characters.render_parts import INSIDE_PARTS
 
     rig = load_rig(item.rig_npz)
-    if item.eye_style and "eye" in rig.part_textures:
-        rig = dataclasses.replace(rig, part_textures={**rig.part_textures, "eye": _eye_texture(item.rig_npz, *item.eye_style)})
+    if item.eye_style and {"eye", "lashes"} & set(rig.part_textures):
+        rig = dataclasses.replace(rig, part_textures={**rig.part_textures, **_eye_textures(item.rig_npz, *item.eye_style)})
     v = np.load(item.geometry_npy).astype(np.float64)
     # baked ambient visibility: skin (and toon) shading's ambient light, and a mouth's inside in every shading
     inside_only = item.shading not in ("skin", "toon")

@@ -13,6 +13,9 @@ photograph of a scan's eyeball asset):
   black ends) and the limbus, the sharpest rise of brightness from 1.8 to 5 pupil radii out (the
   iris is darker than the ring and the white around it, whatever its colour: a scan's painted
   iris colour can be a dark, nearly grey brown);
+* :func:`bold_lash_texture` gives the lash cards a bold lid line by ``paint``: a solid dark band
+  along their roots (:data:`LID_LINE` of the card's height, soft-edged), the lid line an animated
+  film draws where a photograph shows lashes;
 * :func:`stylised_eye_texture` enlarges each iris ``iris_scale`` times about its pupil (the
   grey ring and the white beyond it squeezed into one iris radius, the rest untouched) and
   paints it by ``paint`` (0 photographic .. 1 painted): the iris blended into its mean colour
@@ -26,7 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["IRIS_SCALE_AT_CARTOON", "PAINTED_WHITE", "iris_circles", "stylised_eye_texture"]
+__all__ = ["IRIS_SCALE_AT_CARTOON", "LID_LINE", "PAINTED_WHITE", "bold_lash_texture", "iris_circles",
+           "stylised_eye_texture"]
 
 #: The iris's size at the cartoon end of the shape scale, against the realistic one (a cartoon
 #: iris fills most of the opening: about 0.6 of the eye's width where a photograph's is 0.45).
@@ -36,6 +40,9 @@ IRIS_SCALE_AT_CARTOON = 1.3
 PAINTED_WHITE = 225.0
 #: The rim of a painted iris: its width (a share of the iris's radius) and how dark (a factor).
 RIM_WIDTH, RIM_DARK = 0.14, 0.45
+#: The bold lid line of painted lashes: the share of a lash card's height (from the root) it
+#: covers, and its colour (sRGB).
+LID_LINE, LID_LINE_COLOUR = 0.22, (22, 15, 12)
 #: Grey level (0-255) below which a texel is the pupil's black.
 PUPIL_BLACK = 25.0
 
@@ -138,3 +145,22 @@ def stylised_eye_texture(texture: np.ndarray, iris_scale: float = 1.0, paint: fl
     out = _enlarged(texture, circles, iris_scale) if iris_scale != 1.0 else np.asarray(texture)
     scaled = [(x, y, r * iris_scale, p * iris_scale) for x, y, r, p in circles]
     return _painted(out, scaled, paint) if paint > 0 else out
+
+
+def bold_lash_texture(texture: np.ndarray, paint: float) -> np.ndarray:
+    """A lash card texture (RGBA, the roots along the bottom row: :func:`stimulus_engine.parts.eyelashes.lash_texture`)
+    with a solid dark band along the roots, :data:`LID_LINE` of its height, as opaque as
+    ``paint`` (0..1) makes it; the texture itself at 0."""
+    from stimulus_engine.geometry.ramps import smoothstep
+
+    if not 0.0 <= paint <= 1.0:
+        raise ValueError(f"bold lashes: paint must be within 0..1 (got {paint})")
+    if paint == 0.0:
+        return texture
+    out = np.asarray(texture, np.float64).copy()
+    h = out.shape[0]
+    v = 1.0 - (np.arange(h) + 0.5) / h  # 0 at the roots (the bottom row)
+    band = paint * (1.0 - smoothstep(v, 0.6 * LID_LINE, LID_LINE))[:, None]
+    out[..., :3] += band[..., None] * (np.asarray(LID_LINE_COLOUR, np.float64) - out[..., :3])
+    out[..., 3] = np.maximum(out[..., 3], 255.0 * band)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
