@@ -39,6 +39,20 @@ def _box_mouth(gap: bool) -> FaceRig:
                    face_part=np.concatenate(fp), part_names=("skin", "teeth", "tongue"), landmarks={})
 
 
+
+def _shipped_cut(path, name: str, expressions: list[str], characters: list[str] | None = None):
+    """A shipped grid file cut to its realistic original level and ``expressions`` (and
+    ``characters``), written to ``path`` (its data references as they are)."""
+    import yaml
+
+    src = __import__("pathlib").Path(__file__).resolve().parent.parent / "protocols" / "grids" / f"{name}.yaml"
+    spec = yaml.safe_load(src.read_text())
+    spec.update({"name": f"{name}_cut", "shapes": [0.0], "materials": ["original"], "expressions": expressions})
+    if characters is not None:
+        spec["characters"] = [c for c in spec["characters"] if c["name"] in characters]
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    return path
+
 def test_inside_parts_see_the_front_through_the_opening():
     for gap in (True, False):
         rig = _box_mouth(gap)
@@ -87,12 +101,8 @@ def test_teeth_show_in_the_open_mouth_expressions(tmp_path):
     from stimulus_engine.grid import run_grid
     from stimulus_engine.grid.schema import GridFile
 
-    src = (__import__("pathlib").Path(__file__).resolve().parent.parent / "protocols" / "grids" / "exp1a_shape_material.yaml")
-    text = re.sub(r"(?m)^(shapes|materials|expressions): .*$",
-                  lambda m: {"shapes": "shapes: [0.0]", "materials": "materials: [original]",
-                             "expressions": "expressions: [neutral, anger, happiness, surprise]"}[m.group(1)], src.read_text())
-    grid_file = tmp_path / "mouth.yaml"
-    grid_file.write_text(text.replace("name: exp1a_shape_material", "name: mouth_check"))
+    grid_file = _shipped_cut(tmp_path / "mouth.yaml", "exp1a_shape_material",
+                             expressions=["neutral", "anger", "happiness", "surprise"])
     grid = load_study_file(grid_file, GridFile)
     run_grid(grid, tmp_path / "out", n_jobs=1)
     manifest = pd.read_csv(tmp_path / "out" / "manifest.csv")
@@ -137,13 +147,7 @@ def test_parted_lips_open_on_a_dark_gap(tmp_path):
     from stimulus_engine.grid import run_grid
     from stimulus_engine.grid.schema import GridFile
 
-    src = (__import__("pathlib").Path(__file__).resolve().parent.parent / "protocols" / "grids" / "exp2_stylisation.yaml")
-    text = re.sub(r"(?m)^(shapes|materials|expressions): .*$",
-                  lambda m: {"shapes": "shapes: [0.0]", "materials": "materials: [original]",
-                             "expressions": "expressions: [neutral]"}[m.group(1)], src.read_text())
-    text = re.sub(r"(?ms)^  - name: james.*?(?=^  - name: lps)", "", text)  # Lee Perry-Smith only
-    grid_file = tmp_path / "lips.yaml"
-    grid_file.write_text(text.replace("name: exp2_stylisation", "name: lips_check"))
+    grid_file = _shipped_cut(tmp_path / "lips.yaml", "exp2_stylisation", expressions=["neutral"], characters=["lps"])
     run_grid(load_study_file(grid_file, GridFile), tmp_path / "out", n_jobs=1)
     row = next(pd.read_csv(tmp_path / "out" / "manifest.csv").itertuples())
     assert row.character == "lps" and (row.width, row.height) == (1024, 768)

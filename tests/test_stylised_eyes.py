@@ -92,3 +92,44 @@ def test_painted_lashes_get_a_bold_lid_line_along_their_roots():
     assert 120 <= int(half[-1, :, 3].min()) <= 135  # half a line: half opaque where no lash was
     with pytest.raises(ValueError, match="paint"):
         bold_lash_texture(lashes, 1.5)
+
+
+def test_painted_hair_is_drawn_as_masses_and_cycles_draws_its_cards(tmp_path):
+    """A painted level's hair texture merges its strands into solid locks with flat grey; a
+    rig stored before ``massed`` existed still loads; the scene export grows strand curves for
+    strand hair only, the massed hair's cards are what the path tracer draws."""
+    import dataclasses
+
+    from stimulus_engine.characters.render_parts import hair_render_part
+    from stimulus_engine.parts.hair import hair_arrays, hair_asset, hair_from_arrays
+    from stimulus_engine.render import CameraSpec
+    from stimulus_engine.render.scene_export import export_scene
+    from stimulus_engine.stylisation.hair import hair_mass_texture
+
+    tex = hair_asset("short02").texture
+    assert hair_mass_texture(tex, 0.0) is tex
+    mass = hair_mass_texture(tex, 1.0)
+    inside = tex[..., 3] > 0
+    assert (mass[..., 3] >= tex[..., 3]).mean() > 0.99  # the gaps between strands fill in
+    assert np.abs(np.diff(mass[..., 0].astype(int), axis=1))[inside[:, 1:]].mean() < \
+        0.5 * np.abs(np.diff(tex[..., 0].astype(int), axis=1))[inside[:, 1:]].mean()  # no fibres
+
+    # a hair style's mesh as it is (bound to one rig point at the origin)
+    import json
+
+    from stimulus_engine.parts.hair import Hair
+
+    asset = hair_asset("short02")
+    m = len(asset.uv)
+    hair = Hair(np.zeros((m, 3), int), np.full((m, 3), 1 / 3), asset.anchors + asset.offset, asset.faces, asset.uv,
+                asset.texture)
+    stored = hair_arrays(hair)
+    stored.pop("hair_massed")  # a rig stored before the field was added
+    assert hair_from_arrays(stored).massed is False
+    cam = CameraSpec((0.0, 0.0, 40.0), (0.0, 0.0, 0.0), 20.0)
+    for massed in (False, True):
+        h = dataclasses.replace(hair, texture=hair_mass_texture(hair.texture, 1.0) if massed else hair.texture,
+                                massed=massed)
+        spec = export_scene([hair_render_part(h, np.zeros((1, 3)))], [], 0.3, cam, tmp_path / str(massed),
+                            width=32, height=32, background=(0.5, 0.5, 0.5))
+        assert json.loads(spec.read_text())["parts"][0].get("strands", False) is (not massed)

@@ -362,13 +362,20 @@ def hair_render_part(hair: Hair, vertices: np.ndarray, shading: str = "pbr") -> 
 
     mesh = trimesh.Trimesh(hair.pose(vertices), hair.faces, process=False)
     mesh.visual = trimesh.visual.TextureVisuals(uv=hair.uv)
-    return RenderPart(mesh, material=_hair_material(shading, hair.colour, hair.texture), smooth=True, name="hair",
-                      tangents=strand_tangents(mesh.vertices, mesh.faces))
+    return RenderPart(mesh, material=_hair_material(shading, hair.colour, hair.texture, hair.massed), smooth=True,
+                      name="hair", tangents=strand_tangents(mesh.vertices, mesh.faces))
 
 
-def _hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray) -> object:
-    """A cached material per (shading, colour, texture) for the hair (see :func:`_material`)."""
-    return _cached(("hair", shading, tuple(colour)), (texture,), lambda: _new_hair_material(shading, colour, texture))
+def _hair_material(shading: str, colour: tuple[float, float, float], texture: np.ndarray, massed: bool = False) -> object:
+    """A cached material per (shading, colour, texture) for the hair (see :func:`_material`);
+    ``massed`` hair's carries the ``HAIR_MASS`` mark (no strand curves in the path tracer)."""
+    def make() -> object:
+        mat = _new_hair_material(shading, colour, texture)
+        if massed:
+            mat.appeal_defines["HAIR_MASS"] = 1  # read by the scene export only; no shader switch
+        return mat
+
+    return _cached(("hair", shading, tuple(colour), massed), (texture,), make)
 
 
 #: The hair texture's strands (alpha 0 or 1) are softened by a Gaussian of this many texels and

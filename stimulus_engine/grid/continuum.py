@@ -382,7 +382,7 @@ def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile) -> pd.Dat
             descriptors[f] = face_descriptor(image(f), box)
         return descriptors[f]
 
-    slices = _slices(grid, manifest)
+    slices = [(ch, factor, rows) for ch, factor, rows in _slices(grid, manifest) if len(rows)]  # none where all failed
     realistic = {(ch, factor): rows["file"].iloc[0] for ch, factor, rows in slices}
     table = []
     for ch, factor, rows in slices:

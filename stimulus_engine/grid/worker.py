@@ -46,7 +46,7 @@ class RenderItem:
     seed: int = 0
     vignette: tuple = ()
     supersample: float = 1.0
-    eye_style: tuple = ()  # (iris scale, paint) of stylised eyes and lashes (stimulus_engine.stylisation.eyes); () as modelled
+    eye_style: tuple = ()  # (iris scale, paint) of stylised eyes, lashes and hair (stimulus_engine.stylisation); () as modelled
 
 
 @functools.lru_cache(maxsize=16)
@@ -71,6 +71,22 @@ def _eye_textures(rig_npz: str, iris_scale: float, paint: float) -> dict[str, np
     if "lashes" in own:
         out["lashes"] = bold_lash_texture(own["lashes"], paint)
     return out
+
+
+#: From this paint on, a painted level's hair is drawn as masses in the path tracer too (its
+#: cards, no strand curves: :attr:`stimulus_engine.parts.hair.Hair.massed`).
+MASSED_FROM = 0.5
+
+
+@functools.lru_cache(maxsize=8)
+def _hair(rig_npz: str, paint: float):
+    """The rig's hair with its texture simplified into masses by ``paint`` (None without hair)."""
+    from stimulus_engine.stylisation.hair import hair_mass_texture
+
+    hair = load_rig(rig_npz).hair
+    if hair is None or paint == 0.0:
+        return hair
+    return dataclasses.replace(hair, texture=hair_mass_texture(hair.texture, paint), massed=paint >= MASSED_FROM)
 
 
 def _map_image(path: str, kind: str) -> np.ndarray | None:
@@ -103,8 +119,9 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     from stimulus_engine.characters.render_parts import INSIDE_PARTS
 
     rig = load_rig(item.rig_npz)
-    if item.eye_style and {"eye", "lashes"} & set(rig.part_textures):
-        rig = dataclasses.replace(rig, part_textures={**rig.part_textures, **_eye_textures(item.rig_npz, *item.eye_style)})
+    if item.eye_style:  # stylised eyes, lashes and hair (stimulus_engine.stylisation.eyes, .hair)
+        rig = dataclasses.replace(rig, part_textures={**rig.part_textures, **_eye_textures(item.rig_npz, *item.eye_style)},
+                                  hair=_hair(item.rig_npz, item.eye_style[1]))
     v = np.load(item.geometry_npy).astype(np.float64)
     # baked ambient visibility: skin (and toon) shading's ambient light, and a mouth's inside in every shading
     inside_only = item.shading not in ("skin", "toon")

@@ -92,6 +92,9 @@ class Hair:
         As in :class:`HairAsset`.
     colour : (3,) tuple of float
         Linear RGB multiplying the texture.
+    massed : bool
+        Drawn as painted masses (:mod:`stimulus_engine.stylisation.hair`): the path tracer draws
+        its cards, not strand curves.
     """
 
     corners: np.ndarray
@@ -101,6 +104,7 @@ class Hair:
     uv: np.ndarray
     texture: np.ndarray
     colour: tuple[float, float, float] = DEFAULT_COLOUR
+    massed: bool = False
 
     def pose(self, rig_vertices: np.ndarray) -> np.ndarray:
         """(M, 3) hair vertices for a pose of the rig it was fitted to."""

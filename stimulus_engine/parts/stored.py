@@ -28,8 +28,12 @@ def part_from_arrays(cls: type[T], arrays: Any, prefix: str) -> T | None:
     fields = dataclasses.fields(cls)
     if prefix + fields[0].name not in arrays:
         return None
-    d = {f.name: arrays[prefix + f.name] for f in fields}
+    d = {f.name: arrays[prefix + f.name] for f in fields if prefix + f.name in arrays or f.default is dataclasses.MISSING}
     for f in fields:
+        if f.name not in d:  # stored before the field was added: its default
+            continue
         if isinstance(f.default, tuple):
             d[f.name] = tuple(float(c) for c in d[f.name])
+        elif isinstance(f.default, bool):
+            d[f.name] = bool(d[f.name])
     return cls(**d)

@@ -128,7 +128,9 @@ def export_scene(parts: list, lights: list[LightSpec], ambient: float, camera: C
     for k, (p, rec) in enumerate(zip(parts, records)):
         # the texture the record saved: metallic-roughness or specular-glossiness (phong)
         tex = _texture_array(getattr(p.material, "baseColorTexture", None) or getattr(p.material, "diffuseTexture", None))
-        if p.name == "hair" and f"uv{k}" in arrays and rec.get("alpha_blend") and tex is not None and tex.shape[-1] == 4:
+        massed = "HAIR_MASS" in getattr(p.material, "appeal_defines", {})  # painted masses: the cards themselves
+        if (p.name == "hair" and not massed and f"uv{k}" in arrays and rec.get("alpha_blend") and tex is not None
+                and tex.shape[-1] == 4):
             alpha = tex[..., 3] > 127
             arrays[f"sp{k}"], arrays[f"ss{k}"], arrays[f"sr{k}"] = grow_strands(
                 arrays[f"v{k}"], arrays[f"f{k}"], arrays[f"uv{k}"], alpha, mm_per_unit)
