@@ -13,8 +13,18 @@ blend_vertices, blend_images, partial_blend, blend_meshes, part_morph
     ``morph_regions``; gradient-domain texture blending in ``gradient_blend``).
 neoteny_measures, neoteny_table
     Baby-schema proportions of a face (module ``neoteny``).
+stylised_eye_texture, bold_lash_texture, hair_mass_texture
+    Eyes, lashes and hair painted along the scale: a larger, flat iris and a plain white, a bold
+    lid line, hair in solid locks (modules ``eyes``, ``hair``).
+ssim_distance, face_descriptor
+    How far apart two stimuli look, and whose face they show (modules ``image_distance``,
+    ``identity``).
 """
 
+from stimulus_engine.stylisation.eyes import bold_lash_texture, stylised_eye_texture
+from stimulus_engine.stylisation.hair import hair_mass_texture
+from stimulus_engine.stylisation.identity import face_descriptor
+from stimulus_engine.stylisation.image_distance import ssim_distance
 from stimulus_engine.stylisation.materials import MATERIAL_LEVELS, stylise_albedo, stylise_map, stylise_material
 from stimulus_engine.stylisation.morph import blend_images, blend_meshes, blend_vertices, part_morph, partial_blend
 from stimulus_engine.stylisation.neoteny import neoteny_measures, neoteny_table
@@ -26,13 +36,18 @@ __all__ = [
     "blend_images",
     "blend_meshes",
     "blend_vertices",
+    "bold_lash_texture",
+    "face_descriptor",
+    "hair_mass_texture",
     "neoteny_measures",
     "neoteny_table",
     "part_morph",
     "partial_blend",
+    "ssim_distance",
     "stylise",
     "stylise_albedo",
     "stylise_map",
     "stylise_material",
     "stylise_rig",
+    "stylised_eye_texture",
 ]
