@@ -25,6 +25,8 @@ workers no longer restarted by loky at 300 MB: 82.5 and 82.6 s against 59.4 and 
 1.40. ``--measure`` drops the pins, so the cold run measures the continuum as a new grid file's
 first run does (one probe per round for both characters, 5 candidates, stylised materials and
 probe images reused): 106.7 s against 60.7 s (one run), ratio 1.76 on that first run only.
+With the eyes, lashes and hair stylised along the scale (c85e223; the pinned grid): 89.4 and
+87.2 s against 62.4 and 59.2 s, ratio 1.45.
 
 Run:  .venv/bin/python benchmarks/grid_speed.py [--grid protocols/grids/exp2_stylisation.yaml]
           [--base e309ec3] [--repeats 2] [--measure]
