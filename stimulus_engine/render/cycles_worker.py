@@ -116,7 +116,7 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
 
 #: The ``toon`` shading's Toon BSDFs (Cycles' cel shading, per light): the lit area's angular
 #: size and its edge's softness, and the share of a glossy toon highlight.
-TOON_SIZE, TOON_SMOOTH, TOON_GLOSS = 0.7, 0.08, 0.08
+TOON_SIZE, TOON_SMOOTH, TOON_GLOSS = 0.7, 0.08, 0.03
 
 
 def _toon(nodes, links, bsdf) -> None:
