@@ -35,6 +35,7 @@ def test_the_iris_grows_by_the_scale_and_paints_flat(layout):
         iris = (d > p + 2) & (d < 0.8 * r)
         before = stylised_eye_texture(tex, 1.3, 0.0).astype(float)
         assert painted[iris].std(axis=0).max() < 0.3 * before[iris].std(axis=0).max()  # fibres gone: flat paint
+        assert painted[iris].mean() > 75  # a dark iris (the scan's, tinted near-grey brown) lifted: its colour shows
         white = (d > 1.1 * r) & (d < 1.5 * r)
         assert np.abs(painted[white].mean(axis=0) - PAINTED_WHITE).max() < 8  # a plain white
         rim = (d > 0.9 * r) & (d < r)

@@ -38,6 +38,9 @@ IRIS_SCALE_AT_CARTOON = 1.3
 #: The painted white of a stylised eye (sRGB grey; the photographic sclera is lit to 200 with
 #: veins and shading, :data:`stimulus_engine.parts.eyes.SCLERA_LEVEL`).
 PAINTED_WHITE = 225.0
+#: The least mean grey of a painted iris (sRGB): a dark iris is lifted to it, hue kept, so that an
+#: enlarged iris reads as its colour and not as a black disc (james's painted iris averages 50).
+PAINTED_IRIS_LEVEL = 85.0
 #: The rim of a painted iris: its width (a share of the iris's radius) and how dark (a factor).
 RIM_WIDTH, RIM_DARK = 0.14, 0.45
 #: The bold lid line of painted lashes: the share of a lash card's height (from the root) it
@@ -112,6 +115,7 @@ def _painted(texture: np.ndarray, circles: list, paint: float) -> np.ndarray:
         d = np.hypot(xx - x, yy - y)
         iris = (d > p) & (d < r)
         mean = out[iris].mean(axis=0)
+        mean *= max(PAINTED_IRIS_LEVEL / max(float(mean.mean()), 1.0), 1.0)  # a dark iris lifted: its colour shows
         flat = mean * (1.0 - (1.0 - RIM_DARK) * smoothstep(d / r, 1.0 - RIM_WIDTH, 1.0))[..., None]
         white = np.full(3, PAINTED_WHITE)
         target = np.where((d < r)[..., None], flat, white)
