@@ -24,7 +24,7 @@ from stimulus_engine.characters.rig import FaceRig
 from stimulus_engine.parts.body import Body
 from stimulus_engine.parts.hair import Hair
 
-__all__ = ["INSIDE_PARTS", "SHADINGS", "body_render_parts", "hair_render_part", "rig_occlusion", "rig_render_parts"]
+__all__ = ["INSIDE_PARTS", "SHADINGS", "SKIN_LIKE", "body_render_parts", "hair_render_part", "rig_occlusion", "rig_render_parts"]
 
 #: Shading models: ``pbr`` (metallic-roughness), ``phong`` (specular-glossiness, Blinn-Phong: the
 #: thesis's contrast to PBR), ``skin`` (PBR with scattering-softened skin, wet eyes and a filmic
@@ -33,7 +33,7 @@ __all__ = ["INSIDE_PARTS", "SHADINGS", "body_render_parts", "hair_render_part", 
 #: the ``TOON_CEL`` switch of :mod:`~stimulus_engine.render.skin_shader`).
 SHADINGS: tuple[str, ...] = ("pbr", "phong", "skin", "toon")
 #: The shadings drawn with the ``skin`` shader's parts (occluded ambient, wet eyes, tone curve).
-_SKIN_LIKE: tuple[str, ...] = ("skin", "toon")
+SKIN_LIKE: tuple[str, ...] = ("skin", "toon")
 
 #: Colours of the untextured parts (linear RGB, alpha). ``mouth`` is the mouth socket (dark, it
 #: is mostly in shadow inside a real mouth), ``tongue`` gums and tongue.
@@ -79,7 +79,7 @@ def _material(shading: str, colour: tuple[float, ...], texture: np.ndarray | Non
     """
     def make() -> object:
         mat = _inside(_new_material(shading, colour, texture, roughness, normal, specular, scatter), inside)
-        if glint and shading in ("pbr", *_SKIN_LIKE):
+        if glint and shading in ("pbr", *SKIN_LIKE):
             mat.appeal_defines["EYE_GLINT"] = 1
         return mat
 
@@ -115,9 +115,9 @@ def _shader_defines(material: object, shading: str, scatter: bool) -> object:
     :mod:`.baked_shadows`), and the ``skin`` shading's occluded ambient light, scattering and
     tone curve."""
     material.appeal_defines = {"VISIBILITY_IN_COLOR0": 1}
-    if shading in _SKIN_LIKE:
+    if shading in SKIN_LIKE:
         material.appeal_defines.update({"TONEMAP_FILMIC": 1, "OCCLUDED_AMBIENT": 1})
-    if shading in _SKIN_LIKE and scatter:  # toon: the scattering's warmth, then the bands
+    if shading in SKIN_LIKE and scatter:  # toon: the scattering's warmth, then the bands
         material.appeal_defines["SKIN_SCATTER"] = 1
     if shading == "toon":
         material.appeal_defines["TOON_CEL"] = 1
@@ -137,7 +137,7 @@ def _new_material(shading: str, colour: tuple[float, ...], texture: np.ndarray |
             baseColorFactor=base, baseColorTexture=tex(texture, "RGBA"), metallicFactor=0.0, roughnessFactor=roughness,
             alphaMode="BLEND", doubleSided=True), shading, scatter=False)
     s = None if specular is None else np.asarray(specular, np.float64) / 255.0
-    if shading in ("pbr", *_SKIN_LIKE):
+    if shading in ("pbr", *SKIN_LIKE):
         mr = None
         if s is not None:  # pyrender reads roughness from R and metallic from G (× the factors)
             r = np.rint(255 * np.clip(roughness * (1.4 - 0.8 * s), 0, 1))
@@ -233,7 +233,7 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
             mesh.visual = trimesh.visual.TextureVisuals(uv=rig.uv[uniq[:, 1]])
         tex = (albedo if name == "skin" else rig.part_textures[name]) if textured else None
         skin = name == "skin" and textured
-        rough = _SKIN_SHADING_ROUGHNESS.get(name) if shading in _SKIN_LIKE else None
+        rough = _SKIN_SHADING_ROUGHNESS.get(name) if shading in SKIN_LIKE else None
         rough = _PART_ROUGHNESS.get(name, 0.62) if rough is None else rough
         if name == "eye_shadow" and tex is None:
             continue  # without its texture the shell would cover the eye
@@ -409,7 +409,7 @@ def _new_hair_material(shading: str, colour: tuple[float, float, float], texture
             baseColorFactor=(*colour, 1.0), baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=HAIR_ROUGHNESS,
             alphaMode="BLEND", doubleSided=True, normalTexture=flat)
     mat = _shader_defines(mat, shading, scatter=False)
-    if shading in ("pbr", *_SKIN_LIKE):
+    if shading in ("pbr", *SKIN_LIKE):
         mat.appeal_defines["HAIR_KAJIYA"] = 1  # strand highlights along the tangents (render.skin_shader)
     return mat
 

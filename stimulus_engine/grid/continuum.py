@@ -162,18 +162,22 @@ def _refined(stored: Path, name: str, start: np.ndarray, steps: Callable[[np.nda
     return record[name]
 
 
+def _probe_of(grid: GridFile, **update: object) -> GridFile:
+    """A probe grid: ``grid`` neutral (or its first expression), in its first lighting and
+    shading, without photographs, with ``update``'s shapes and materials."""
+    expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
+    return grid.model_copy(update={"name": f"{grid.name}_probe", "expressions": [expression],
+                                   "lighting": grid.lighting[:1], "shading": grid.shading[:1], "photographs": [],
+                                   **update})
+
+
 def _probe(grid: GridFile, amounts: np.ndarray) -> GridFile:
     """A grid of every character's realistic neutral face wearing each amount of the family
     (``amounts``: a row of them per character)."""
-    shape = min(grid.shape_levels())
-    expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
     names = [c.name for c in grid.characters]
     mats = [MaterialSpec(name=f"c{i}", style="painted", amount={c: float(a) for c, a in zip(names, column)})
             for i, column in enumerate(np.asarray(amounts).T)]
-    return grid.model_copy(update={"name": f"{grid.name}_probe", "shapes": [shape], "materials": mats,
-                                   "expressions": [expression], "lighting": grid.lighting[:1],
-                                   "shading": grid.shading[:1], "pair_materials_with_shapes": False,
-                                   "photographs": []})
+    return _probe_of(grid, shapes=[min(grid.shape_levels())], materials=mats, pair_materials_with_shapes=False)
 
 
 def _per_character(images: list[np.ndarray], characters: int, mask: np.ndarray) -> np.ndarray:
@@ -259,26 +263,20 @@ def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile], list[n
     cont = grid.shapes
     if not isinstance(cont, ShapeContinuum):
         return grid
-    if cont.measured is not None:
-        values = list(cont.measured)
-        return grid.model_copy(update={"shapes": values if cont.order == "realistic_first" else values[::-1]})
-    cache = Path(cache)
-    mask = _mask(grid)
-    expression = "neutral" if "neutral" in grid.expressions else grid.expressions[0]
-    names = [c.name for c in grid.characters]
+    values = list(cont.measured) if cont.measured is not None else None
+    if values is None:
+        mask = _mask(grid)
+        names = [c.name for c in grid.characters]
 
-    def probe(at: np.ndarray) -> GridFile:
-        mats = [_paired_material(grid, float(a)).model_copy(update={"name": f"c{i}"}) for i, a in enumerate(at)]
-        return grid.model_copy(update={"name": f"{grid.name}_probe", "shapes": [float(a) for a in at],
-                                       "materials": mats, "pair_materials_with_shapes": True,
-                                       "expressions": [expression], "lighting": grid.lighting[:1],
-                                       "shading": grid.shading[:1], "photographs": []})
+        def probe(at: np.ndarray) -> GridFile:
+            mats = [_paired_material(grid, float(a)).model_copy(update={"name": f"c{i}"}) for i, a in enumerate(at)]
+            return _probe_of(grid, shapes=[float(a) for a in at], materials=mats, pair_materials_with_shapes=True)
 
-    key = sha(GRID_VERSION, "shapes", probe(np.asarray(CANDIDATES)).model_dump_json(), cont.levels)
-    values = _refined(cache / "continuum" / f"{key}.json", "values", np.asarray(CANDIDATES),
-                      lambda at: _per_character(render(probe(at)), len(names), mask),
-                      lambda at, measured: common_levels(at, measured, cont.levels, SHAPE_POWER))
-    logger.info("%s: shape levels measured at %s", grid.name, values)
+        key = sha(GRID_VERSION, "shapes", probe(np.asarray(CANDIDATES)).model_dump_json(), cont.levels)
+        values = _refined(Path(cache) / "continuum" / f"{key}.json", "values", np.asarray(CANDIDATES),
+                          lambda at: _per_character(render(probe(at)), len(names), mask),
+                          lambda at, measured: common_levels(at, measured, cont.levels, SHAPE_POWER))
+        logger.info("%s: shape levels measured at %s", grid.name, values)
     return grid.model_copy(update={"shapes": values if cont.order == "realistic_first" else values[::-1]})
 
 

@@ -60,10 +60,10 @@ def write_sheets(out: Path, manifest: pd.DataFrame, grid: GridFile) -> list[Path
                 for i in order]
         if all(im is None for im in imgs):
             return
-        ident = [None if i is None else sub.at[i, "identity_to_realistic"] if "identity_to_realistic" in sub else None
+        ident = [np.nan if i is None or "identity_to_realistic" not in sub else sub.at[i, "identity_to_realistic"]
                  for i in order]
-        if any(d is not None and d == d for d in ident):  # each measured level's identity distance (dlib)
-            said = [f"id {d:.2f}" if d is not None and d == d else "" for d in ident]
+        if any(pd.notna(d) for d in ident):  # each measured level's identity distance (dlib)
+            said = [f"id {d:.2f}" if pd.notna(d) else "" for d in ident]
             labels = {**labels, "labels": [f"{c} · {t}" if c and t else c or t
                                            for c, t in zip(labels.get("labels", [""] * len(order)), said)]}
             title += "; id: dlib distance to realistic (same person <= 0.6)"

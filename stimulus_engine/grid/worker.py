@@ -116,7 +116,7 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     from stimulus_engine.render import CameraSpec
     from stimulus_engine.characters.render_parts import rig_render_parts
 
-    from stimulus_engine.characters.render_parts import INSIDE_PARTS
+    from stimulus_engine.characters.render_parts import INSIDE_PARTS, SKIN_LIKE
 
     rig = load_rig(item.rig_npz)
     if item.eye_style:  # stylised eyes, lashes and hair (stimulus_engine.stylisation.eyes, .hair)
@@ -124,7 +124,7 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
                                   hair=_hair(item.rig_npz, item.eye_style[1]))
     v = np.load(item.geometry_npy).astype(np.float64)
     # baked ambient visibility: skin (and toon) shading's ambient light, and a mouth's inside in every shading
-    inside_only = item.shading not in ("skin", "toon")
+    inside_only = item.shading not in SKIN_LIKE
     wanted = not inside_only or any(p in rig.part_names for p in INSIDE_PARTS)
     occlusion = _occlusion(rig, v, item.geometry_npy, inside_only) if wanted and item.engine == "pyrender" else None
     parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,

@@ -53,6 +53,10 @@ def _image(bpy, folder: Path, name: str, colour: bool):
     return img
 
 
+#: Part names drawn as a wet eye (a clear coat over a glossy surface; never toon-shaded).
+EYE_PARTS = ("eyes", "eye", "sclera", "iris", "cornea")
+
+
 def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
     mat = bpy.data.materials.new(rec["name"] or "part")
     mat.use_nodes = True
@@ -103,13 +107,13 @@ def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
         bsdf.inputs["IOR"].default_value = 1.4
     elif name in ("skin", "neck"):  # the thesis's Phong contrast: no scattering, a plain specular lobe
         bsdf.inputs["Specular IOR Level"].default_value = 0.5
-    elif name in ("eyes", "eye", "sclera", "iris", "cornea"):
+    elif name in EYE_PARTS:
         bsdf.inputs["Roughness"].default_value = 0.05
         bsdf.inputs["Coat Weight"].default_value = 1.0
         bsdf.inputs["Coat Roughness"].default_value = 0.02
     elif name == "teeth":  # enamel: glossy, no scattering (a thin shell glowed orange with it)
         bsdf.inputs["Roughness"].default_value = 0.25
-    if rec.get("toon") and name not in ("eyes", "eye", "sclera", "iris", "cornea") and not rec.get("alpha_blend"):
+    if rec.get("toon") and name not in EYE_PARTS and not rec.get("alpha_blend"):
         _toon(nodes, links, bsdf)
     return mat
 
