@@ -6,6 +6,9 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.appeal-installed
+# jsPsych from the npm registry, pinned by its lock file; `appeal export web` copies it into a study
+WEB_VENDOR := experiments/web/vendor
+WEB_STAMP := $(WEB_VENDOR)/node_modules/.appeal-installed
 # Every dependency pinned to the versions the test-suite last passed with (pip -c): a new
 # release on PyPI cannot change a fresh install unannounced. `make upgrade-constraints` renews them.
 CONSTRAINTS := constraints.txt
@@ -27,7 +30,7 @@ demo: install
 test: install cycles
 	$(XVFB) $(BIN)/python -m pytest $(PYTEST_ARGS)
 
-install: system-deps $(STAMP)
+install: system-deps $(STAMP) $(WEB_STAMP)
 
 system-deps:
 	@bash scripts/system-deps.sh
@@ -38,6 +41,10 @@ $(STAMP): pyproject.toml $(CONSTRAINTS)
 	$(BIN)/python -m pip install -q -c $(CONSTRAINTS) -e '.[dev,fast,atlas]'
 	$(BIN)/python -m pip install -q -c $(CONSTRAINTS) --no-deps 'pyrender==0.1.45'
 	touch $(STAMP)
+
+$(WEB_STAMP): $(WEB_VENDOR)/package.json $(WEB_VENDOR)/package-lock.json
+	npm ci --prefix $(WEB_VENDOR) --no-audit --no-fund --loglevel=error
+	touch $(WEB_STAMP)
 
 # The optional path-traced tier (render: {engine: cycles}); `make test` installs it so its tests run.
 cycles: $(CYCLES_STAMP)

@@ -18,6 +18,7 @@ Examples:
   appeal validate protocols/*.yaml protocols/grids/*.yaml
   appeal stimuli grid protocols/grids/exp2_stylisation.yaml --out stimuli/exp2
   appeal run protocols/exp2_stylisation.yaml --participant 01 --out data
+  appeal export web protocols/exp2_stylisation.yaml --out site/exp2   # the same study in a browser
   appeal analyze ratings protocols/analysis/exp2_ratings.yaml --out results/exp2
 
 Every command has --help with examples. -v/--verbose and -q/--quiet may stand anywhere.
@@ -34,6 +35,8 @@ def cli(verbose: bool, quiet: bool) -> None:
       run       present a protocol to a participant (PsychoPy) and record the data
       analyze   statistics on ratings and EEG (rm-ANOVA, post-hocs, ERP windows)
       data      fetch and check the third-party datasets the study files name (data:NAME)
+      export    a protocol as a study that runs elsewhere (a browser: `export web`)
+      import    data recorded elsewhere into the lab's BIDS layout (`import web`)
     """
     set_log_level(True if verbose else (False if quiet else None))
     set_quiet(quiet)
@@ -47,3 +50,13 @@ def stimuli() -> None:
 @cli.group(context_settings=CONTEXT)
 def analyze() -> None:
     """Analyse recorded data: rating statistics and ERP pipelines."""
+
+
+@cli.group(name="export", context_settings=CONTEXT)
+def export_() -> None:
+    """Export a protocol to run elsewhere: a static browser study (jsPsych) for online data collection."""
+
+
+@cli.group(name="import", context_settings=CONTEXT)
+def import_() -> None:
+    """Bring data recorded elsewhere (browser sessions) into the lab's BIDS layout."""

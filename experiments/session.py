@@ -29,7 +29,7 @@ from experiments.stimuli import load_stimuli, select_stimuli
 from experiments.triggers import TriggerSender, open_backend
 from experiments.trials import Trial, build_trials
 
-__all__ = ["SessionResult", "run_session", "default_seed", "session_paths", "load_protocol"]
+__all__ = ["SessionResult", "run_session", "default_seed", "session_paths", "load_protocol", "column_descriptions"]
 
 #: Refresh rates outside this range mean the display has no vsync (e.g. a virtual screen).
 PLAUSIBLE_HZ = (20.0, 250.0)
@@ -296,7 +296,7 @@ def run_session(
             "SoftwareVersions": package_versions(), "Platform": platform.platform(),
             "NumberOfTrials": len(trials), "Started": previous.get("Started", now_iso()),
             "Resumed": [*previous.get("Resumed", []), *([now_iso()] if start else [])],
-            "Status": "running", "Columns": _column_descriptions(protocol, columns),
+            "Status": "running", "Columns": column_descriptions(protocol, columns),
         }
         write_sidecar(paths["sidecar"], sidecar)
         status, completed, shots = "running", start, {}
@@ -407,7 +407,8 @@ def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[
     return status, completed, dict(runner.shots)
 
 
-def _column_descriptions(protocol: Protocol, columns: list[str]) -> dict[str, dict[str, str]]:
+def column_descriptions(protocol: Protocol, columns: list[str]) -> dict[str, dict[str, str]]:
+    """BIDS sidecar descriptions (``{column: {"Description": ...}}``) of a session file's columns."""
     desc = {
         "participant_id": "BIDS participant label", "session": "session number",
         "part": "session part: 1, then +1 after each --resume (times and frames restart at 0 in each part)",

@@ -103,7 +103,6 @@ def test_report_page_fits_a_laptop_screen(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(shutil.which("chromium") is None, reason="needs headless chromium (apt-get install chromium)")
 def test_report_page_is_no_wider_than_a_laptop_window_in_a_browser(tmp_path):
     """Laid out by a real browser at 1366 x 768, the page with a 20-column table and a figure wider
     than the window does not scroll sideways (before: 2600 px wide)."""

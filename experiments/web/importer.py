@@ -1,0 +1,158 @@
+"""``appeal import web``: browser session files into the lab's BIDS layout.
+
+A browser session (downloaded by the participant or POSTed to the study's server) is the lab
+runner's ``_beh.tsv`` plus :data:`experiments.web.export.WEB_COLUMNS`. Each file is checked
+against the protocol (same columns, trials in the order of the participant's list, one
+participant and session per file) and written as
+``OUT/sub-ID/ses-N/beh/sub-ID_ses-N_task-TASK_beh.tsv`` with a JSON sidecar and the session
+report (intended vs shown frames at the browser's refresh rate), so ``appeal analyze ratings``
+reads it unchanged.
+"""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from appeal.atomic import atomic_write_text
+from appeal.errors import AppealInputError
+from appeal.provenance import file_sha256, now_iso
+from experiments.datafile import NA, read_completed, write_sidecar
+from experiments.session import column_descriptions, default_seed, load_protocol, session_paths
+from experiments.web.export import web_columns
+
+__all__ = ["ImportedSession", "import_web", "WEB_DESCRIPTIONS"]
+
+#: Sidecar descriptions of the browser's own columns.
+WEB_DESCRIPTIONS: dict[str, str] = {
+    "list": "the exported trial list this participant was given (a lab participant label)",
+    "list_trials": "trials in that list (the session is complete when it has as many rows)",
+    "seed": "seed of that list (the lab runner's seed for that participant and session)",
+    "browser": "the browser's user agent", "screen_width": "screen width (CSS px)",
+    "screen_height": "screen height (CSS px)", "window_width": "window width (CSS px) at the trial",
+    "window_height": "window height (CSS px) at the trial",
+    "refresh_hz": "refresh rate measured in the browser (median of 60 animation-frame intervals)",
+    "intended_s": "the protocol's stimulus duration (s); duration_frames is it in frames at refresh_hz",
+    "focus_losses": "times the window lost the focus during the trial",
+    "fullscreen_losses": "times full screen was left during the trial",
+    "recruitment_pid": "participant id from the recruitment platform (URL parameter PROLIFIC_PID or workerId)",
+    "study_id": "URL parameter STUDY_ID", "session_id": "URL parameter SESSION_ID",
+    "started": "when the participant first opened the study (ISO 8601, the browser's clock)",
+}
+
+
+@dataclass
+class ImportedSession:
+    """One imported browser session."""
+
+    source: Path
+    beh: Path
+    sidecar: Path
+    report: Path | None
+    participant: str
+    trials: int
+    complete: bool
+
+
+def _one(rows: list[dict[str, str]], column: str, source: Path) -> str:
+    values = sorted({r[column] for r in rows})
+    if len(values) != 1:
+        raise AppealInputError(f"{source}: column '{column}': expected one value in a session file (found {', '.join(values[:5])})")
+    return values[0]
+
+
+def _check(rows: list[dict[str, str]], source: Path, protocol_name: str, session: int) -> tuple[str, int]:
+    if not rows:
+        raise AppealInputError(f"{source}: no trials (a header only)")
+    participant = _one(rows, "participant_id", source)
+    if _one(rows, "session", source) != str(session):
+        raise AppealInputError(f"{source}: column 'session': expected {session} (the protocol's export), "
+                               f"found {rows[0]['session']}")
+    trials = [int(r["trial"]) for r in rows]
+    if trials != list(range(1, len(trials) + 1)):
+        raise AppealInputError(f"{source}: column 'trial': expected 1, 2, 3, ... in order (a lost or repeated trial?); "
+                               f"found {', '.join(map(str, trials[:8]))}{' ...' if len(trials) > 8 else ''}")
+    slot, seed = _one(rows, "list", source), _one(rows, "seed", source)
+    if seed != str(default_seed(protocol_name, slot, session)):
+        raise AppealInputError(f"{source}: column 'seed': {seed} is not the seed of list {slot} of protocol "
+                               f"'{protocol_name}' (exported from another protocol?)")
+    return participant, len(rows)
+
+
+def import_web(files: list[str | Path], protocol_file: str | Path, out: str | Path, *, force: bool = False,
+               report: bool = True) -> list[ImportedSession]:
+    """Import browser session files of ``protocol_file`` into ``out`` (a BIDS data folder).
+
+    Parameters
+    ----------
+    files : list of path-like
+        ``sub-*_beh.tsv`` files written by an exported study.
+    protocol_file : path-like
+        The protocol the study was exported from (its columns and trial count are checked).
+    out : path-like
+        The data folder; each session goes to ``sub-ID/ses-N/beh/``.
+    force : bool
+        Replace sessions already imported.
+    report : bool
+        Write each session's timing report.
+
+    Returns
+    -------
+    list of ImportedSession
+    """
+    protocol_file = Path(protocol_file)
+    protocol = load_protocol(protocol_file)
+    columns = web_columns(protocol)
+    out = Path(out)
+    checked = []
+    for f in map(Path, files):
+        if not f.is_file():
+            raise AppealInputError(f"{f}: no such file")
+        rows = read_completed(f, columns) if f.suffix == ".tsv" else None
+        if rows is None:
+            raise AppealInputError(f"{f}: expected a browser session file sub-ID_ses-N_task-{protocol.task}_beh.tsv")
+        session = int(rows[0]["session"]) if rows else 1
+        participant, n = _check(rows, f, protocol.name, session)
+        paths = session_paths(out / f"sub-{participant}" / f"ses-{session}" / "beh", participant, session, protocol.task)
+        if paths["beh"].exists() and not force:
+            raise AppealInputError(f"{paths['beh']}: already imported (--force replaces it)")
+        checked.append((f, rows, participant, session, n, paths))
+    seen = [(c[2], c[3]) for c in checked]
+    dup = sorted({s for s in seen if seen.count(s) > 1})
+    if dup:
+        raise AppealInputError(f"{', '.join(str(c[0]) for c in checked if (c[2], c[3]) == dup[0])}: "
+                               f"two files of participant {dup[0][0]}, session {dup[0][1]}")
+    desc = column_descriptions(protocol, columns)
+    for c, text in WEB_DESCRIPTIONS.items():
+        desc[c] = {"Description": text}
+    done = []
+    for f, rows, participant, session, n, paths in checked:
+        paths["beh"].parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(paths["beh"], f.read_text(encoding="utf-8"))
+        table = pd.read_csv(paths["beh"], sep="\t", na_values=[NA])
+        hz = float(table["refresh_hz"].median())
+        n_list = int(rows[0]["list_trials"])
+        complete = n == n_list
+        sidecar = {
+            "TaskName": protocol.task, "Protocol": str(protocol_file.resolve()), "ProtocolName": protocol.name,
+            "ProtocolSHA256": file_sha256(protocol_file), "participant_id": participant, "Session": session,
+            "Seed": int(rows[0]["seed"]), "List": rows[0]["list"], "RefreshRate": hz, "TimingMode": "browser",
+            "Browser": rows[0]["browser"], "Source": str(f.resolve()), "SourceSHA256": file_sha256(f),
+            "Imported": now_iso(), "Started": rows[0]["started"], "NumberOfTrials": n_list,
+            "CompletedTrials": n, "Status": "complete" if complete else "incomplete",
+            "Parts": len({r["part"] for r in rows}), "Columns": desc,
+        }
+        write_sidecar(paths["sidecar"], sidecar)
+        rep = None
+        if report:
+            from experiments.report import write_session_report
+
+            if paths["report"].exists():
+                shutil.rmtree(paths["report"])
+            rep = write_session_report(paths, hz)
+        done.append(ImportedSession(source=f, beh=paths["beh"], sidecar=paths["sidecar"], report=rep,
+                                    participant=participant, trials=n, complete=complete))
+    return done
