@@ -19,7 +19,7 @@ from appeal.assets import protocols_dir
 from appeal_cli import main
 from experiments.runner import beh_columns
 from experiments.session import load_protocol, run_session
-from experiments.web import WEB_COLUMNS, export_web
+from experiments.web import WEB_COLUMNS, export_web, import_web
 from web_participant import StudyServer, answer_until, browser, state, wait_for_file
 
 
@@ -184,6 +184,9 @@ def test_exp3_classification_and_a_reload_resumes_without_losing_or_repeating_tr
     assert neutral.any() and (t.loc[neutral, "response_intensity"] == "1").all()
     assert t.loc[neutral, "rt_intensity"].isna().all()
     assert t.loc[~neutral, "response_intensity"].isin([str(v) for v in range(1, 8)]).all()
+    # imported with both parts, and the recognition analysis reads it like a lab session
+    done = import_web([f], proto, tmp_path / "data")
+    assert done[0].complete and json.loads(done[0].sidecar.read_text())["Parts"] == 2
 
 
 @pytest.mark.slow
