@@ -52,11 +52,16 @@ def analyze() -> None:
     """Analyse recorded data: rating statistics and ERP pipelines."""
 
 
-@cli.group(name="export", context_settings=CONTEXT)
+@cli.group(name="export", context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal export web protocols/exp2_stylisation.yaml --out site/exp2 --participants 60
+  python -m http.server -d site/exp2 8000     # then open http://127.0.0.1:8000/?participant=01""")
 def export_() -> None:
     """Export a protocol to run elsewhere: a static browser study (jsPsych) for online data collection."""
 
 
-@cli.group(name="import", context_settings=CONTEXT)
+@cli.group(name="import", context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal import web ~/Downloads/sub-*_task-exp2_beh.tsv --protocol protocols/exp2_stylisation.yaml --out data""")
 def import_() -> None:
     """Bring data recorded elsewhere (browser sessions) into the lab's BIDS layout."""
