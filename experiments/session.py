@@ -25,7 +25,7 @@ from experiments.display import NoWindow, Presenter
 from experiments.protocol_schema import Protocol
 from experiments.runner import FLIP_COLUMNS, SessionRunner, beh_columns
 from experiments.simulate import SimulatedParticipant, load_participant_model
-from experiments.stimuli import load_stimuli, select_stimuli
+from experiments.stimuli import session_stimuli
 from experiments.triggers import TriggerSender, open_backend
 from experiments.trials import Trial, build_trials
 
@@ -222,10 +222,7 @@ def run_session(
     protocol_file = Path(protocol_file)
     protocol = _with_triggers(load_protocol(protocol_file), triggers or {}, protocol_file)
     model = load_participant_model(simulate) if simulate is not None else None
-    full = load_stimuli(protocol.stimuli, override=stimuli, protocol_file=protocol_file, apply_select=False)
-    main = select_stimuli(full, protocol.stimuli.select)
-    if not len(main):
-        raise AppealInputError(f"{protocol_file}: stimuli.select: selects none of the {len(full)} images in {full.source}")
+    full, main = session_stimuli(protocol, protocol_file, stimuli)
     out = Path(out) if out is not None else Path("data") / f"sub-{participant}" / f"ses-{session}" / "beh"
     paths = session_paths(out, participant, session, protocol.task)
     protocol_hash = file_sha256(protocol_file)

@@ -14,7 +14,8 @@ from appeal.errors import AppealInputError
 from appeal.levels import level_key, order_levels
 from experiments.protocol_schema import Protocol, Selection, StimulusSource
 
-__all__ = ["protocol_input_problems", "StimulusSet", "load_stimuli", "select_stimuli", "IMAGE_SUFFIXES"]
+__all__ = ["protocol_input_problems", "StimulusSet", "load_stimuli", "select_stimuli", "session_stimuli",
+           "IMAGE_SUFFIXES"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".gif")
 
@@ -177,6 +178,23 @@ def select_stimuli(sset: StimulusSet, selection: Selection | None) -> StimulusSe
         for other in selection.match[1:]:
             mask &= keys(other) == first
     return StimulusSet(table[mask].reset_index(drop=True), sset.factors, sset.source, sset.order)
+
+
+def session_stimuli(protocol: Protocol, protocol_file: str | Path,
+                    override: str | Path | None = None) -> tuple[StimulusSet, StimulusSet]:
+    """A session's stimuli: the whole set (anchors, practice and end items select from it) and
+    the main trials' selection (``stimuli.select``), which must not be empty.
+
+    Raises
+    ------
+    AppealInputError
+        When the selection keeps no image (or the set cannot be loaded).
+    """
+    full = load_stimuli(protocol.stimuli, override=override, protocol_file=protocol_file, apply_select=False)
+    main = select_stimuli(full, protocol.stimuli.select)
+    if not len(main):
+        raise AppealInputError(f"{protocol_file}: stimuli.select: selects none of the {len(full)} images in {full.source}")
+    return full, main
 
 
 def protocol_input_problems(protocol: Protocol, source: str | Path) -> list[str]:

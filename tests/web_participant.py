@@ -21,14 +21,12 @@ from typing import Any
 class _Handler(http.server.SimpleHTTPRequestHandler):
     delay_s = 0.0
     posted: list[tuple[str, bytes]]
-    requests: list[tuple[float, str]]
     served: list[tuple[float, str]]
 
     def log_message(self, *args: Any) -> None:  # quiet
         pass
 
     def do_GET(self) -> None:  # noqa: N802 - http.server's name
-        self.requests.append((time.monotonic(), self.path))
         if self.delay_s and self.path.split("?")[0].startswith("/img/"):
             time.sleep(self.delay_s)
         super().do_GET()
@@ -46,7 +44,7 @@ class StudyServer:
     """A static server of ``folder`` on 127.0.0.1 in a thread; ``delay_s`` slows every image."""
 
     def __init__(self, folder: Path, delay_s: float = 0.0):
-        handler = type("H", (_Handler,), {"delay_s": delay_s, "posted": [], "requests": [], "served": []})
+        handler = type("H", (_Handler,), {"delay_s": delay_s, "posted": [], "served": []})
         self.handler = handler
         self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), partial(handler, directory=str(folder)))
         self.thread = threading.Thread(target=self.httpd.serve_forever, daemon=True)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,16 +27,30 @@ from appeal.provenance import file_sha256
 from experiments.protocol_schema import ClassificationSpec, LikertSpec, Protocol
 from experiments.runner import beh_columns
 from experiments.session import default_seed, load_protocol
-from experiments.stimuli import load_stimuli, select_stimuli
+from experiments.stimuli import session_stimuli
 from experiments.trials import Trial, build_trials
 
-__all__ = ["WEB_COLUMNS", "VENDOR", "WebExport", "web_refusal", "web_columns", "export_web", "participant_slots"]
+__all__ = ["WEB_COLUMNS", "WEB_DESCRIPTIONS", "VENDOR", "WebExport", "web_refusal", "web_columns", "export_web", "participant_slots"]
 
-#: Columns the browser writes after the lab runner's: where and how the session ran.
-WEB_COLUMNS: tuple[str, ...] = (
-    "list", "list_trials", "seed", "browser", "screen_width", "screen_height", "window_width", "window_height", "refresh_hz",
-    "intended_s", "focus_losses", "fullscreen_losses", "recruitment_pid", "study_id", "session_id", "started",
-)
+#: The columns the browser writes after the lab runner's, and their sidecar descriptions.
+WEB_DESCRIPTIONS: dict[str, str] = {
+    "list": "the exported trial list this participant was given (a lab participant label)",
+    "list_trials": "trials in that list (the session is complete when it has as many rows)",
+    "seed": "seed of that list (the lab runner's seed for that participant and session)",
+    "browser": "the browser's user agent", "screen_width": "screen width (CSS px)",
+    "screen_height": "screen height (CSS px)", "window_width": "window width (CSS px) at the trial",
+    "window_height": "window height (CSS px) at the trial",
+    "refresh_hz": "refresh rate measured in the browser (median of 60 animation-frame intervals)",
+    "intended_s": "the protocol's stimulus duration (s); duration_frames is it in frames at refresh_hz",
+    "focus_losses": "times the window lost the focus during the trial",
+    "fullscreen_losses": "times full screen was left during the trial",
+    "recruitment_pid": "participant id from the recruitment platform (URL parameter PROLIFIC_PID or workerId)",
+    "study_id": "URL parameter STUDY_ID", "session_id": "URL parameter SESSION_ID",
+    "started": "when the participant first opened the study (ISO 8601, the browser's clock)",
+}
+
+#: The browser's own columns, in order.
+WEB_COLUMNS: tuple[str, ...] = tuple(WEB_DESCRIPTIONS)
 
 #: The npm packages copied into every export: (package, files under it, name in lib/).
 VENDOR: tuple[tuple[str, str, str], ...] = (
@@ -98,11 +112,7 @@ def _vendor_file(package: str, rel: str) -> Path:
 def _licences() -> str:
     lines = ["# Libraries in lib/", "",
              "Copied unchanged from the npm registry by `appeal export web`; each under its own licence.", ""]
-    seen = set()
-    for package, _, _ in VENDOR:
-        if package in seen:
-            continue
-        seen.add(package)
+    for package in dict.fromkeys(pkg for pkg, _, _ in VENDOR):
         meta = json.loads(_vendor_file(package, "package.json").read_text())
         author = meta.get("author", "")
         if isinstance(author, dict):
@@ -180,10 +190,9 @@ def _resized(src: str, dst: Path, height: int) -> None:
 
 
 def _trial_record(t: Trial, image: str) -> dict[str, Any]:
-    return {"trial": t.trial, "phase": t.phase, "block": t.block, "repetition": t.repetition, "stimulus": t.stimulus,
-            "image": f"img/{image}", "factors": t.factors, "stimulus_frames": t.stimulus_frames,
-            "fixation_frames": t.fixation_frames, "iti_frames": t.iti_frames, "respond": t.respond,
-            "break_before": t.break_before, "title": t.title}
+    """A trial as the browser reads it: the lab's fields, the image by its path in the study folder."""
+    record = {k: v for k, v in asdict(t).items() if k not in ("path", "trigger", "extra")}
+    return {**record, "image": f"img/{image}"}
 
 
 def _script(name: str, value: Any) -> str:
@@ -235,10 +244,7 @@ def export_web(protocol_file: str | Path, out: str | Path, *, participants: int 
     if completion_url is not None and not re.match(r"^https?://", completion_url):
         raise AppealInputError(f"--completion-url: expected an http(s):// URL (got {completion_url!r})")
     slots = participant_slots(participants)
-    full = load_stimuli(protocol.stimuli, override=stimuli, protocol_file=protocol_file, apply_select=False)
-    main = select_stimuli(full, protocol.stimuli.select)
-    if not len(main):
-        raise AppealInputError(f"{protocol_file}: stimuli.select: selects none of the {len(full)} images in {full.source}")
+    full, main = session_stimuli(protocol, protocol_file, stimuli)
     hz = float(protocol.screen.refresh_hz or 60.0)
     seeds = {p: default_seed(protocol.name, p, session) for p in slots}
     lists = {p: build_trials(protocol, main, seed=seeds[p], refresh_hz=hz, source=str(protocol_file), full_set=full)

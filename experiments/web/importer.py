@@ -12,37 +12,18 @@ reads it unchanged.
 from __future__ import annotations
 
 import shutil
+import statistics
 from dataclasses import dataclass
 from pathlib import Path
-
-import pandas as pd
 
 from appeal.atomic import atomic_write_text
 from appeal.errors import AppealInputError
 from appeal.provenance import file_sha256, now_iso
-from experiments.datafile import NA, read_completed, write_sidecar
+from experiments.datafile import read_completed, write_sidecar
 from experiments.session import column_descriptions, default_seed, load_protocol, session_paths
-from experiments.web.export import web_columns
+from experiments.web.export import WEB_DESCRIPTIONS, web_columns
 
-__all__ = ["ImportedSession", "import_web", "WEB_DESCRIPTIONS"]
-
-#: Sidecar descriptions of the browser's own columns.
-WEB_DESCRIPTIONS: dict[str, str] = {
-    "list": "the exported trial list this participant was given (a lab participant label)",
-    "list_trials": "trials in that list (the session is complete when it has as many rows)",
-    "seed": "seed of that list (the lab runner's seed for that participant and session)",
-    "browser": "the browser's user agent", "screen_width": "screen width (CSS px)",
-    "screen_height": "screen height (CSS px)", "window_width": "window width (CSS px) at the trial",
-    "window_height": "window height (CSS px) at the trial",
-    "refresh_hz": "refresh rate measured in the browser (median of 60 animation-frame intervals)",
-    "intended_s": "the protocol's stimulus duration (s); duration_frames is it in frames at refresh_hz",
-    "focus_losses": "times the window lost the focus during the trial",
-    "fullscreen_losses": "times full screen was left during the trial",
-    "recruitment_pid": "participant id from the recruitment platform (URL parameter PROLIFIC_PID or workerId)",
-    "study_id": "URL parameter STUDY_ID", "session_id": "URL parameter SESSION_ID",
-    "started": "when the participant first opened the study (ISO 8601, the browser's clock)",
-}
-
+__all__ = ["ImportedSession", "import_web"]
 
 @dataclass
 class ImportedSession:
@@ -64,13 +45,11 @@ def _one(rows: list[dict[str, str]], column: str, source: Path) -> str:
     return values[0]
 
 
-def _check(rows: list[dict[str, str]], source: Path, protocol_name: str, session: int) -> tuple[str, int]:
+def _check(rows: list[dict[str, str]], source: Path, protocol_name: str) -> tuple[str, int]:
+    """The participant and session of one file's rows, checked (one of each, trials 1..n, the list's seed)."""
     if not rows:
         raise AppealInputError(f"{source}: no trials (a header only)")
-    participant = _one(rows, "participant_id", source)
-    if _one(rows, "session", source) != str(session):
-        raise AppealInputError(f"{source}: column 'session': expected {session} (the protocol's export), "
-                               f"found {rows[0]['session']}")
+    participant, session = _one(rows, "participant_id", source), int(_one(rows, "session", source))
     trials = [int(r["trial"]) for r in rows]
     if trials != list(range(1, len(trials) + 1)):
         raise AppealInputError(f"{source}: column 'trial': expected 1, 2, 3, ... in order (a lost or repeated trial?); "
@@ -79,7 +58,7 @@ def _check(rows: list[dict[str, str]], source: Path, protocol_name: str, session
     if seed != str(default_seed(protocol_name, slot, session)):
         raise AppealInputError(f"{source}: column 'seed': {seed} is not the seed of list {slot} of protocol "
                                f"'{protocol_name}' (exported from another protocol?)")
-    return participant, len(rows)
+    return participant, session
 
 
 def import_web(files: list[str | Path], protocol_file: str | Path, out: str | Path, *, force: bool = False,
@@ -111,15 +90,14 @@ def import_web(files: list[str | Path], protocol_file: str | Path, out: str | Pa
     for f in map(Path, files):
         if not f.is_file():
             raise AppealInputError(f"{f}: no such file")
-        rows = read_completed(f, columns) if f.suffix == ".tsv" else None
-        if rows is None:
+        if f.suffix != ".tsv":
             raise AppealInputError(f"{f}: expected a browser session file sub-ID_ses-N_task-{protocol.task}_beh.tsv")
-        session = int(rows[0]["session"]) if rows else 1
-        participant, n = _check(rows, f, protocol.name, session)
+        rows = read_completed(f, columns)
+        participant, session = _check(rows, f, protocol.name)
         paths = session_paths(out / f"sub-{participant}" / f"ses-{session}" / "beh", participant, session, protocol.task)
         if paths["beh"].exists() and not force:
             raise AppealInputError(f"{paths['beh']}: already imported (--force replaces it)")
-        checked.append((f, rows, participant, session, n, paths))
+        checked.append((f, rows, participant, session, paths))
     seen = [(c[2], c[3]) for c in checked]
     dup = sorted({s for s in seen if seen.count(s) > 1})
     if dup:
@@ -129,12 +107,11 @@ def import_web(files: list[str | Path], protocol_file: str | Path, out: str | Pa
     for c, text in WEB_DESCRIPTIONS.items():
         desc[c] = {"Description": text}
     done = []
-    for f, rows, participant, session, n, paths in checked:
+    for f, rows, participant, session, paths in checked:
         paths["beh"].parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(paths["beh"], f.read_text(encoding="utf-8"))
-        table = pd.read_csv(paths["beh"], sep="\t", na_values=[NA])
-        hz = float(table["refresh_hz"].median())
-        n_list = int(rows[0]["list_trials"])
+        hz = statistics.median(float(r["refresh_hz"]) for r in rows)
+        n, n_list = len(rows), int(rows[0]["list_trials"])
         complete = n == n_list
         sidecar = {
             "TaskName": protocol.task, "Protocol": str(protocol_file.resolve()), "ProtocolName": protocol.name,

@@ -70,7 +70,7 @@
 
   // ------------------------------------------------------------------ frames
   const clock = { frame: 0, t0: null, hz: C.nominal_hz };
-  function countFrames(t) {
+  function countFrames() {
     clock.frame += 1;
     window.requestAnimationFrame(countFrames);
   }
@@ -105,9 +105,9 @@
       window.requestAnimationFrame(step);
     });
   }
-  /** Draw in the next animation frame; resolves with its time (a screen that waits for an answer). */
-  function drawNow(draw) {
-    return show(draw, 1).then(function (r) { return r.onset; });
+  /** The time of the next animation frame: the onset of a screen just built (one that waits for an answer). */
+  function nextFrame() {
+    return show(function () {}, 1).then(function (r) { return r.onset; });
   }
   function framesAt(nominalFrames) {
     return Math.max(1, Math.round(nominalFrames / C.nominal_hz * clock.hz));
@@ -192,7 +192,7 @@
     anchors.appendChild(el("span", "appeal-low", spec.low));
     anchors.appendChild(el("span", "appeal-high", spec.high));
     if (spec.keys) at(s, el("div", "appeal-hint", "Click on the scale or press 1-" + spec.points), -0.45);
-    const onset = await drawNow(function () {});
+    const onset = await nextFrame();
     const a = await waitAnswer(keys, buttons, C.timing.response_deadline_s);
     return { value: a.value === null ? null : Number(a.value), rt: a.value === null ? null : (a.t - onset) / 1000 };
   }
@@ -213,7 +213,7 @@
       buttons.push(b);
       if (c.key) keys[c.key] = c.value;
     });
-    const onset = await drawNow(function () {});
+    const onset = await nextFrame();
     const a = await waitAnswer(keys, buttons, C.timing.response_deadline_s);
     return { value: a.value, rt: a.value === null ? null : (a.t - onset) / 1000 };
   }
@@ -323,7 +323,7 @@
     } else if (trial.respond) {
       after = await show(function () { screen(display); }, 1);
     } else {
-      after = await show(function () { screen(display); }, Math.max(1, framesAt(trial.iti_frames || 0)));
+      after = await show(function () { screen(display); }, framesAt(trial.iti_frames || 0));
     }
     const period = 1000 / clock.hz;
     const edges = stim.flips.concat([after.onset]);
@@ -422,7 +422,6 @@
     clock.t0 = performance.now();
     window.requestAnimationFrame(countFrames);
     const jsPsych = initJsPsych({ display_element: "appeal-display" });
-    window.appealJsPsych = jsPsych;
     const display = document.getElementById("appeal-display");
     if (state.complete) {
       await finish(display, who);
@@ -456,6 +455,5 @@
     await finish(display, who);
   }
 
-  window.appealStudy = { start: start, tsv: function () { return session ? tsv(session.state.rows) : null; } };
   window.addEventListener("load", start);
 })();
