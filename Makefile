@@ -75,7 +75,7 @@ upgrade-constraints: system-deps
 
 # R with car/afex/emmeans: only for benchmarks/anova.py and for re-deriving test references.
 r-deps:
-	@bash scripts/system-deps.sh r-base-core r-cran-car r-cran-afex r-cran-emmeans
+	@bash scripts/system-deps.sh r-base-core r-cran-car r-cran-afex r-cran-emmeans r-cran-lme4 r-cran-lmertest r-cran-pbkrtest r-cran-ordinal
 
 bench: install
 	for b in benchmarks/*.py; do $(XVFB) $(BIN)/python $$b || exit 1; done
