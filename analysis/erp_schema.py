@@ -18,6 +18,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from analysis.mixed_schema import MixedOptions
 from appeal.studyfile import InputDir, InputFile, OutputPath, StudyModel
 
 __all__ = [
@@ -28,6 +29,7 @@ __all__ = [
     "BadChannelsConfig",
     "ComponentConfig",
     "SourceConfig",
+    "QualityConfig",
     "ProtocolEvents",
     "FiguresConfig",
     "ChannelsConfig",
@@ -160,6 +162,13 @@ class ComponentConfig(StudyModel):
     window_s: tuple[float, float]
     clusters: dict[str, list[str]]
     polarity: Literal["negative", "positive"] = "negative"
+    peak_fraction: float = Field(
+        0.5, gt=0, le=1, description="fractional-peak latency (amplitudes.csv frac_peak_latency_ms): the first "
+                                     "sample of the window reaching this fraction of the peak (onset side)")
+    area_fraction: float = Field(
+        0.5, gt=0, le=1, description="fractional-area latency (amplitudes.csv frac_area_latency_ms): the sample "
+                                     "where the area of the component's sign reaches this fraction (0.5: ERP "
+                                     "CORE's 50% area latency)")
 
     @field_validator("window_s")
     @classmethod
@@ -211,6 +220,26 @@ class SourceConfig(StudyModel):
         return self
 
 
+class QualityConfig(StudyModel):
+    """Data quality: the standardized measurement error (SME) of the mean amplitudes.
+
+    ``sme_threshold_uV`` flags every subject x cell x component x cluster whose SME is above
+    it (``sme.csv`` column ``flagged``, named in the report). The default None only reports the
+    SMEs: they grow with the window's noise and shrink with the trials per cell, so no single
+    cut-off fits every design (Luck et al. 2021 compare a subject's SME with the others').
+    """
+
+    sme_threshold_uV: float | None = Field(None, gt=0)
+
+
+class ErpMixedConfig(MixedOptions):
+    """Linear mixed models of the single-trial window means (``single_trials.csv``), one per
+    component x cluster: ``mean_uV ~ factors`` with subjects (and stimuli, when ``beh`` names the
+    runner's files) as crossed random factors; the random part and dfs as for ratings."""
+
+    enabled: bool = False
+
+
 class FiguresConfig(StudyModel):
     """Figures: waveform channels (10-5 names or labels; thesis Fig. 7.5-7.7: PO8, CPPz)."""
 
@@ -244,6 +273,11 @@ class ErpConfig(StudyModel):
     components: dict[str, ComponentConfig] = Field(
         default_factory=lambda: {k: ComponentConfig(**v) for k, v in THESIS_COMPONENTS.items()})
     figures: FiguresConfig = Field(default_factory=FiguresConfig)
+    quality: QualityConfig = Field(default_factory=QualityConfig)
+    mixed: ErpMixedConfig = Field(default_factory=ErpMixedConfig)
+    beh: OutputPath | list[OutputPath] | None = Field(
+        None, description="the runner's *_beh.tsv files (globs), one per recording (same subject id): "
+                          "single_trials.csv takes each trial's stimulus from them")
     source: SourceConfig = Field(default_factory=SourceConfig)
     n_jobs: int | None = Field(None, ge=1)
 

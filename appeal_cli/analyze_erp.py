@@ -21,9 +21,13 @@ Examples:
 
 \b
 Writes DIR/amplitudes.csv (subject, factors, component, cluster, mean_uV, peak_uV,
-peak_latency_ms, n_trials), DIR/qc.csv, DIR/stats/ (anova.csv, contrasts.csv),
-DIR/figures/ (PNG + SVG), DIR/source/ (clusters.csv, level_peaks.csv, t maps) and
-DIR/report.md. A subject that fails is listed in DIR/failures.csv; the rest go on.""")
+peak_latency_ms, frac_peak_latency_ms, frac_area_latency_ms, n_trials),
+DIR/single_trials.csv (one row per kept trial x component x cluster, with its stimulus
+when `beh:` names the runner's files), DIR/sme.csv and sme_rms.csv (standardized
+measurement error, flagged above quality.sme_threshold_uV), DIR/qc.csv, DIR/stats/
+(anova.csv, contrasts.csv; lmm/ with `mixed: {enabled: true}`), DIR/figures/ (PNG + SVG,
+sme included), DIR/source/ (clusters.csv, level_peaks.csv, t maps) and DIR/report.md.
+A subject that fails is listed in DIR/failures.csv; the rest go on.""")
 @click.argument("config", type=click.Path(path_type=Path, dir_okay=False))
 @out_options()
 @seed_option()

@@ -78,3 +78,16 @@ def test_source_map_has_no_overlaps():
     t = 30 * np.exp(-np.linalg.norm(mni - [0, -60, 45], axis=1) ** 2 / 800)
     fig = figs.source_map_figure(mni, t, 5.84, "LPP: 5 > 0 (sLORETA, p < 0.005 uncorrected)")
     assert overlaps(fig) == []
+
+
+@pytest.mark.parametrize("n_subjects", [3, 30])
+def test_sme_has_no_overlaps(n_subjects):
+    rng = np.random.default_rng(2)
+    rows = [{"subject": f"{k + 1:02d}", "stylisation": s, "emotion": e, "component": comp, "cluster": c,
+             "sme_uV": abs(rng.normal(0.8, 0.3))}
+            for k in range(n_subjects) for s, e in itertools.product(*LEVELS.values())
+            for comp, c in (("N170", "left"), ("N170", "right"), ("LPP", "parietal"))]
+    sme = pd.DataFrame(rows)
+    sme["flagged"] = sme["sme_uV"] > 1.2
+    fig = figs.sme_figure(sme, 1.2)
+    assert overlaps(fig) == []

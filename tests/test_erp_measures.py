@@ -23,11 +23,19 @@ def test_window_mask_snaps_like_mne_crop():
 def test_window_measures_exact():
     times = np.arange(-2, 9) / 10  # -0.2 ... 0.8 s at 10 Hz
     wave = np.array([0, 0, 0, 1, -3, -5, 2, 4, 1, 0, 0]) * 1e-6
-    mean, peak, lat = window_measures(wave, times, (0.2, 0.4), "negative")  # samples 0.2, 0.3, 0.4
-    assert mean == pytest.approx((-3 - 5 + 2) / 3)
-    assert (peak, lat) == (pytest.approx(-5.0), pytest.approx(300.0))
-    mean, peak, lat = window_measures(wave, times, (0.4, 0.6), "positive")
-    assert (mean, peak, lat) == (pytest.approx(7 / 3), pytest.approx(4.0), pytest.approx(500.0))
+    m = window_measures(wave, times, (0.2, 0.4), "negative").iloc[0]  # samples 0.2, 0.3, 0.4: -3, -5, 2
+    assert m.mean_uV == pytest.approx((-3 - 5 + 2) / 3)
+    assert (m.peak_uV, m.peak_latency_ms) == (pytest.approx(-5.0), pytest.approx(300.0))
+    # 50% of the -5 peak first reached at 0.2 s (-3); negative area: trapezoids 0.4 then 0.25 (of 0.65),
+    # half of it passed at 0.3 s
+    assert (m.frac_peak_latency_ms, m.frac_area_latency_ms) == (pytest.approx(200.0), pytest.approx(300.0))
+    m = window_measures(wave, times, (0.4, 0.6), "positive").iloc[0]  # 2, 4, 1
+    assert (m.mean_uV, m.peak_uV, m.peak_latency_ms) == (pytest.approx(7 / 3), pytest.approx(4.0), pytest.approx(500.0))
+    # 50% of 4 reached at 0.4 s already; area 0.3 of 0.55 by 0.5 s
+    assert (m.frac_peak_latency_ms, m.frac_area_latency_ms) == (pytest.approx(400.0), pytest.approx(500.0))
+    # a fraction of 0.8: 3.2 first reached at the 4; area 0.8 x 0.55 = 0.44 only reached at 0.6 s
+    m = window_measures(wave, times, (0.4, 0.6), "positive", peak_fraction=0.8, area_fraction=0.8).iloc[0]
+    assert (m.frac_peak_latency_ms, m.frac_area_latency_ms) == (pytest.approx(500.0), pytest.approx(600.0))
 
 
 def test_measure_cells_table():
@@ -35,11 +43,17 @@ def test_measure_cells_table():
     data = np.array([[1, 1, 1, 1, 1], [3, 3, 3, 3, 3], [0, -2, -4, 0, 0]], float) * 1e-6
     comps = {"N": {"window_s": (0.1, 0.2), "polarity": "negative", "clusters": {"a": [0, 1], "b": [2]}}}
     df = measure_cells({(0, "x"): data}, {(0, "x"): 7}, times, ["s", "e"], comps)
-    assert list(df.columns) == ["s", "e", "component", "cluster", "mean_uV", "peak_uV", "peak_latency_ms", "n_trials"]
+    assert list(df.columns) == ["s", "e", "component", "cluster", "mean_uV", "peak_uV", "peak_latency_ms",
+                                "frac_peak_latency_ms", "frac_area_latency_ms", "n_trials"]
+    assert df[["s", "e"]].values.tolist() == [[0, "x"], [0, "x"]]
     assert df["mean_uV"].tolist() == pytest.approx([2.0, -3.0])
     assert df["peak_uV"].tolist() == pytest.approx([2.0, -4.0])
+    # cluster a is all positive: no negative peak or area, so no fractional latency
+    assert np.isnan(df["frac_peak_latency_ms"].iloc[0]) and df["frac_peak_latency_ms"].iloc[1] == pytest.approx(100.0)
     assert df["n_trials"].tolist() == [7, 7]
     assert cluster_waveform(data, [0, 1]) == pytest.approx(np.full(5, 2e-6))
+    trials = np.stack([data, 3 * data])  # single trials: the channel axis is the second last
+    assert cluster_waveform(trials, [0, 2]) == pytest.approx(np.stack([data[[0, 2]].mean(0), 3 * data[[0, 2]].mean(0)]))
 
 
 def test_robust_bad_channels():

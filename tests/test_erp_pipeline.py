@@ -45,7 +45,8 @@ def study(tmp_path_factory):
            "events": {int(c): lv for c, lv in DESIGN.events.items()},
            "levels": {"emotion": ["angry", "neutral", "happy"]}, "eog": list(DESIGN.eog),
            "source": {"spacing_mm": DESIGN.spacing_mm, "contrasts": [[5, 0]], "components": ["N170", "LPP"],
-                      "n_permutations": 50}}
+                      "n_permutations": 50},
+           "mixed": {"enabled": True, "random": "(1 | subject)"}}
     config = d / "erp.yaml"
     config.write_text(yaml.safe_dump(cfg, sort_keys=False))
     out = d / "out"
@@ -58,7 +59,7 @@ def test_outputs_and_failed_subject(study):
     assert study["rc"] == 0
     amps = pd.read_csv(out / "amplitudes.csv")
     assert list(amps.columns) == ["subject", "stylisation", "emotion", "component", "cluster", "mean_uV", "peak_uV",
-                                  "peak_latency_ms", "n_trials"]
+                                  "peak_latency_ms", "frac_peak_latency_ms", "frac_area_latency_ms", "n_trials"]
     assert sorted(amps["subject"].unique()) == list(range(1, 9))
     assert len(amps) == 8 * 18 * 5  # N170 + EPN (2 clusters each) + LPP (1)
     fail = pd.read_csv(out / "failures.csv")
@@ -71,6 +72,40 @@ def test_outputs_and_failed_subject(study):
     # peak latencies of the planted N170 (170 ms) and LPP (500 ms)
     lat = amps.groupby("component")["peak_latency_ms"].median()
     assert abs(lat["N170"] - 170) <= 16 and abs(lat["LPP"] - 500) <= 40
+    # the planted N170 is a Gaussian around 170 ms: half its peak before it, half its area near it
+    n170 = amps[amps.component == "N170"]
+    assert (n170["frac_peak_latency_ms"] <= n170["peak_latency_ms"]).all()
+    assert abs(n170["frac_area_latency_ms"].median() - 170) <= 16
+    # data quality: one SME per subject x cell x component x cluster, from the kept single trials
+    qc = pd.read_csv(out / "qc.csv")
+    single = pd.read_csv(out / "single_trials.csv")
+    assert len(single) == 5 * qc["n_epochs"].sum() and single["stimulus"].isna().all()
+    sme = pd.read_csv(out / "sme.csv")
+    assert len(sme) == len(amps) and (sme["n_trials"] >= 2).all() and not sme["flagged"].any()
+    assert (out / "figures" / "sme.png").is_file() and "## Data quality (SME)" in (out / "report.md").read_text()
+
+
+def test_single_trial_mixed_models(study):
+    """mixed: {enabled: true}: one LMM per component x cluster on single_trials.csv; the planted
+    effects are found (LPP rises with stylisation; the N170 is scaled by emotion, not the LPP), and
+    the fit equals a direct fit of the same table."""
+    from analysis.stats.lmm import fit_lmm
+
+    out = study["out"]
+    report = (out / "report.md").read_text()
+    assert "### Linear mixed models of the single-trial window means" in report and "#### LPP" in report
+    lpp = pd.read_csv(out / "stats" / "lmm" / "LPP_parietal" / "lmm_anova.csv").set_index("effect")
+    assert list(lpp.index) == ["stylisation", "emotion", "stylisation:emotion"]
+    assert lpp.loc["stylisation", "p"] < 1e-6 and lpp.loc["emotion", "p"] > 0.01
+    assert (lpp["method"] == "LMM type III, Satterthwaite").all()
+    n170 = pd.read_csv(out / "stats" / "lmm" / "N170_right" / "lmm_anova.csv").set_index("effect")
+    assert n170.loc["emotion", "p"] < 1e-6
+    single = pd.read_csv(out / "single_trials.csv")
+    part = single[(single.component == "LPP") & (single.cluster == "parietal")]
+    direct = fit_lmm("mean_uV ~ stylisation * emotion + (1 | subject)", part,
+                     factors=["stylisation", "emotion", "subject"], levels={"emotion": ["angry", "neutral", "happy"]})
+    coefs = pd.read_csv(out / "stats" / "lmm" / "LPP_parietal" / "lmm_coefficients.csv")
+    assert np.allclose(coefs["estimate"], direct.beta, rtol=1e-5, atol=1e-6)  # single_trials.csv is rounded
 
 
 def test_strict_flag_fails_on_broken_subject(study, tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""Figures (PNG + SVG, matplotlib Agg): waveforms, difference topographies, window bars, source maps."""
+"""Figures (PNG + SVG, matplotlib Agg): waveforms, difference topographies, window bars, source maps, SME."""
 
 from __future__ import annotations
 
@@ -14,10 +14,12 @@ __all__ = [
     "plot_difference_topomaps",
     "plot_window_bars",
     "plot_source_map",
+    "plot_sme",
     "waveforms_figure",
     "difference_topomaps_figure",
     "window_bars_figure",
     "source_map_figure",
+    "sme_figure",
 ]
 
 
@@ -231,4 +233,60 @@ def source_map_figure(mni: np.ndarray, t: np.ndarray, threshold: float, title: s
         ax.set_title(name, fontsize=9)
     fig.colorbar(sc, ax=axes.tolist(), shrink=0.8, label=f"t (≥ {threshold:.2f})")
     fig.suptitle(title, fontsize=11)
+    return fig
+
+
+def plot_sme(sme: pd.DataFrame, threshold_uV: float | None, path_stem: Path) -> list[Path]:
+    """Save :func:`sme_figure` as ``<path_stem>.png`` and ``.svg``."""
+    return save_figure(sme_figure(sme, threshold_uV), path_stem)
+
+
+def sme_figure(sme: pd.DataFrame, threshold_uV: float | None = None):
+    """SME of the mean amplitude per subject, one panel per component (ERP CORE's data-quality view).
+
+    Each dot is one condition cell x cluster of a subject (dots spread sideways so they do not
+    hide each other), red where ``flagged``; the bar is the subject's root mean square over
+    them; the dashed line is the threshold.
+
+    Parameters
+    ----------
+    sme : pandas.DataFrame
+        ``sme.csv``: subject, component, sme_uV and (optionally) flagged.
+    threshold_uV : float | None
+        The flagging threshold (no line when None).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    comps = list(dict.fromkeys(sme["component"]))
+    subjects = list(dict.fromkeys(sme["subject"]))
+    x_of = {s: i for i, s in enumerate(subjects)}
+    width = max(3.2, 0.9 + 0.32 * len(subjects))
+    fig, axes = plt.subplots(1, len(comps), figsize=(width * len(comps), 3.4), squeeze=False, layout="constrained")
+    rng = np.random.default_rng(0)
+    flagged = sme["flagged"].astype(bool) if "flagged" in sme else pd.Series(False, index=sme.index)
+    for ax, comp in zip(axes[0], comps):
+        d = sme[(sme["component"] == comp) & sme["sme_uV"].notna()]
+        x = d["subject"].map(x_of).to_numpy(float) + rng.uniform(-0.22, 0.22, len(d))
+        red = flagged[d.index].to_numpy()
+        ax.scatter(x[~red], d["sme_uV"].to_numpy()[~red], s=9, color="0.55", lw=0, label="cell x cluster")
+        if red.any():
+            ax.scatter(x[red], d["sme_uV"].to_numpy()[red], s=12, color="tab:red", lw=0, label="flagged")
+        rms = d.groupby("subject", sort=False)["sme_uV"].apply(lambda v: float(np.sqrt(np.mean(np.square(v)))))
+        xs = np.array([x_of[s] for s in rms.index], float)
+        ax.hlines(rms.to_numpy(), xs - 0.32, xs + 0.32, color="k", lw=1.6, label="RMS per subject")
+        if threshold_uV is not None:
+            ax.axhline(threshold_uV, color="tab:red", ls="--", lw=1.0, label=f"threshold {threshold_uV:g} µV")
+        ax.set_xticks(range(len(subjects)), [str(s) for s in subjects], rotation=90 if len(subjects) > 12 else 0,
+                      fontsize=8)
+        ax.set_xlim(-0.6, len(subjects) - 0.4)
+        ax.set_ylim(0, None)
+        ax.set_xlabel("subject")
+        ax.set_ylabel("SME (µV)")
+        ax.set_title(f"{comp}: SME of the mean amplitude", fontsize=10)
+    entries = {label: h for ax in axes[0] for h, label in zip(*ax.get_legend_handles_labels())}  # every panel's
+    axes[0, -1].legend(entries.values(), entries.keys(), fontsize=7, frameon=False, loc="upper left",
+                       bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     return fig

@@ -38,7 +38,8 @@ def resolve_components(cfg: ErpConfig, ch_names: list[str], source: str = "confi
         for cname, chans in comp.clusters.items():
             labels = resolve_cluster(chans, ch_names, montage, where=f"{source}: components.{name}.clusters.{cname}")
             clusters[cname] = [ch_names.index(c) for c in labels]
-        out[name] = {"window_s": tuple(comp.window_s), "polarity": comp.polarity, "clusters": clusters}
+        out[name] = {"window_s": tuple(comp.window_s), "polarity": comp.polarity, "clusters": clusters,
+                     "peak_fraction": comp.peak_fraction, "area_fraction": comp.area_fraction}
     return out
 
 
@@ -99,9 +100,13 @@ def _cell_names(emap: EventMap, epochs) -> dict[tuple, list[str]]:
 
 
 def process_subject(path: str | Path, cfg: ErpConfig, emap: EventMap, head=None, subject: str | None = None,
-                    seed: int = 0) -> SubjectResult:
-    """One subject: preprocess, average per cell, measure, and (with a head model) source maps."""
+                    seed: int = 0, beh: str | Path | None = None) -> SubjectResult:
+    """One subject: preprocess, average per cell, measure, single-trial measures and their SME
+    (with each trial's stimulus from ``beh``, the subject's ``*_beh.tsv``), and (with a head model)
+    source maps."""
     from analysis.erp.measures import measure_cells
+    from analysis.erp.quality import sme_table
+    from analysis.erp.single_trials import match_stimuli, read_beh_trials, single_trial_table, trial_table
 
     import mne
 
@@ -121,6 +126,12 @@ def process_subject(path: str | Path, cfg: ErpConfig, emap: EventMap, head=None,
     qc["trials_per_cell_mean"] = float(np.mean(list(n_trials.values())))
     qc["trials_per_cell_min"] = int(min(n_trials.values()))
     amps = measure_cells(evokeds, n_trials, epochs.times, emap.factors, comps)
+    codes = epochs.events[:, 2]
+    stimuli = None if beh is None else match_stimuli(read_beh_trials(beh, list(emap.codes)), epochs.selection, codes,
+                                                     qc["n_events"], beh, path)
+    trials = trial_table(epochs.selection, epochs.events, {int(c): emap.cell_of(int(c)) for c in set(codes.tolist())},
+                         emap.factors, stimuli)
+    single = single_trial_table(epochs.get_data(copy=False), epochs.times, comps, trials)
     maps = {}
     if head is not None:
         from analysis.erp.source import BASELINE, subject_source_maps
@@ -137,7 +148,8 @@ def process_subject(path: str | Path, cfg: ErpConfig, emap: EventMap, head=None,
         maps = subject_source_maps(epochs, head, groups, windows, src.method, src.snr)
     return SubjectResult(subject=subject, path=str(path), qc=qc, amplitudes=amps,
                          evokeds={k: v.astype(np.float32) for k, v in evokeds.items()}, n_trials=n_trials,
-                         info=epochs.info, times=epochs.times.copy(), source_maps=maps)
+                         info=epochs.info, times=epochs.times.copy(), source_maps=maps, single_trials=single,
+                         sme=sme_table(single, emap.factors, emap.cells))
 
 
 def _head_info(cfg: ErpConfig, first: Path):
@@ -202,6 +214,11 @@ def process_subjects(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: i
     if cfg.source.factor and cfg.source.factor not in emap.factors:
         raise AppealInputError(f"{source}: source.factor: {cfg.source.factor!r} is not a factor "
                                f"(expected one of: {', '.join(emap.factors)})")
+    beh = {}
+    if cfg.beh is not None:
+        from analysis.erp.single_trials import find_beh_files
+
+        beh = find_beh_files(cfg.beh, dict(zip(subjects, files)), cfg.subject_pattern, source)
     head = None
     if cfg.source.enabled:
         s = cfg.source
@@ -209,7 +226,7 @@ def process_subjects(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: i
         head = add_forward(template_head(info, s.spacing_mm, bem=s.bem, trans=s.trans, subjects_dir=s.subjects_dir,
                                          subject=s.subject), info)
     func = functools.partial(_process_item, cfg=cfg, emap=emap, head=head, seed=seed)
-    items = list(zip(files, subjects))
+    items = [(f, s, beh.get(s)) for f, s in zip(files, subjects)]
     res = parallel_map(func, items, n_jobs=n_jobs if n_jobs is not None else cfg.n_jobs, scheduler=scheduler,
                        desc="subjects", labels=subjects)
     ok = [r for r in res.successful() if r is not None]
@@ -256,5 +273,5 @@ def run_erp(cfg: ErpConfig, out: Path, *, source: str | Path = "config", seed: i
 
 
 def _process_item(item, cfg, emap, head, seed):
-    path, subject = item
-    return process_subject(path, cfg, emap, head=head, subject=subject, seed=seed)
+    path, subject, beh = item
+    return process_subject(path, cfg, emap, head=head, subject=subject, seed=seed, beh=beh)

@@ -1,4 +1,4 @@
-"""Writing a run: amplitudes.csv, qc.csv, stats/, figures/, source/ and report.md."""
+"""Writing a run: amplitudes.csv, single_trials.csv, sme.csv, qc.csv, stats/, figures/, source/ and report.md."""
 
 from __future__ import annotations
 
@@ -11,11 +11,13 @@ import pandas as pd
 from appeal.atomic import atomic_write_text
 from appeal.logs import logger
 
+from analysis.erp.quality import flag_sme, sme_rms
 from analysis.erp.results import ErpResult
 from analysis.erp_schema import ErpConfig
 
 
-__all__ = ["ErpOutputs", "grand_averages", "level_peaks", "source_contrasts", "write_erp_outputs"]
+__all__ = ["ErpOutputs", "grand_averages", "level_peaks", "source_contrasts", "measures_section", "quality_section",
+           "write_erp_outputs"]
 
 
 @dataclass
@@ -29,6 +31,8 @@ class ErpOutputs:
     tables: list[Path] = field(default_factory=list)
     figures: list[Path] = field(default_factory=list)
     source_table: pd.DataFrame | None = None
+    single_trials: Path | None = None
+    sme: Path | None = None
 
 
 def _csv(df: pd.DataFrame, path: Path) -> Path:
@@ -178,6 +182,80 @@ def thesis_table(table: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
+def measures_section(cfg: ErpConfig) -> str:
+    """The report's paragraph on what ``amplitudes.csv`` and ``single_trials.csv`` measure."""
+    comps = "; ".join(f"{k} {v.window_s[0] * 1e3:g}-{v.window_s[1] * 1e3:g} ms, {v.polarity}, fractions "
+                      f"{v.peak_fraction:g} (peak) / {v.area_fraction:g} (area)" for k, v in cfg.components.items())
+    return ("Per cell average and cluster (`amplitudes.csv`): window mean (`mean_uV`), peak and its latency "
+            "(`mne.stats.erp.compute_peak`), fractional-peak latency on the onset side (the first sample of the window "
+            "reaching the fraction of the peak, `compute_frac_peak_latency`) and fractional-area latency (the sample "
+            "where the area of the component's sign reaches the fraction, `compute_frac_area_latency`); windows include "
+            f"both ends. Components: {comps}. Per kept trial (`single_trials.csv`): window mean, peak and latency.\n")
+
+
+def quality_section(sme: pd.DataFrame, factors: list[str], threshold_uV: float | None, stimuli: bool,
+                    max_listed: int = 6) -> str:
+    """The report's SME section: RMS across subjects per cell, the flagged values by subject.
+
+    Parameters
+    ----------
+    sme : pandas.DataFrame
+        ``sme.csv`` (with ``flagged``).
+    factors : list of str
+        The condition factors.
+    threshold_uV : float | None
+        ``quality.sme_threshold_uV``.
+    stimuli : bool
+        Whether the trials' stimuli came from behavioural files.
+    max_listed : int
+        Flagged values named per subject (the rest are counted).
+    """
+    rms = sme_rms(sme, factors)
+    rms["measure"] = rms["component"] + "/" + rms["cluster"].astype(str)
+    wide = rms.pivot_table(index=factors, columns="measure", values="rms_sme_uV", sort=False).reset_index()
+    wide.columns.name = None
+    text = ("Standardized measurement error of each mean amplitude (analytic SME, Luck et al. 2021, as in ERP CORE): the SD "
+            "of the single-trial window means / √n (`mne.stats.erp.compute_sme`) per subject, cell, component and "
+            "cluster, in `sme.csv`; the single-trial values are in `single_trials.csv`"
+            + (" with each trial's stimulus from the behavioural files (`beh`)" if stimuli else
+               " (no `beh` files in the config: the stimulus column is empty)")
+            + ". Root mean square across subjects per cell (µV; also `sme_rms.csv`):\n\n"
+            + (_fmt(wide, list(wide.columns)) if len(rms) else "No SME: no cell has two trials.\n"))
+    if threshold_uV is None:
+        return text + "\nNo threshold set (`quality.sme_threshold_uV`): nothing flagged.\n"
+    flagged = sme[sme["flagged"]]
+    text += (f"\nThreshold {threshold_uV:g} µV: {len(flagged)} of {int(sme['sme_uV'].notna().sum())} values above it"
+             + (", from these subjects:\n\n" if len(flagged) else ".\n"))
+    for subj, g in flagged.groupby("subject", sort=False):
+        rows = g.sort_values("sme_uV", ascending=False)[[*factors, "component", "cluster", "sme_uV"]]
+        items = [f"{'/'.join(f'{f}={v}' for f, v in zip(factors, cell))} {comp}/{cluster} ({value:.2f} µV)"
+                 for *cell, comp, cluster, value in rows.itertuples(index=False)]
+        more = f" and {len(items) - max_listed} more" if len(items) > max_listed else ""
+        text += f"- **{subj}** ({len(items)}, largest first): {'; '.join(items[:max_listed])}{more}\n"
+    return text
+
+
+def single_trial_models(trials: pd.DataFrame, factors: list[str], cfg: ErpConfig, out: Path, o: ErpOutputs) -> str:
+    """Mixed models of the single-trial window means, one per component x cluster (the report's text)."""
+    from analysis.stats.formula import FormulaError
+    from analysis.stats.lmm_report import lmm_section
+
+    has_stim = "stimulus" in trials.columns and trials["stimulus"].notna().any()
+    text = ["### Linear mixed models of the single-trial window means", ""]
+    for (comp, cluster), part in trials.groupby(["component", "cluster"], sort=False):
+        try:
+            sec = lmm_section(part, "mean_uV", f"{comp} {cluster} (µV)", factors, ["subject"] + (["stimulus"] if has_stim else []),
+                              out / f"{comp}_{cluster}", random=cfg.mixed.random, ddf=cfg.mixed.ddf,
+                              levels=cfg.levels or None, source=f"single_trials.csv: {comp} {cluster}")
+        except FormulaError as exc:
+            text += [f"#### {comp}, {cluster}", "", f"Not fitted: {exc}", ""]
+            continue
+        o.tables += sec.tables
+        o.figures += sec.figures
+        text += [f"#### {comp}, {cluster}", "", *sec.text]
+    return "\n".join(text) + "\n"
+
+
 def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int = 0, config_name: str = "config") -> ErpOutputs:
     """Write every table, figure and the Markdown report of a run into ``out``."""
     from analysis.erp import figures as figs
@@ -188,6 +266,12 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
     amps = result.amplitudes
     o = ErpOutputs(out=out, amplitudes=_csv(amps, out / "amplitudes.csv"), qc=_csv(result.qc, out / "qc.csv"),
                    report=out / "report.md")
+    # single trials and their data quality
+    sme = flag_sme(result.sme, cfg.quality.sme_threshold_uV)
+    o.single_trials = _csv(result.single_trials, out / "single_trials.csv")
+    o.sme = _csv(sme, out / "sme.csv")
+    o.tables.append(_csv(sme_rms(sme, emap.factors), out / "sme_rms.csv"))
+    quality_text = quality_section(sme, emap.factors, cfg.quality.sme_threshold_uV, cfg.beh is not None)
     if result.failures:
         fail = pd.DataFrame([{"subject": f.label, "error": f.error} for f in result.failures])
         o.tables.append(_csv(fail, out / "failures.csv"))
@@ -202,6 +286,8 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
                       + _fmt(anova, ["component", "effect", "num_df", "den_df", "F", "p", "p_gg", "pes"])
                       + "\n### Linear vs quadratic contrasts\n\n"
                       + _fmt(contr, ["component", "factor", "contrast", "F", "num_df", "den_df", "p", "pes"]))
+        if cfg.mixed.enabled:
+            stats_text += single_trial_models(result.single_trials, emap.factors, cfg, out / "stats" / "lmm", o)
     else:
         stats_text = "Statistics need at least two subjects; skipped.\n"
     # figures
@@ -225,6 +311,7 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
                                                out / "figures" / f"topomaps_{topo_f}")
     for comp in cfg.components:
         o.figures += figs.plot_window_bars(amps, comp, emap.factors, emap.levels, out / "figures" / f"bars_{comp}")
+    o.figures += figs.plot_sme(sme, cfg.quality.sme_threshold_uV, out / "figures" / "sme")
     # source
     src_text = "Source summaries disabled in the config.\n"
     if cfg.source.enabled and result.head is not None:
@@ -272,9 +359,11 @@ def write_erp_outputs(result: ErpResult, cfg: ErpConfig, out: Path, *, seed: int
             + f"\nMean over subjects: {qc['pct_channels_interpolated'].mean():.2f}% channels interpolated, "
               f"{qc['pct_trials_rejected'].mean():.2f}% trials rejected, {qc['trials_per_cell_mean'].mean():.2f} trials "
               "per cell (thesis: 4.04%, 5.41%, 28.38).\n\n"
+            "## Data quality (SME)\n\n" + quality_text + "\nFigure: `figures/sme.png` (SME per subject and component).\n\n"
+            "## Measures\n\n" + measures_section(cfg) + "\n"
             "## Statistics\n\n" + stats_text + "\n## Source space\n\n" + src_text + "\n## Files\n\n"
             + "".join(f"- [{p.relative_to(out)}]({p.relative_to(out)})\n"
-                      for p in [o.amplitudes, o.qc, *o.tables, *o.figures] if p.suffix != ".svg"))
+                      for p in [o.amplitudes, o.single_trials, o.sme, o.qc, *o.tables, *o.figures] if p.suffix != ".svg"))
     atomic_write_text(o.report, text)
     return o
 

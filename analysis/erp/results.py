@@ -18,7 +18,8 @@ __all__ = ["ErpResult", "SubjectResult"]
 
 @dataclass
 class SubjectResult:
-    """What one subject gives back: QC numbers, measures, cell averages and source maps."""
+    """What one subject gives back: QC numbers, measures, single-trial measures and their SME, cell
+    averages and source maps (small tables and arrays: never the epochs)."""
 
     subject: str
     path: str
@@ -29,6 +30,8 @@ class SubjectResult:
     info: object  # mne.Info of the EEG channels
     times: np.ndarray
     source_maps: dict = field(default_factory=dict)  # (component, level) -> ndarray (n_vox,)
+    single_trials: pd.DataFrame = field(default_factory=pd.DataFrame)  # analysis.erp.single_trials
+    sme: pd.DataFrame = field(default_factory=pd.DataFrame)  # analysis.erp.quality.sme_table
 
 
 @dataclass
@@ -40,13 +43,27 @@ class ErpResult:
     emap: EventMap
     head: object = None
 
+    def _stacked(self, table: str) -> pd.DataFrame:
+        """One table of every subject's ``table``, with ``subject`` as its first column."""
+        if not self.subjects:
+            return pd.DataFrame()
+        parts = [getattr(s, table).assign(subject=s.subject) for s in self.subjects]
+        return pd.concat(parts, ignore_index=True)[["subject", *getattr(self.subjects[0], table).columns]]
+
     @property
     def amplitudes(self) -> pd.DataFrame:
         """``amplitudes.csv``: subject, factor columns, component, cluster, measures, n_trials."""
-        if not self.subjects:
-            return pd.DataFrame()
-        return pd.concat([s.amplitudes.assign(subject=s.subject) for s in self.subjects], ignore_index=True)[
-            ["subject", *self.subjects[0].amplitudes.columns]]
+        return self._stacked("amplitudes")
+
+    @property
+    def single_trials(self) -> pd.DataFrame:
+        """``single_trials.csv``: subject, then one row per kept trial x component x cluster."""
+        return self._stacked("single_trials")
+
+    @property
+    def sme(self) -> pd.DataFrame:
+        """SME per subject x cell x component x cluster (``sme.csv`` adds ``flagged``)."""
+        return self._stacked("sme")
 
     @property
     def qc(self) -> pd.DataFrame:

@@ -36,7 +36,8 @@ def save_figure(fig, stem: str | Path) -> list[Path]:
 
 def interaction_plot(ci: pd.DataFrame, x: str, trace: str | None, ylabel: str, stem: str | Path,
                      title: str | None = None, ylim: tuple[float, float] | None = None,
-                     x_levels: Sequence[str] | None = None, trace_levels: Sequence[str] | None = None) -> list[Path]:
+                     x_levels: Sequence[str] | None = None, trace_levels: Sequence[str] | None = None,
+                     interval: str = "95% within-subject CI") -> list[Path]:
     """Mean rating vs the levels of ``x``, one line per level of ``trace``, 95% CI bars.
 
     Parameters
@@ -49,6 +50,8 @@ def interaction_plot(ci: pd.DataFrame, x: str, trace: str | None, ylabel: str, s
         The rating scale.
     stem : path
         Output path without suffix.
+    interval : str
+        What the bars are (named on the y axis).
     """
     plt = _plt()
     xl = list(x_levels) if x_levels is not None else list(dict.fromkeys(ci[x]))
@@ -64,7 +67,7 @@ def interaction_plot(ci: pd.DataFrame, x: str, trace: str | None, ylabel: str, s
                     label=str(t) if t is not None else None)
     ax.set_xticks(pos, xl)
     ax.set_xlabel(x)
-    ax.set_ylabel(f"mean {ylabel} (95% within-subject CI)")
+    ax.set_ylabel(f"mean {ylabel} ({interval})")
     if ylim:
         ax.set_ylim(*ylim)
     if trace:
