@@ -213,3 +213,21 @@ def test_stimulus_confounded_with_cells_is_left_out_or_refused():
     assert "\n" not in str(err.value)
     fit, attempts = fit_with_fallback(d, "y ~ a * b", groups=["p", "stimulus"], factors=["a", "b"])
     assert "stimulus" not in fit.formula.text and attempts[0].outcome.startswith("left out")
+
+
+def test_cli_lmm_equals_r_and_fails_in_one_line(tmp_path, capsys):
+    import json
+
+    from appeal_cli import main
+
+    out = tmp_path / "lmm.json"
+    rc = main(["analyze", "lmm", str(ROOT / "data" / "lmm_nested.csv"), "--formula", R["R_NESTED"]["formula"],
+               "--emmeans", "condition", "--json", str(out)])
+    assert rc == 0
+    res = json.loads(out.read_text())
+    assert rel([r["F"] for r in res["anova"]], R["R_NESTED"]["afex_F"]) < 1e-4
+    assert [r["condition"] for r in res["emmeans"]] == ["c1", "c2", "c3"] and len(res["pairs"]) == 3
+    assert "Type III F tests" in capsys.readouterr().out
+    rc = main(["analyze", "lmm", str(ROOT / "data" / "lmm_nested.csv"), "--formula", "y ~ condition + (1 | nolab)"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "nolab" in err and len(err.splitlines()) == 1
