@@ -220,8 +220,7 @@ def _gradient_parts(prob: LmmProblem, theta: np.ndarray, s: _Solution, reml: boo
     LZtZ = prob.times_lambda(prob.ZtZ, theta, Ts).T
     G = np.vstack([LZtZ, prob.ZtX.T])
     if reml:
-        Minv_q = linalg.cho_solve((s.chol, True), np.eye(len(s.chol))[:, :q], check_finite=False).T
-        PG = Minv_q @ G
+        PG = linalg.cho_solve((s.chol, True), G, check_finite=False)[:q]  # (M⁻¹G)[:q] = M⁻¹[:q] G
     else:
         La = s.chol[:q, :q]
         PG = linalg.cho_solve((La, True), LZtZ, check_finite=False)
@@ -365,7 +364,7 @@ def _schur_inverse(chol: np.ndarray, q: int) -> np.ndarray:
 
 def fit_lmm(formula: str | Formula | ModelMatrices, data: pd.DataFrame | None = None, *, reml: bool = True,
             factors=(), levels=None, source: str = "data", start: np.ndarray | None = None,
-            tol: float = 1e-10, max_iter: int = 2000) -> LmmFit:
+            tol: float = 1e-7, max_iter: int = 2000) -> LmmFit:
     """Fit a linear mixed model by (RE)ML, as ``lme4::lmer(formula, data, REML = reml)``.
 
     Parameters

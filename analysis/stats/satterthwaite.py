@@ -22,7 +22,7 @@ from analysis.stats.lmm import LmmFit, blas_threads
 __all__ = ["Satterthwaite", "satterthwaite", "richardson_jacobian", "contrast_test", "f_test_ddf"]
 
 
-def richardson_jacobian(fun, x: np.ndarray, rel_step: float = 1e-3, levels: int = 3) -> np.ndarray:
+def richardson_jacobian(fun, x: np.ndarray, rel_step: float = 1e-3, levels: int = 2) -> np.ndarray:
     """∂fun/∂x by central differences with Richardson extrapolation (as ``numDeriv``).
 
     ``fun`` returns an array of any shape; the result has that shape plus ``len(x)``.
