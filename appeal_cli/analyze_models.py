@@ -23,7 +23,8 @@ Examples:
 
 \b
 The formula is lme4's: (1 | g) random intercepts, (1 + a | g) correlated random slopes,
-(a || g) uncorrelated ones, (1 | g/h) h nested in g, (1 | g:h) an interaction group.
+(1 + a || g) uncorrelated ones (one per column, as afex's expand_re), (1 | g/h) h nested
+in g, (1 | g:h) an interaction group.
 Factors use sum-to-zero contrasts (afex's default), so the F tests are type III.""")
 @click.argument("data", metavar="DATA")
 @click.option("--formula", required=True, metavar="'Y ~ FIXED + (RANDOM | GROUP)'", help="The model, written as for lme4::lmer.")

@@ -185,8 +185,9 @@ def test_model_matrix_codes_factors_with_sum_contrasts():
 
 
 def test_maximal_structure_falls_back_in_the_documented_order():
-    """The crossed data have by-participant shape deviations and no by-stimulus slopes: the maximal
-    and uncorrelated fits are singular, dropping the zero-variance terms recovers the truth."""
+    """The crossed data have by-participant shape deviations and no by-stimulus shape slopes: the
+    maximal and uncorrelated fits are singular; dropping the terms estimated at zero keeps the
+    participant shape slopes and the stimulus intercepts and drops the stimulus shape slopes."""
     from analysis.stats.random_structures import fit_with_fallback, structure_table
 
     d = pd.read_csv(ROOT / "data" / "lmm_crossed.csv")
@@ -195,8 +196,15 @@ def test_maximal_structure_falls_back_in_the_documented_order():
     table = structure_table(attempts, fit)
     assert list(table.structure[:3]) == ["maximal", "maximal, uncorrelated", "maximal, uncorrelated, zero-variance terms dropped"]
     assert list(table.outcome[:3]) == ["singular fit", "singular fit", "converged"] and table.used.tolist()[2]
-    assert "(0 + shape | participant)" in fit.formula.text and "(1 | stimulus)" in fit.formula.text
-    assert "shape | stimulus" not in fit.formula.text and not fit.singular
+    by_group = {}
+    for r in fit.formula.random:
+        by_group.setdefault(r.group, []).extend([("(Intercept)",)] if r.intercept else list(r.terms))
+    assert ("shape",) in by_group["participant"] and ("(Intercept)",) in by_group["stimulus"]
+    assert ("shape",) not in by_group["stimulus"] and not fit.singular
+    assert "|| participant)" in fit.formula.text  # uncorrelated, written as afex does (expand_re)
+    # the formula text is the model: refitting it gives the same fit
+    again = fit_lmm(fit.formula.text, d, factors=["shape", "material"])
+    assert abs(again.deviance - fit.deviance) < 1e-6
 
 
 def test_stimulus_confounded_with_cells_is_left_out_or_refused():

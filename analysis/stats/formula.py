@@ -12,7 +12,8 @@ factor varying fastest within an interaction). A factor is a column that is not 
 named in ``factors`` (a design's ``shape`` levels 0, 0.25 ... are levels, not a covariate); other
 numeric columns enter as covariates. Supported: ``a * b``, ``a:b``, ``a + b``, ``0 +``/``- 1``,
 ``(1 | g)``, ``(1 + a | g)``, ``(0 + a | g)``, ``(1 | g/h)`` (nested: ``g`` and ``g:h``),
-``(1 | g:h)`` and ``(a || g)`` (uncorrelated: one term per column).
+``(1 | g:h)`` and ``(1 + a || g)`` (uncorrelated: one random effect per column, factors
+sum-coded, as afex's ``expand_re``).
 """
 
 from __future__ import annotations
@@ -46,9 +47,10 @@ class RandomTerm:
     intercept: bool
     terms: tuple[Term, ...]
     group: str
-    #: Code factors by their sum-to-zero contrasts even without an intercept (afex's
-    #: ``expand_re``); lme4 codes the first factor of a no-intercept term by indicators.
-    contrasts: bool = False
+    #: Written with ``||``: one uncorrelated random effect per column of the term, factors coded
+    #: by their sum-to-zero contrasts (afex's ``expand_re = TRUE``; lme4's own ``||`` codes a
+    #: factor by indicators and keeps its columns correlated).
+    split: bool = False
 
 
 @dataclass(frozen=True)
@@ -149,7 +151,7 @@ def _random_terms(inner: str) -> list[RandomTerm]:
         if double:
             if intercept:
                 out.append(RandomTerm(True, (), g))
-            out += [RandomTerm(False, (t,), g) for t in terms]
+            out += [RandomTerm(False, (t,), g, split=True) for t in terms]
         else:
             out.append(RandomTerm(intercept, tuple(terms), g))
     return out
@@ -159,10 +161,22 @@ def _formula_text(f: Formula, random: Sequence[RandomTerm]) -> str:
     fixed = " + ".join(term_name(t) for t in f.fixed) or "1"
     if not f.intercept:
         fixed = "0 + " + fixed
-    rand = []
-    for r in random:
+    rand, i, random = [], 0, list(random)
+    while i < len(random):
+        r = random[i]
+        if r.split or (r.intercept and not r.terms and i + 1 < len(random) and random[i + 1].split
+                       and random[i + 1].group == r.group):
+            lhs = ["1"] if not r.split else ["0"]
+            j = i + (0 if r.split else 1)
+            while j < len(random) and random[j].split and random[j].group == r.group:
+                lhs += [term_name(t) for t in random[j].terms]
+                j += 1
+            rand.append(f"({' + '.join(lhs)} || {r.group})")
+            i = j
+            continue
         lhs = " + ".join((["1"] if r.intercept else ["0"]) + [term_name(t) for t in r.terms])
         rand.append(f"({lhs} | {r.group})")
+        i += 1
     return f"{f.response} ~ " + " + ".join([fixed, *rand])
 
 
@@ -204,6 +218,7 @@ class RandomBlock:
     Xr: np.ndarray
     codes: np.ndarray
     levels: list[str]
+    term: int = 0  #: index of the formula's random term it comes from
 
     @property
     def k(self) -> int:
@@ -336,7 +351,7 @@ def model_matrices(formula: Formula | str, data: pd.DataFrame, factors: Iterable
     if y.isna().any():
         raise FormulaError(f"{source}: the response {f.response} holds non-numbers (e.g. '{data[f.response][y.isna()].iloc[0]}')")
     blocks = []
-    for r in f.random:
+    for ti, r in enumerate(f.random):
         gkey = data[r.group.split(":")[0]].astype(str)
         for v in r.group.split(":")[1:]:
             gkey = gkey + ":" + data[v].astype(str)
@@ -344,14 +359,19 @@ def model_matrices(formula: Formula | str, data: pd.DataFrame, factors: Iterable
         if len(glevels) < 2:
             raise FormulaError(f"{source}: the grouping factor {r.group} has one level ({glevels[0]}): "
                                "a random effect needs at least 2")
+        codes = pd.Categorical(gkey, categories=glevels).codes.astype(np.int64)
+        if r.split:  # one block per column, sum-coded
+            m, nm = term_matrix(data, r.terms[0], lv, factors)
+            for c, name in enumerate(nm):
+                blocks.append(RandomBlock(f"(0 + {name} || {r.group})", r.group, [name], m[:, [c]], codes, glevels, ti))
+            continue
         parts, cn = ([np.ones((len(data), 1))], ["(Intercept)"]) if r.intercept else ([], [])
         for t in r.terms:
-            m, nm = term_matrix(data, t, lv, factors, full_first=not (r.intercept or r.contrasts) and not cn)
+            m, nm = term_matrix(data, t, lv, factors, full_first=not r.intercept and not cn)
             parts.append(m)
             cn += nm
         lhs = " + ".join((["1"] if r.intercept else ["0"]) + [term_name(t) for t in r.terms])
-        blocks.append(RandomBlock(f"({lhs} | {r.group})", r.group, cn, np.hstack(parts),
-                                  pd.Categorical(gkey, categories=glevels).codes.astype(np.int64), glevels))
+        blocks.append(RandomBlock(f"({lhs} | {r.group})", r.group, cn, np.hstack(parts), codes, glevels, ti))
     mm = ModelMatrices(f, y.to_numpy(float), np.zeros((len(data), 0)), [], {}, blocks, lv, sorted(factors), data)
     mm.X, mm.columns, mm.term_columns = fixed_matrix(mm)
     return mm

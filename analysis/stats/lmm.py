@@ -416,13 +416,23 @@ def fit_lmm(formula: str | Formula | ModelMatrices, data: pd.DataFrame | None = 
                            "model fewer fixed terms)")
     lower = prob.lower
     theta0 = np.where(lower == 0, 1.0, 0.0) if start is None else np.asarray(start, float)
-    bounds = [(lo if np.isfinite(lo) else None, None) for lo in lower]
+    # no bounds: Λ enters only through ΛΛ', which a column's sign does not change, so the diagonal
+    # is left free and made positive afterwards (bounded gradient steps stall where they hit 0)
+    bounds = None
     f = _objective(prob, reml)
     with blas_threads(prob.q + prob.p):
-        res = optimize.minimize(f, theta0, jac=True, method="L-BFGS-B", bounds=bounds,
-                                options={"maxiter": max_iter, "ftol": 1e-15, "gtol": tol, "maxcor": 30})
+        options = {"maxiter": max_iter, "ftol": 1e-15, "gtol": tol, "maxcor": 30}
+        res = optimize.minimize(f, theta0, jac=True, method="L-BFGS-B", bounds=bounds, options=options)
+        for _ in range(5):  # a diagonal θ at 0 is a stationary point: probe off the bound, restart if better
+            better = _off_bound(f, res.x, res.fun, lower)
+            if better is None:
+                break
+            nfev = res.nfev
+            res = optimize.minimize(f, better, jac=True, method="L-BFGS-B", bounds=bounds, options=options)
+            res.nfev += nfev
+        theta = _positive_diagonal(prob, res.x)
         # polish: a few Newton steps on the free parameters (exact gradient, Hessian by differences)
-        theta, grad = _polish(f, res.x, lower)
+        theta, grad = _polish(f, theta, lower)
         s = _solve(prob, theta)
     dev = _deviance(prob, s, reml)
     sigma = math.sqrt(s.prss / (n - p if reml else n))
@@ -438,6 +448,35 @@ def fit_lmm(formula: str | Formula | ModelMatrices, data: pd.DataFrame | None = 
         msgs.append("boundary (singular) fit: see help('isSingular')")
     return LmmFit(prob, reml, theta, s.beta, sigma, dev, vcov, grad, int(res.nfev), converged,
                   str(res.message), singular, msgs)
+
+
+def _positive_diagonal(prob: LmmProblem, theta: np.ndarray) -> np.ndarray:
+    """The same ΛΛ' with every factor's diagonal ≥ 0 (columns with a negative diagonal negated)."""
+    out = theta.copy()
+    for blk, sl in zip(prob.mm.blocks, prob.theta_slices):
+        T = prob.factors(theta)[prob.mm.blocks.index(blk)]
+        T = T * np.where(np.diag(T) < 0, -1.0, 1.0)[None, :]
+        r, c = _tril_colmajor(blk.k)
+        out[sl] = T[r, c]
+    return out
+
+
+def _off_bound(f, theta: np.ndarray, dev: float, lower: np.ndarray) -> np.ndarray | None:
+    """θ with one bounded parameter moved off 0 when that lowers the deviance, else None.
+
+    The deviance is even in a factor's diagonal element when the rest of its column is 0, so
+    θ_ii = 0 has a zero gradient whatever the data: a gradient method that lands there stays.
+    lme4's derivative-free BOBYQA does not see this; probing each bounded parameter does.
+    """
+    best, best_dev = None, dev - 1e-10 * max(1.0, abs(dev))
+    for i in np.flatnonzero((lower == 0) & (theta <= 1e-8)):
+        for value in (0.003, 0.03, 0.1, 0.5, 1.0):
+            trial = theta.copy()
+            trial[i] = value
+            d = f(trial)[0]
+            if d < best_dev:
+                best, best_dev = trial, d
+    return best
 
 
 def _polish(f, theta: np.ndarray, lower: np.ndarray, steps: int = 4) -> tuple[np.ndarray, np.ndarray]:

@@ -7,10 +7,10 @@ shape slope; each stimulus has one shape: no by-stimulus shape slope). The fallb
 stopping at the first model that converges without a singular fit:
 
 1. maximal, correlated (``(1 + a * b | participant) + (1 | stimulus)``);
-2. the same terms uncorrelated: one block per term (a factor's sum-to-zero contrast columns, as
-   afex's ``expand_re``, not lme4's indicator coding of a factor in a no-intercept term);
-   when that fit is singular, the terms whose variances are all estimated at zero are dropped
-   and the rest refitted (Bates et al., 2015, "parsimonious mixed models");
+2. the same terms uncorrelated (``(1 + a + b || g)``: one random effect per column, factors
+   coded by their sum-to-zero contrasts, as afex's ``expand_re``);
+   when that fit is singular, the terms with a variance estimated at zero (any direction of
+   the term's covariance) are dropped and the rest refitted (Bates et al., 2015, "parsimonious mixed models");
 3. the highest-order slopes dropped, one order at a time, uncorrelated (``a:b``, then ``a`` and ``b``);
 4. random intercepts only.
 
@@ -32,7 +32,8 @@ import pandas as pd
 from analysis.stats.formula import Formula, FormulaError, RandomTerm, model_matrices, parse_formula
 from analysis.stats.lmm import LmmFit, confounded_blocks, fit_lmm, lmm_problem
 
-__all__ = ["slope_terms", "fallback_structures", "fit_with_fallback", "structure_table", "Attempt", "MAX_THETA"]
+__all__ = ["slope_terms", "fallback_structures", "fit_with_fallback", "identifiable_groups", "structure_table", "Attempt",
+           "MAX_THETA"]
 
 #: Most covariance parameters a candidate structure may have.
 MAX_THETA = 120
@@ -49,8 +50,7 @@ def slope_terms(data: pd.DataFrame, fixed: Sequence[tuple[str, ...]], group: str
 
 
 def fallback_structures(data: pd.DataFrame, formula: Formula, groups: Sequence[str]) -> list[tuple[str, tuple[RandomTerm, ...]]]:
-    """The candidate random parts, most complex first, each with a label (uncorrelated slopes are
-    written ``(0 + a | g)`` and coded by ``a``'s contrasts)."""
+    """The candidate random parts, most complex first, each with a label."""
     slopes = {g: slope_terms(data, formula.fixed, g) for g in groups}
     max_order = max((len(t) for s in slopes.values() for t in s), default=0)
     out = []
@@ -60,7 +60,7 @@ def fallback_structures(data: pd.DataFrame, formula: Formula, groups: Sequence[s
         terms = []
         for g in groups:
             terms.append(RandomTerm(True, (), g))
-            terms += [RandomTerm(False, (t,), g, contrasts=True) for t in slopes[g] if len(t) <= order]
+            terms += [RandomTerm(False, (t,), g, split=True) for t in slopes[g] if len(t) <= order]
         label = "maximal, uncorrelated" if order == max_order else f"slopes up to order {order}, uncorrelated"
         out.append((label, tuple(terms)))
     out.append(("random intercepts", tuple(RandomTerm(True, (), g) for g in groups)))
@@ -129,14 +129,7 @@ def fit_with_fallback(data: pd.DataFrame, formula: str, *, random: str = "maxima
     if not groups:
         raise FormulaError(f"{source}: random: maximal needs grouping factors (participant, stimulus)")
     used = data.dropna(subset=[v for v in base.variables if v in data.columns] + list(groups))
-    dropped = []
-    for g in list(groups):
-        probe = base.with_random([RandomTerm(True, (), g)])
-        if confounded_blocks(lmm_problem(model_matrices(probe, data, factors, levels, source))):
-            dropped.append(g)
-    groups = [g for g in groups if g not in dropped]
-    if not groups:
-        raise FormulaError(f"{source}: every grouping factor ({', '.join(dropped)}) is confounded with the fixed effects")
+    groups, dropped = identifiable_groups(data, base, groups, factors, levels, source)
     attempts: list[Attempt] = []
     chosen = None
     queue = fallback_structures(used, base, groups)
@@ -169,9 +162,32 @@ def fit_with_fallback(data: pd.DataFrame, formula: str, *, random: str = "maxima
     return chosen, attempts
 
 
+def identifiable_groups(data: pd.DataFrame, formula: Formula | str, groups: Sequence[str], factors=(), levels=None,
+                        source: str = "data") -> tuple[list[str], list[str]]:
+    """The grouping factors whose random intercepts can be told from the fixed effects, and the
+    others (each level within one cell of the fixed effects: one stimulus per condition).
+
+    Raises
+    ------
+    FormulaError
+        When no grouping factor is left.
+    """
+    base = parse_formula(formula) if isinstance(formula, str) else formula
+    dropped = []
+    for g in groups:
+        probe = base.with_random([RandomTerm(True, (), g)])
+        if confounded_blocks(lmm_problem(model_matrices(probe, data, factors, levels, source))):
+            dropped.append(g)
+    kept = [g for g in groups if g not in dropped]
+    if not kept:
+        raise FormulaError(f"{source}: every grouping factor ({', '.join(dropped)}) is confounded with the fixed effects")
+    return kept, dropped
+
+
 def _drop_zero_terms(fit: LmmFit, terms: tuple[RandomTerm, ...]) -> tuple[RandomTerm, ...] | None:
-    """The terms without those whose variances are all estimated at zero (None: nothing to drop)."""
-    keep = [term for term, T in zip(terms, fit.problem.factors(fit.theta)) if not np.all(np.abs(np.diag(T)) < 1e-4)]
+    """The terms without those with a variance estimated at zero (None: nothing to drop)."""
+    zero = {blk.term for blk, T in zip(fit.mm.blocks, fit.problem.factors(fit.theta)) if np.any(np.abs(np.diag(T)) < 1e-4)}
+    keep = [term for i, term in enumerate(terms) if i not in zero]
     return tuple(keep) if 0 < len(keep) < len(terms) else None
 
 
