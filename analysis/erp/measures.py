@@ -161,14 +161,8 @@ def fractional_latencies(waves: np.ndarray, times: np.ndarray, window: Sequence[
 
     Parameters
     ----------
-    waves : ndarray, shape (n_waves, n_times) or (n_times,)
-        Waveforms in volts.
-    times : ndarray, shape (n_times,)
-        Sample times in seconds.
-    window : (start, end)
-        Window in seconds, both ends included.
-    polarity : {"negative", "positive"}
-        The sign of the component.
+    waves, times, window, polarity
+        As :func:`window_peaks` (volts, seconds, both window ends included, the component's sign).
     peak_fraction, area_fraction : float
         Fractions in (0, 1].
 
@@ -199,14 +193,8 @@ def window_measures(waves: np.ndarray, times: np.ndarray, window: Sequence[float
 
     Parameters
     ----------
-    waves : ndarray, shape (n_waves, n_times) or (n_times,)
-        Waveforms in volts.
-    times : ndarray, shape (n_times,)
-        Sample times in seconds.
-    window : (start, end)
-        Window in seconds, both ends included (:func:`window_mask`).
-    polarity : {"negative", "positive"}
-        The peak is the minimum (negative) or maximum (positive) in the window.
+    waves, times, window, polarity
+        As :func:`window_peaks`.
     peak_fraction, area_fraction : float
         Fractions of :func:`fractional_latencies`.
 
