@@ -7,6 +7,8 @@ Example (protocols/analysis/exp2_ratings.yaml)::
     data: ../../data/sub-*/ses-*/beh/*_task-exp2_beh.tsv   # a glob, or one CSV/TSV/Parquet file
     within: [character, shape, material, expression]
     scales: [realism, appeal]              # default: every response_* column
+    model: both                            # anova | mixed | ordinal | both (anova + mixed) | all
+    mixed: {random: maximal, ddf: satterthwaite}
     figures:
       interactions: [{x: material, trace: shape}]
       realism_vs_appeal: {x_scale: realism, y_scale: appeal, line: shape, point: material}
@@ -19,9 +21,10 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, Field, ValidationInfo, model_validator
 
+from analysis.mixed_schema import MixedOptions
 from appeal.studyfile import StudyModel
 
-__all__ = ["RatingsAnalysis", "PosthocOptions", "ContrastSpec", "InteractionFigure", "ScatterFigure", "Figures"]
+__all__ = ["RatingsAnalysis", "MixedOptions", "OrdinalOptions", "PosthocOptions", "ContrastSpec", "InteractionFigure", "ScatterFigure", "Figures"]
 
 
 def _data_path(value: str, info: ValidationInfo) -> str:
@@ -91,6 +94,12 @@ class Figures(StudyModel):
     realism_vs_appeal: ScatterFigure | None = None
 
 
+class OrdinalOptions(StudyModel):
+    """The cumulative-link mixed model of the ratings as ordered categories (``model: ordinal`` or ``all``)."""
+
+    link: Literal["logit", "probit"] = "logit"
+
+
 class RatingsAnalysis(StudyModel):
     """A rating study to analyse: data, design, scales and what to report."""
 
@@ -112,6 +121,12 @@ class RatingsAnalysis(StudyModel):
     incomplete: Literal["error", "drop", "mixed"] = "mixed"
     stimulus: str | None = "stimulus"
     alpha: float = Field(0.05, gt=0, lt=1)
+    model: Literal["anova", "mixed", "ordinal", "both", "all"] = Field(
+        "anova", description="anova: rm-ANOVA on cell means (the thesis); mixed: linear mixed model on the trials with "
+                             "participants and stimuli as crossed random factors; ordinal: cumulative-link mixed "
+                             "model; both: anova + mixed; all: anova + mixed + ordinal.")
+    mixed: MixedOptions = Field(default_factory=MixedOptions)
+    ordinal: OrdinalOptions = Field(default_factory=OrdinalOptions)
     posthoc: PosthocOptions = Field(default_factory=PosthocOptions)
     contrasts: list[ContrastSpec] = Field(default_factory=list)
     reliability: list[list[str]] = Field(default_factory=list)

@@ -16,8 +16,10 @@ stopping at the first model that converges without a singular fit:
 
 A grouping factor whose levels each lie within one cell of the fixed effects (one stimulus per
 condition of a full factorial, as in thesis Exp. 2) is left out: its variance cannot be told
-from the fixed effects'. A structure with more random effects per level than observations per level, or more than
-:data:`MAX_THETA` covariance parameters, is skipped (it cannot be estimated from the data).
+from the fixed effects'. A structure is skipped when it cannot be estimated from the data: more than :data:`MAX_THETA`
+covariance parameters, as many random effects per level as observations per level, or as many
+random effects per grouping factor as that factor has levels (21 participants cannot inform 74
+variances).
 If every candidate is singular the last one that converged is kept and the report says so.
 """
 
@@ -87,10 +89,16 @@ def _size_problem(mm, n_rows: int) -> str | None:
     n_theta = sum(b.k * (b.k + 1) // 2 for b in mm.blocks)
     if n_theta > MAX_THETA:
         return f"skipped: {n_theta} covariance parameters (more than {MAX_THETA})"
+    per_group: dict[str, int] = {}
     for b in mm.blocks:
         per_level = n_rows / b.n_levels
         if b.k >= per_level:
             return f"skipped: {b.k} random effects per {b.group} for {per_level:.0f} observations per level"
+        per_group[b.group] = per_group.get(b.group, 0) + b.k
+    for b in mm.blocks:
+        if per_group[b.group] >= b.n_levels:
+            return (f"skipped: {per_group[b.group]} random effects per {b.group} for {b.n_levels} levels of it "
+                    "(their variances need more levels than effects)")
     return None
 
 

@@ -103,6 +103,71 @@ def _reference(cfg, raw: pd.DataFrame, main: pd.DataFrame, col: str, name: str, 
     return lines + [""], figs, tables, json_records(table)
 
 
+def _trials(cfg, data: pd.DataFrame, col: str) -> pd.DataFrame:
+    """The trial-level rows a mixed model uses (the response as numbers)."""
+    return data.assign(**{col: pd.to_numeric(data[col], errors="coerce")})
+
+
+def _lmm(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source: str) -> tuple[list[str], list, list, dict]:
+    """The linear mixed model of one scale (``model: mixed | both | all``)."""
+    from analysis.stats.formula import FormulaError
+    from analysis.stats.lmm_report import lmm_section
+
+    groups = [cfg.subject] + ([cfg.stimulus] if cfg.stimulus and cfg.stimulus in data.columns else [])
+    try:
+        sec = lmm_section(_trials(cfg, data, col), col, name, list(cfg.within) + list(cfg.between), groups,
+                          sec_dir, random=cfg.mixed.random, ddf=cfg.mixed.ddf, levels=cfg.levels, alpha=cfg.alpha,
+                          max_order=cfg.posthoc.max_order, max_cells=cfg.posthoc.max_cells,
+                          figures=[(f.x, f.trace) for f in cfg.figures.interactions],
+                          ylim=tuple(cfg.scale_range) if cfg.scale_range else None, source=f"{source}: mixed")
+    except FormulaError as exc:
+        raise AppealInputError(str(exc)) from None
+    return ["### Linear mixed model", "", *sec.text], sec.figures, sec.tables, sec.records
+
+
+def _ordinal(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source: str) -> tuple[list[str], list, list, dict]:
+    """The cumulative-link mixed model of one scale (``model: ordinal | all``)."""
+    from analysis.stats.clmm import fit_clmm, likelihood_ratio_tests
+    from analysis.stats.clmm_figures import probability_plot
+    from analysis.stats.formula import FormulaError
+    from analysis.stats.lmm_report import model_formula
+    from analysis.stats.random_structures import identifiable_groups
+
+    factors = list(cfg.within) + list(cfg.between)
+    trials = _trials(cfg, data, col)
+    groups = [g for g in [cfg.subject] + ([cfg.stimulus] if cfg.stimulus and cfg.stimulus in data.columns else [])
+              if trials[g].nunique() >= 3]
+    src = f"{source}: ordinal"
+    try:
+        groups, dropped = identifiable_groups(trials, model_formula(col, factors), groups, factors + groups,
+                                              cfg.levels, src)
+        formula = model_formula(col, factors) + "".join(f" + (1 | {g})" for g in groups)
+        fit = fit_clmm(formula, trials, link=cfg.ordinal.link, factors=factors + groups, levels=cfg.levels, source=src)
+        lr = likelihood_ratio_tests(fit)
+    except FormulaError as exc:
+        raise AppealInputError(str(exc)) from None
+    shown = [f.x for f in cfg.figures.interactions][:1] or factors[:1]
+    panel = next((f.trace for f in cfg.figures.interactions if f.trace), None)
+    keep = [f for f in dict.fromkeys(shown + ([panel] if panel else []))]
+    probs = fit.predicted_probabilities(keep)
+    tables = [_csv(fit.coefficients(), sec_dir / "clmm_coefficients.csv"), _csv(fit.thresholds(), sec_dir / "clmm_thresholds.csv"),
+              _csv(lr, sec_dir / "clmm_lr_tests.csv"), _csv(probs, sec_dir / "clmm_probabilities.csv")]
+    figs = [probability_plot(probs, sec_dir / "clmm_probabilities", x=shown[0], panel=panel, scale_label=name)[0]]
+    sds = "; ".join(f"{r.group} SD {r.sd:.3f}" for r in fit.variance_components().itertuples())
+    text = ["### Ordinal (cumulative-link) mixed model", "",
+            f"**Cumulative-link mixed model** ({cfg.ordinal.link} link, flexible thresholds, Laplace approximation, "
+            f"as ordinal::clmm) of the ratings as ordered categories, {fit.n} trials: `{formula}`; "
+            f"log-likelihood {fit.loglik:.2f}, random intercepts: {sds}."
+            + (f" Left out: {', '.join(dropped)} (each level within one cell of the fixed effects)." if dropped else ""),
+            "", "Likelihood-ratio tests of the fixed terms (each term's columns left out, sum-to-zero coding):", "",
+            markdown_table(lr), "",
+            f"Predicted probability of each rating per {' × '.join(keep)} (random effects at 0): "
+            f"`{(sec_dir / 'clmm_probabilities.csv').name}`.", ""]
+    info = {"formula": formula, "link": cfg.ordinal.link, "loglik": fit.loglik, "lr_tests": json_records(lr),
+            "converged": fit.converged, "max_grad": fit.max_grad}
+    return text, figs, tables, info
+
+
 def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> StudyResult:
     """Run the analysis described by a :class:`analysis.ratings_schema.RatingsAnalysis`.
 
@@ -133,6 +198,9 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
           f"when Mauchly is significant at α = {cfg.alpha}); Tukey HSD for significant effects "
           "(from each effect's error stratum, as emmeans); 95% within-subject CIs (Cousineau–Morey).", ""]
     summary: dict = {"title": cfg.title, "scales": {}, "reliability": []}
+    run_anova = cfg.model in ("anova", "both", "all")
+    run_mixed = cfg.model in ("mixed", "both", "all")
+    run_ordinal = cfg.model in ("ordinal", "all")
     designs = {}
     for name, col in progress(list(scales.items()), desc="scales"):
         sec_dir = out / name
@@ -173,34 +241,35 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
                 continue
         info.setdefault("analysis", "rm-ANOVA")
         designs[name] = design
-        fit = fit_design(design)
-        table = fit.table
-        tables.append(_csv(table, sec_dir / "anova.csv"))
-        text += [anova_text(table, cfg.alpha), ""]
-        info["anova"] = json_records(table)
-        info["n_subjects"], info["dropped"] = design.n, design.dropped
-        # post-hocs for significant effects
-        ph_lines = []
-        for _, row in table.iterrows():
-            p = row["p_gg"] if sphericity_corrected(row, cfg.alpha) else row["p"]
-            factors = row["effect"].split(":")
-            n_cells = int(np.prod([len({**design.within, **design.between}[f]) for f in factors]))
-            if p >= cfg.alpha or len(factors) > cfg.posthoc.max_order or n_cells > cfg.posthoc.max_cells:
-                continue
-            ph = pairwise_comparisons(fit, row["effect"], cfg.posthoc.adjust)
-            tables.append(_csv(ph, sec_dir / f"posthoc_{row['effect'].replace(':', '_x_')}.csv"))
-            sig = ph[ph.p < cfg.alpha]
-            shown = "; ".join(format_comparison(r) for _, r in sig.assign(_abs=sig.t.abs()).nlargest(4, "_abs").iterrows())
-            ph_lines.append(f"- {row['effect']}: {len(sig)} of {len(ph)} pairs differ ({cfg.posthoc.adjust}, "
-                            f"α = {cfg.alpha})" + (f"; strongest: {shown}" if shown else ""))
-        if ph_lines:
-            text += ["Post-hoc comparisons:", "", *ph_lines, ""]
-        for spec in cfg.contrasts:
-            ct = contrasts_from_design(design, spec.factor, spec.max_degree)
-            tables.append(_csv(ct, sec_dir / f"contrasts_{spec.factor}.csv"))
-            text += [f"Polynomial contrasts of {spec.factor}:", "", markdown_table(ct), ""]
-            if len(ct) >= 2:
-                text += [compare_trends(ct)["text"], ""]
+        if run_anova:
+            fit = fit_design(design)
+            table = fit.table
+            tables.append(_csv(table, sec_dir / "anova.csv"))
+            text += [anova_text(table, cfg.alpha), ""]
+            info["anova"] = json_records(table)
+            info["n_subjects"], info["dropped"] = design.n, design.dropped
+            # post-hocs for significant effects
+            ph_lines = []
+            for _, row in table.iterrows():
+                p = row["p_gg"] if sphericity_corrected(row, cfg.alpha) else row["p"]
+                factors = row["effect"].split(":")
+                n_cells = int(np.prod([len({**design.within, **design.between}[f]) for f in factors]))
+                if p >= cfg.alpha or len(factors) > cfg.posthoc.max_order or n_cells > cfg.posthoc.max_cells:
+                    continue
+                ph = pairwise_comparisons(fit, row["effect"], cfg.posthoc.adjust)
+                tables.append(_csv(ph, sec_dir / f"posthoc_{row['effect'].replace(':', '_x_')}.csv"))
+                sig = ph[ph.p < cfg.alpha]
+                shown = "; ".join(format_comparison(r) for _, r in sig.assign(_abs=sig.t.abs()).nlargest(4, "_abs").iterrows())
+                ph_lines.append(f"- {row['effect']}: {len(sig)} of {len(ph)} pairs differ ({cfg.posthoc.adjust}, "
+                                f"α = {cfg.alpha})" + (f"; strongest: {shown}" if shown else ""))
+            if ph_lines:
+                text += ["Post-hoc comparisons:", "", *ph_lines, ""]
+            for spec in cfg.contrasts:
+                ct = contrasts_from_design(design, spec.factor, spec.max_degree)
+                tables.append(_csv(ct, sec_dir / f"contrasts_{spec.factor}.csv"))
+                text += [f"Polynomial contrasts of {spec.factor}:", "", markdown_table(ct), ""]
+                if len(ct) >= 2:
+                    text += [compare_trends(ct)["text"], ""]
         # figures
         ylim = tuple(cfg.scale_range) if cfg.scale_range else None
         for spec in cfg.figures.interactions:
@@ -214,6 +283,12 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
         if cfg.reference is not None:
             rtext, rfigs, rtables, info["reference"] = _reference(cfg, raw, data, col, name, sec_dir, ylim, source)
             text, figs, tables = text + rtext, figs + rfigs, tables + rtables
+        if run_mixed:
+            mtext, mfigs, mtables, info["lmm"] = _lmm(cfg, data, col, name, sec_dir, source)
+            text, figs, tables = text + mtext, figs + mfigs, tables + mtables
+        if run_ordinal:
+            otext, ofigs, otables, info["ordinal"] = _ordinal(cfg, data, col, name, sec_dir, source)
+            text, figs, tables = text + otext, figs + ofigs, tables + otables
         result.sections.append(ReportSection(title=f"Scale: {name}", text="\n".join(text[2:]), figures=figs, tables=tables))
         md += text + [f"![{Path(f).stem}]({Path(f).relative_to(out)})" for f in figs] + [""]
         summary["scales"][name] = info
