@@ -237,3 +237,24 @@ def test_two_categories_fit_a_binary_model():
     d = data("R_CLMM_CROSSED")
     fit = fit_clmm("high ~ shape + (1 | participant) + (1 | stimulus)", d.assign(high=1 + (d["rating"] >= 5)))
     assert fit.converged and fit.threshold_names == ["1|2"] and len(fit.columns) == 2
+
+
+def test_cli_clmm_equals_the_library_and_fails_in_one_line(tmp_path, capsys):
+    import json
+
+    from appeal_cli import main
+
+    data = ROOT / "data" / "clmm_crossed.csv"
+    formula = "rating ~ shape * material + (1 | participant) + (1 | stimulus)"
+    out = tmp_path / "c.json"
+    rc = main(["analyze", "clmm", str(data), "--formula", formula, "--probabilities", "shape",
+               "--figure", str(tmp_path / "p"), "--json", str(out)])
+    assert rc == 0 and (tmp_path / "p.png").is_file()
+    res = json.loads(out.read_text())
+    fit = fit_clmm(formula, pd.read_csv(data))
+    assert np.allclose([r["estimate"] for r in res["coefficients"]], fit.beta, rtol=1e-9)
+    assert [r["term"] for r in res["lr_tests"]] == ["shape", "material", "shape:material"]
+    capsys.readouterr()
+    rc = main(["analyze", "clmm", str(data), "--formula", "rating ~ shape + (1 + shape | participant)"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "intercept" in err
