@@ -9,8 +9,10 @@ column by column, as lme4's ``getME(m, "theta")``) the penalised least-squares s
 
 is solved once by a dense Cholesky factorisation; the cross products Z'Z, Z'X, X'X, Z'y, X'y and
 y'y are computed once, so the cost of a deviance does not grow with the number of rows. The
-profiled REML (or ML) deviance is minimised over θ with its exact gradient (L-BFGS-B, bounds on
-the diagonal of each factor); σ² and β follow in closed form.
+profiled REML (or ML) deviance is minimised over θ with its exact gradient (L-BFGS-B, then Newton
+steps); θ is unbounded — only ΛΛ' enters the model, and negating a column of a factor does not
+change it — and each factor's diagonal is made positive afterwards (lme4 bounds it at 0, where a
+gradient method that lands stays: the deviance is even in it). σ² and β follow in closed form.
 
 Why our own: statsmodels' MixedLM fits crossed effects only as variance components of one
 group (no correlated slopes), with z-tests, and did not converge on 40 × 250 crossed designs; the
@@ -469,7 +471,7 @@ def _off_bound(f, theta: np.ndarray, dev: float, lower: np.ndarray) -> np.ndarra
     lme4's derivative-free BOBYQA does not see this; probing each bounded parameter does.
     """
     best, best_dev = None, dev - 1e-10 * max(1.0, abs(dev))
-    for i in np.flatnonzero((lower == 0) & (theta <= 1e-8)):
+    for i in np.flatnonzero((lower == 0) & (np.abs(theta) <= 1e-8)):
         for value in (0.003, 0.03, 0.1, 0.5, 1.0):
             trial = theta.copy()
             trial[i] = value
