@@ -23,7 +23,7 @@ def _random_terms(value: str) -> str:
     try:
         f = parse_formula(f"y ~ 1 + {value}")
     except FormulaError as exc:
-        raise ValueError(str(exc)) from None
+        raise ValueError(str(exc).replace("y ~ 1 + ", "")) from None
     if f.fixed or not f.random:
         raise ValueError(f"expected 'maximal' or lme4 random terms such as '(1 + shape | participant_id) + (1 | stimulus)', "
                          f"got '{value}'")
