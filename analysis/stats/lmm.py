@@ -455,11 +455,9 @@ def fit_lmm(formula: str | Formula | ModelMatrices, data: pd.DataFrame | None = 
 def _positive_diagonal(prob: LmmProblem, theta: np.ndarray) -> np.ndarray:
     """The same ΛΛ' with every factor's diagonal ≥ 0 (columns with a negative diagonal negated)."""
     out = theta.copy()
-    for blk, sl in zip(prob.mm.blocks, prob.theta_slices):
-        T = prob.factors(theta)[prob.mm.blocks.index(blk)]
+    for blk, sl, T in zip(prob.mm.blocks, prob.theta_slices, prob.factors(theta)):
         T = T * np.where(np.diag(T) < 0, -1.0, 1.0)[None, :]
-        r, c = _tril_colmajor(blk.k)
-        out[sl] = T[r, c]
+        out[sl] = T[_tril_colmajor(blk.k)]
     return out
 
 

@@ -105,11 +105,9 @@ def _contrast_table(fit: LmmFit, tests, C: np.ndarray, names: list[str], adjust:
     if adjust == "tukey":
         p = stats.studentized_range.sf(np.abs(t) * np.sqrt(2), family, df)
     else:
-        p = 2 * stats.t.sf(np.abs(t), df)
-        if adjust in ("holm", "bonferroni"):
-            from statsmodels.stats.multitest import multipletests
+        from analysis.stats.posthoc import _adjust
 
-            p = multipletests(p, method=adjust)[1]
+        p = _adjust(2 * stats.t.sf(np.abs(t), df), adjust)
     return pd.DataFrame({"contrast": names, "estimate": est, "se": se, "df": df, "t": t,
                          "p": np.minimum(p, 1.0), "adjust": adjust})[EMM_CONTRAST_COLUMNS]
 

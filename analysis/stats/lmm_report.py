@@ -22,8 +22,8 @@ from analysis.stats.lmm_anova import inference, lmm_anova
 from analysis.stats.lmm_emmeans import emm_pairs, emmeans
 from analysis.stats.plots import interaction_plot
 from analysis.stats.random_structures import fit_with_fallback, structure_table
+from analysis.stats.records import json_records, write_csv
 from analysis.stats.reporting import format_p, markdown_table
-from appeal.atomic import atomic_write_text
 
 __all__ = ["LmmSection", "lmm_section", "coefficient_table", "model_formula"]
 
@@ -39,12 +39,6 @@ class LmmSection:
     fit: LmmFit | None = None
 
 
-def _csv(df: pd.DataFrame, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, df.to_csv(index=False))
-    return path
-
-
 def model_formula(response: str, factors: Sequence[str]) -> str:
     """``response ~ a * b * c`` (every interaction of the design's factors)."""
     return f"{response} ~ " + (" * ".join(factors) if factors else "1")
@@ -58,14 +52,6 @@ def coefficient_table(fit: LmmFit, tests) -> pd.DataFrame:
     t = fit.beta / se
     return pd.DataFrame({"term": fit.mm.columns, "estimate": fit.beta, "se": se, "df": df, "t": t,
                          "p": 2 * stats.t.sf(np.abs(t), df)})
-
-
-def _records(df: pd.DataFrame) -> list[dict]:
-    out = []
-    for rec in df.to_dict(orient="records"):
-        out.append({k: (None if isinstance(v, float) and np.isnan(v) else (v.item() if hasattr(v, "item") else v))
-                    for k, v in rec.items()})
-    return out
 
 
 def lmm_section(data: pd.DataFrame, response: str, label: str, factors: Sequence[str], groups: Sequence[str],
@@ -103,8 +89,8 @@ def lmm_section(data: pd.DataFrame, response: str, label: str, factors: Sequence
     coefs = coefficient_table(fit, tests)
     vc = fit.variance_components()
     structures = structure_table(attempts, fit)
-    sec.tables += [_csv(table, out_dir / "lmm_anova.csv"), _csv(coefs, out_dir / "lmm_coefficients.csv"),
-                   _csv(vc, out_dir / "lmm_variance_components.csv"), _csv(structures, out_dir / "lmm_structures.csv")]
+    sec.tables += [write_csv(table, out_dir / "lmm_anova.csv"), write_csv(coefs, out_dir / "lmm_coefficients.csv"),
+                   write_csv(vc, out_dir / "lmm_variance_components.csv"), write_csv(structures, out_dir / "lmm_structures.csv")]
     method = {"satterthwaite": "Satterthwaite", "kenward-roger": "Kenward–Roger"}[ddf]
     sec.text += [f"**Linear mixed model** (REML, lme4's formulation; type-III F tests with {method} dfs, "
                  "sum-to-zero contrasts, as afex::mixed) on all "
@@ -129,14 +115,14 @@ def lmm_section(data: pd.DataFrame, response: str, label: str, factors: Sequence
         emm = emmeans(fit, fac, tests)
         pw = emm_pairs(fit, emm, tests)
         safe = row.effect.replace(":", "_x_")
-        sec.tables += [_csv(emm.drop(columns=[]), out_dir / f"lmm_emmeans_{safe}.csv"),
-                       _csv(pw, out_dir / f"lmm_pairs_{safe}.csv")]
+        sec.tables += [write_csv(emm, out_dir / f"lmm_emmeans_{safe}.csv"),
+                       write_csv(pw, out_dir / f"lmm_pairs_{safe}.csv")]
         sig = pw[pw.p < alpha]
         ph_lines.append(f"- {row.effect}: {len(sig)} of {len(pw)} pairs differ (Tukey, α = {alpha})" +
                         ("; strongest: " + "; ".join(f"{r.contrast} = {r.estimate:+.2f}, t({r.df:.1f}) = {r.t:.2f}, "
                                                       f"{format_p(r.p)}" for r in sig.reindex(sig.t.abs().sort_values(
                                                           ascending=False).index).head(3).itertuples()) if len(sig) else ""))
-        sec.records["pairs"][row.effect] = _records(pw)
+        sec.records["pairs"][row.effect] = json_records(pw)
     if ph_lines:
         sec.text += ["Pairwise comparisons of the model's estimated marginal means (emmeans):", "", *ph_lines, ""]
     for x, trace in figures:
@@ -151,6 +137,6 @@ def lmm_section(data: pd.DataFrame, response: str, label: str, factors: Sequence
                                             title=f"{label}: mixed-model EMMs", interval="95% CI of the EMM")[0])
     sec.records.update({"formula": fit.formula.text, "n_obs": fit.n, "singular": fit.singular,
                         "converged": fit.converged, "reml_criterion": fit.deviance, "ddf": ddf,
-                        "anova": _records(table), "variance_components": _records(vc),
-                        "structures": _records(structures)})
+                        "anova": json_records(table), "variance_components": json_records(vc),
+                        "structures": json_records(structures)})
     return sec

@@ -85,7 +85,8 @@ class Attempt:
     fit: LmmFit | None = None
 
 
-def _size_problem(mm, n_rows: int) -> str | None:
+def _size_problem(mm) -> str | None:
+    n_rows = mm.n
     n_theta = sum(b.k * (b.k + 1) // 2 for b in mm.blocks)
     if n_theta > MAX_THETA:
         return f"skipped: {n_theta} covariance parameters (more than {MAX_THETA})"
@@ -149,7 +150,7 @@ def fit_with_fallback(data: pd.DataFrame, formula: str, *, random: str = "maxima
         except FormulaError as exc:
             attempts.append(Attempt(label, f.text, f"not fitted: {exc}"))
             continue
-        skip = _size_problem(mm, mm.n)
+        skip = _size_problem(mm)
         if skip:
             attempts.append(Attempt(label, f.text, skip))
             continue
@@ -159,8 +160,8 @@ def fit_with_fallback(data: pd.DataFrame, formula: str, *, random: str = "maxima
             chosen = fit
             if not fit.singular:
                 break
-            pruned = _drop_zero_terms(fit, terms)
-            if "uncorrelated" in label and pruned is not None:
+            pruned = _drop_zero_terms(fit, terms) if "uncorrelated" in label else None
+            if pruned is not None:
                 queue.insert(0, (f"{label}, zero-variance terms dropped", pruned))
     if chosen is None:
         raise FormulaError(f"{source}: no random-effects structure could be fitted ({attempts[-1].outcome})")

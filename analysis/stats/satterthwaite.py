@@ -84,8 +84,8 @@ class Satterthwaite:
         else:
             t2 = (P.T @ est)[:q] ** 2 / d[:q]
             F = t2.sum() / q
-            nus = np.array([2 * d[m] ** 2 / float(g @ self.vcov_varpar @ g)
-                            for m, g in ((m, np.einsum("i,ijk,j->k", PtL[m], self.jacobian, PtL[m])) for m in range(q))])
+            grads = np.einsum("mi,ijk,mj->mk", PtL, self.jacobian, PtL)  # one gradient per direction
+            nus = 2 * d[:q] ** 2 / np.einsum("mk,kl,ml->m", grads, self.vcov_varpar, grads)
             ddf = f_test_ddf(nus)
         return {"F": float(F), "num_df": q, "den_df": float(ddf), "p": float(stats.f.sf(F, q, ddf))}
 

@@ -5,7 +5,6 @@ of significant effects, contrasts, Cronbach's alpha between scales, figures and 
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from analysis.stats.intervals import within_ci_from_design
 from analysis.stats.mixed import mixed_model_anova
 from analysis.stats.plots import bar_plot, interaction_plot, realism_vs_appeal_plot, reference_plot
 from analysis.stats.posthoc import pairwise_comparisons
+from analysis.stats.records import json_records, write_csv
 from analysis.stats.reference import reference_table
 from analysis.stats.reliability import cronbach_alpha
 from analysis.stats.reporting import anova_text, format_comparison, markdown_table, sphericity_corrected
@@ -41,21 +41,6 @@ class StudyResult:
     summary: dict = field(default_factory=dict)
 
 
-def json_records(df: pd.DataFrame) -> list[dict]:
-    """Rows as dicts with NaN → None and numpy scalars → Python numbers (for JSON)."""
-    out = []
-    for rec in df.to_dict(orient="records"):
-        clean = {}
-        for k, v in rec.items():
-            if isinstance(v, (np.floating, float)):
-                v = None if math.isnan(v) else float(v)
-            elif isinstance(v, np.integer):
-                v = int(v)
-            clean[k] = v
-        out.append(clean)
-    return out
-
-
 def scale_columns(data: pd.DataFrame, requested: list[str] | None, source: str) -> dict[str, str]:
     """Map scale names to columns: ``response_<name>`` (runner files) or ``<name>`` (long tables).
 
@@ -75,12 +60,6 @@ def scale_columns(data: pd.DataFrame, requested: list[str] | None, source: str) 
     return out
 
 
-def _csv(df: pd.DataFrame, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, df.to_csv(index=False))
-    return path
-
-
 def _reference(cfg, raw: pd.DataFrame, main: pd.DataFrame, col: str, name: str, sec_dir: Path,
                ylim: tuple | None, source: str) -> tuple[list[str], list[Path], list[Path], list[dict]]:
     """The reference's ratings beside the matched levels: text, figure, table, records."""
@@ -91,7 +70,7 @@ def _reference(cfg, raw: pd.DataFrame, main: pd.DataFrame, col: str, name: str, 
         return [f"No {ref.name} ratings in the data (rows {ref.rows}): the comparison is left out.", ""], [], [], []
     table = reference_table(rows, main, col, cfg.subject, ref.matched, cfg.levels, ref.name, source)
     safe = ref.name.replace(" ", "_")
-    tables = [_csv(table, sec_dir / f"reference_{safe}.csv")]
+    tables = [write_csv(table, sec_dir / f"reference_{safe}.csv")]
     figs = [reference_plot(table, name, sec_dir / f"reference_{safe}", ylim)[0]]
     r = table.iloc[0]
     lines = [f"{ref.name}: mean {r['mean']:.2f} (SD {r['sd']:.2f}, n = {int(r['n'])}); matched "
@@ -150,8 +129,8 @@ def _ordinal(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source
     panel = next((f.trace for f in cfg.figures.interactions if f.trace), None)
     keep = [f for f in dict.fromkeys(shown + ([panel] if panel else []))]
     probs = fit.predicted_probabilities(keep)
-    tables = [_csv(fit.coefficients(), sec_dir / "clmm_coefficients.csv"), _csv(fit.thresholds(), sec_dir / "clmm_thresholds.csv"),
-              _csv(lr, sec_dir / "clmm_lr_tests.csv"), _csv(probs, sec_dir / "clmm_probabilities.csv")]
+    tables = [write_csv(fit.coefficients(), sec_dir / "clmm_coefficients.csv"), write_csv(fit.thresholds(), sec_dir / "clmm_thresholds.csv"),
+              write_csv(lr, sec_dir / "clmm_lr_tests.csv"), write_csv(probs, sec_dir / "clmm_probabilities.csv")]
     figs = [probability_plot(probs, sec_dir / "clmm_probabilities", x=shown[0], panel=panel, scale_label=name)[0]]
     sds = "; ".join(f"{r.group} SD {r.sd:.3f}" for r in fit.variance_components().itertuples())
     text = ["### Ordinal (cumulative-link) mixed model", "",
@@ -222,7 +201,7 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
                 stim = cfg.stimulus if cfg.stimulus and cfg.stimulus in data.columns and cfg.aggregate is None else None
                 mixed = mixed_model_anova(data.assign(**{col: pd.to_numeric(data[col], errors="coerce")}), col,
                                           cfg.subject, cfg.within, cfg.between, stimulus=stim, aggregate=cfg.aggregate)
-                tables.append(_csv(mixed, sec_dir / "mixed_model.csv"))
+                tables.append(write_csv(mixed, sec_dir / "mixed_model.csv"))
                 text += [f"{n_drop} participant(s) miss cells of the design "
                          f"({', '.join(design.dropped) if design else 'every participant'}). Analysis used: **linear mixed "
                          "model** (statsmodels MixedLM, REML, random intercept per participant"
@@ -244,7 +223,7 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
         if run_anova:
             fit = fit_design(design)
             table = fit.table
-            tables.append(_csv(table, sec_dir / "anova.csv"))
+            tables.append(write_csv(table, sec_dir / "anova.csv"))
             text += [anova_text(table, cfg.alpha), ""]
             info["anova"] = json_records(table)
             info["n_subjects"], info["dropped"] = design.n, design.dropped
@@ -257,7 +236,7 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
                 if p >= cfg.alpha or len(factors) > cfg.posthoc.max_order or n_cells > cfg.posthoc.max_cells:
                     continue
                 ph = pairwise_comparisons(fit, row["effect"], cfg.posthoc.adjust)
-                tables.append(_csv(ph, sec_dir / f"posthoc_{row['effect'].replace(':', '_x_')}.csv"))
+                tables.append(write_csv(ph, sec_dir / f"posthoc_{row['effect'].replace(':', '_x_')}.csv"))
                 sig = ph[ph.p < cfg.alpha]
                 shown = "; ".join(format_comparison(r) for _, r in sig.assign(_abs=sig.t.abs()).nlargest(4, "_abs").iterrows())
                 ph_lines.append(f"- {row['effect']}: {len(sig)} of {len(ph)} pairs differ ({cfg.posthoc.adjust}, "
@@ -266,7 +245,7 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
                 text += ["Post-hoc comparisons:", "", *ph_lines, ""]
             for spec in cfg.contrasts:
                 ct = contrasts_from_design(design, spec.factor, spec.max_degree)
-                tables.append(_csv(ct, sec_dir / f"contrasts_{spec.factor}.csv"))
+                tables.append(write_csv(ct, sec_dir / f"contrasts_{spec.factor}.csv"))
                 text += [f"Polynomial contrasts of {spec.factor}:", "", markdown_table(ct), ""]
                 if len(ct) >= 2:
                     text += [compare_trends(ct)["text"], ""]
@@ -314,7 +293,7 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
         rel_rows.append({"scales": " + ".join(group), **res.to_dict()})
     if rel_rows:
         rel = pd.DataFrame(rel_rows)
-        extra_tables.append(_csv(rel, out / "reliability.csv"))
+        extra_tables.append(write_csv(rel, out / "reliability.csv"))
         extra_text += ["Cronbach's α between scales (observations = participant × stimulus, Feldt 95% CI):", ""]
         extra_text += [f"- {r['scales']}: α = {r['alpha']:.2f} [{r['ci_low']:.2f}, {r['ci_high']:.2f}]" for r in rel_rows]
         summary["reliability"] = json_records(rel)
