@@ -33,8 +33,10 @@ __all__ = [
     "EXPRESSIONS",
     "apply_expression",
     "deformation_transfer",
+    "expression_delta",
     "expression_weights",
     "facs_recipes",
+    "pose_weights",
     "resolve_expression",
 ]
 
@@ -201,6 +203,46 @@ def deformation_transfer(src_rest: np.ndarray, src_deformed: np.ndarray, tgt_res
     return out
 
 
+def expression_delta(rig: FaceRig, weights: dict[str, float]) -> np.ndarray:
+    """``Σ w_k δ_k`` of ``rig``'s blendshapes (the weights' names must be the rig's; ValueError names
+    those it lacks)."""
+    missing = sorted(s for s in weights if s not in rig.blendshapes)
+    if missing:
+        raise ValueError(f"rig '{rig.name}' lacks blendshape(s) {', '.join(missing)}")
+    delta = np.zeros_like(rig.vertices)
+    for s, w in sorted(weights.items()):
+        if w:
+            delta += w * rig.blendshapes[s]
+    return delta
+
+
+def pose_weights(rig: FaceRig, weights: dict[str, float], *, target: np.ndarray | None = None,
+                 method: str = "deformation_transfer") -> np.ndarray:
+    """Vertices of ``rig`` (or of a ``target`` neutral in its topology) posed by blendshape weights.
+
+    Parameters
+    ----------
+    rig : FaceRig
+    weights : dict of str to float
+        Blendshape name -> weight (e.g. :func:`expression_weights`, or one frame of a retargeted
+        animation).
+    target : (N, 3) array, optional
+        Another neutral in the rig's topology (a stylised shape). Default: the rig's own.
+    method : {"deformation_transfer", "delta"}
+        How ``rig``'s deformation is carried onto ``target``: deformation transfer of the
+        whole pose (Sumner & Popović 2004), or the deltas added unchanged.
+    """
+    delta = expression_delta(rig, weights)
+    if target is None:
+        return rig.vertices + delta
+    target = np.asarray(target, np.float64)
+    if method == "delta" or not any(weights.values()):
+        return target + delta
+    if method != "deformation_transfer":
+        raise ValueError(f"unknown method '{method}' (expected deformation_transfer or delta)")
+    return deformation_transfer(rig.vertices, rig.vertices + delta, target, rig.faces)
+
+
 def apply_expression(rig: FaceRig, expression: str, intensity: float = 1.0, *,
                      target: np.ndarray | None = None, method: str = "deformation_transfer") -> np.ndarray:
     """Vertices of ``rig`` (or of a stylised ``target`` in its topology) showing an expression.
@@ -225,17 +267,9 @@ def apply_expression(rig: FaceRig, expression: str, intensity: float = 1.0, *,
         Unknown expression, or a recipe shape the rig lacks (the message names it).
     """
     weights = expression_weights(expression, intensity)
-    missing = sorted(s for s in weights if s not in rig.blendshapes)
-    if missing:
-        raise ValueError(f"rig '{rig.name}' lacks blendshape(s) {', '.join(missing)} needed by '{expression}'")
-    delta = np.zeros_like(rig.vertices)
-    for s, w in sorted(weights.items()):
-        delta += w * rig.blendshapes[s]
-    if target is None:
-        return rig.vertices + delta
-    target = np.asarray(target, np.float64)
-    if method == "delta" or not weights:
-        return target + delta
-    if method != "deformation_transfer":
-        raise ValueError(f"unknown method '{method}' (expected deformation_transfer or delta)")
-    return deformation_transfer(rig.vertices, rig.vertices + delta, target, rig.faces)
+    try:
+        return pose_weights(rig, weights, target=target, method=method)
+    except ValueError as exc:
+        if "lacks blendshape" in str(exc):
+            raise ValueError(f"{exc} needed by '{expression}'") from None
+        raise

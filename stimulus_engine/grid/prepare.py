@@ -37,7 +37,7 @@ from stimulus_engine.grid.worker import RenderItem
 from stimulus_engine.grid.schema import GridFile, MaterialSpec
 from stimulus_engine.render.vignette import face_oval
 
-__all__ = ["PreparedMaterial", "measured_grid", "prepare_grid"]
+__all__ = ["PreparedMaterial", "measured_grid", "posed_vertices", "prepare_grid"]
 
 
 @dataclass(frozen=True)
@@ -188,14 +188,25 @@ def _gaze_target(grid: GridFile, cam: tuple) -> np.ndarray | None:
     return np.asarray(cam[0] if gaze == "camera" else gaze, np.float64)
 
 
+def posed_vertices(ch: Character, shape: float, shape_v: np.ndarray, weights: dict[str, float],
+                   grid: GridFile) -> np.ndarray:
+    """The character's rig at one shape level (neutral ``shape_v``) posed by blendshape ``weights``.
+
+    The rig's own blendshapes on its own neutral; carried onto a stylised shape or a
+    corresponded mesh character by the grid's expression transfer. ValueError names a weight's
+    blendshape the rig lacks.
+    """
+    from stimulus_engine.characters.expressions import pose_weights
+
+    plain = shape == 0 and ch.expression_rig is ch.rig
+    return pose_weights(ch.expression_rig, weights, target=None if plain else shape_v)
+
+
 def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFile, cache: Path,
               source: str, target: np.ndarray | None = None) -> tuple[Path, str]:
-    """The posed vertices of (character, shape, expression) in ``cache/geometry`` and their hash.
-
-    The rig's own blendshapes on its own neutral; deformation transfer onto a stylised shape or
-    a corresponded mesh character; then the eyeballs turned to look at ``target`` (if given).
-    """
-    from stimulus_engine.characters.expressions import apply_expression
+    """The posed vertices of (character, shape, expression) in ``cache/geometry`` and their hash
+    (:func:`posed_vertices`, then the eyeballs turned to look at ``target``, if given)."""
+    from stimulus_engine.characters.expressions import expression_weights
     from stimulus_engine.characters.gaze import aim_eyes
     from stimulus_engine.characters.lashes import seat_lashes
 
@@ -204,11 +215,10 @@ def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
     gh = sha(GRID_VERSION, ch.rig_hash, im.shape, im.expression, r.intensity, *aim)
     gp = cache / "geometry" / f"{gh}.npy"
     if not gp.exists():
-        plain = im.shape == 0 and ch.expression_rig is ch.rig
         try:
-            v = apply_expression(ch.expression_rig, im.expression, r.intensity, target=None if plain else shape_v)
+            v = posed_vertices(ch, im.shape, shape_v, expression_weights(im.expression, r.intensity), grid)
         except ValueError as exc:  # a recipe shape the rig lacks
-            raise AppealInputError(f"{source}: characters.{im.character}: {exc}") from None
+            raise AppealInputError(f"{source}: characters.{im.character}: {exc} needed by '{im.expression}'") from None
         v = seat_lashes(ch.rig, ch.rig.vertices, v)
         if target is not None:
             v = aim_eyes(ch.rig.landmarks, v, target)
