@@ -16,9 +16,15 @@ MeshCharacter, correspond_rig, front_region
     ``mesh_character``); a scan's surface, eyes, mouth and regions: ``bind_scan``,
     ``eye_geometry``, ``cut_lips``, ``scan_masks`` (modules ``scan_surface``, ``scan_eyes``,
     ``scan_mouth``, ``scan_regions``, ``scan_cut``).
-EXPRESSIONS, apply_expression, expression_weights, deformation_transfer
-    FACS expressions as weighted action units, and deformation transfer (module
-    ``expressions``).
+EXPRESSIONS, apply_expression, expression_weights, pose_weights, deformation_transfer
+    FACS expressions as weighted action units, any blendshape weights, and deformation
+    transfer (module ``expressions``).
+transfer_blendshapes, align_blendshapes, range_of_motion, marker_vertices
+    A rig's blendshapes carried onto another face with range-of-motion alignment (thesis
+    ch. 4; modules ``blendshape_transfer``, ``motion_similarity``, ``markers``).
+retarget_frames, retarget_performance, read_motion
+    Marker or weight performances (C3D, CSV) to blendshape weights, frame by frame (modules
+    ``retarget``, ``motion_files``).
 rig_albedo, rig_detail_maps, check_map
     The character's own albedo, pore normal map and specular map (module ``skin_maps``).
 rig_render_parts, hair_render_part, SHADINGS
@@ -29,12 +35,17 @@ seat_lashes
     Eyelashes kept rooted on the lids in every shape and pose (module ``lashes``).
 """
 
+from stimulus_engine.characters.blendshape_transfer import align_blendshapes, range_of_motion, transfer_blendshapes
 from stimulus_engine.characters.expressions import (
     EXPRESSIONS,
     apply_expression,
     deformation_transfer,
     expression_weights,
+    pose_weights,
 )
+from stimulus_engine.characters.markers import marker_vertices
+from stimulus_engine.characters.motion_files import read_motion
+from stimulus_engine.characters.retarget import retarget_frames, retarget_performance
 from stimulus_engine.characters.gaze import aim_eyes, lines_of_sight
 from stimulus_engine.characters.ict import load_ict_rig
 from stimulus_engine.characters.lashes import seat_lashes
@@ -57,6 +68,7 @@ __all__ = [
     "SHADINGS",
     "ScanSurface",
     "aim_eyes",
+    "align_blendshapes",
     "apply_expression",
     "bind_scan",
     "check_map",
@@ -69,10 +81,17 @@ __all__ = [
     "hair_render_part",
     "lines_of_sight",
     "load_ict_rig",
+    "marker_vertices",
+    "pose_weights",
     "procedural_head",
+    "range_of_motion",
+    "read_motion",
+    "retarget_frames",
+    "retarget_performance",
     "rig_albedo",
     "rig_detail_maps",
     "rig_render_parts",
     "scan_masks",
     "seat_lashes",
+    "transfer_blendshapes",
 ]
