@@ -16,6 +16,7 @@ Examples:
   appeal stimuli grid protocols/grids/exp1a_shape_material.yaml --out stimuli/exp1a
   appeal stimuli grid protocols/grids/exp2_stylisation.yaml --out stimuli/exp2 --n-jobs 2
   appeal stimuli grid protocols/grids/exp2_stylisation.yaml --out stimuli/exp2 --resume   # only what changed
+  appeal stimuli grid my_animated_grid.yaml --out stimuli/clips   # animation: {...}: clips, DIR/clips/*.mp4
   appeal validate protocols/grids/*.yaml                                                    # check without rendering""")
 @click.argument("grid_file", metavar="GRID.yaml", type=click.Path(path_type=Path))
 @out_options()
@@ -37,11 +38,20 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
     input hashes, camera, seconds), DIR/landmarks.csv, contact sheets and the continuum report
     (DIR/continuum.csv and .png: per character, the image step between neighbouring shape and
     material levels and each level's identity distance to the realistic one, dlib's face
-    descriptor, same person within 0.6). materials: {levels: 5} asks for five levels of one
+    descriptor, same person within 0.6) and, with neutral plus other expressions at several shape
+    levels, how far each expression moves the face at each level in face lengths
+    (DIR/expression_measures.csv: mouth opening and width, mouth corner and brow raise, eye
+    opening, total; DIR/expression_agreement.csv: their spread across levels against the
+    realistic one; DIR/expression_measures.png). materials: {levels: 5} asks for five levels of one
     painted family spaced by measured image steps; the run prints the levels it measured as the
     grid file's materials.measured (and shapes.measured) that pin them, as the shipped grids do.
-    With --resume, images whose inputs are unchanged are kept. All input problems are reported
-    before rendering.
+    With animation: {fps, lead, onset, hold, easing, expression} in GRID.yaml every cell is a clip
+    from neutral to its apex instead: DIR/clips/<cell>/frame_00000.png ... (lossless) and
+    DIR/clips/<cell>.mp4 (H.264, every frame a key frame), one manifest row per clip (frames,
+    n_frames, fps, onset_frame, apex_frame, weight_curve, frames_sha256, mp4_sha256), contact
+    sheets of the apex frames and a filmstrip per character.
+    With --resume, images (and clips) whose inputs are unchanged are kept. All input problems are
+    reported before rendering.
     """
     import json
 
@@ -56,7 +66,8 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
         manifest, sheets = run_grid(spec, run.out, n_jobs=n_jobs, scheduler=scheduler, source=str(grid_file))
         n_ok = int(manifest["status"].isin(["rendered", "up to date"]).sum())
         run.extra["images"] = len(manifest)
-        click.echo(f"{n_ok} of {len(manifest)} images in {run.out / 'images'}; manifest {run.out / 'manifest.csv'}")
+        what = "clips" if spec.animation is not None else "images"
+        click.echo(f"{n_ok} of {len(manifest)} {what} in {run.out / what}; manifest {run.out / 'manifest.csv'}")
         for s in sheets:
             click.echo(f"continuum: {s} (table {s.with_suffix('.csv')})" if s.name == "continuum.png"
                        else f"contact sheet: {s}")

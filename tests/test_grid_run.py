@@ -48,7 +48,8 @@ def test_grid_manifest_files_and_resume(tmp_path):
     assert set(manifest["emotion"]) == {"neutral", "happy"} and set(manifest["expression"]) == {"neutral", "happiness"}
     assert (manifest["status"] == "rendered").all()
     assert all((out / f).exists() for f in manifest["file"])
-    assert [s.name for s in sheets] == ["contact_sheet.png", "contact_sheet_expressions.png", "continuum.png"]
+    assert [s.name for s in sheets] == ["contact_sheet.png", "contact_sheet_expressions.png", "continuum.png",
+                                       "expression_measures.png"]
     on_disk = pd.read_csv(out / "manifest.csv")
     assert list(on_disk["file"]) == list(manifest["file"])
     # the material from another character differs from a's own albedo, but not from b's
@@ -85,7 +86,8 @@ def test_stylisation_index_and_paired_materials(tmp_path):
     pairs = set(zip(manifest["stylisation"], manifest["shape_label"], manifest["material"]))
     assert pairs == {(1, "realistic", "original"), (0, "cartoon", "flat")}
     # the contact sheets show the 2 characters x 2 pairs the grid has: no empty (red) cells
-    assert [p.name for p in sheets] == ["contact_sheet.png", "contact_sheet_expressions.png", "continuum.png"]
+    assert [p.name for p in sheets] == ["contact_sheet.png", "contact_sheet_expressions.png", "continuum.png",
+                                       "expression_measures.png"]
     for p in sheets:
         img = np.asarray(Image.open(p).convert("RGB")).astype(int)
         red = (img[..., 0] == 200) & (img[..., 1] == 0) & (img[..., 2] == 0)

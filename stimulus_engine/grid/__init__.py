@@ -22,9 +22,21 @@ is given), and writes:
     expression/lighting/shading; and the same rows against expressions (and lighting/shading).
     Only the cells the grid has: with ``pair_materials_with_shapes`` the first sheet has one row
     per character and one column per shape+material pair.
+``DIR/continuum.csv``, ``continuum.png``
+    The stylisation continuum (:mod:`~stimulus_engine.grid.continuum`).
+``DIR/expression_measures.csv``, ``expression_agreement.csv``, ``expression_measures.png``
+    With a neutral and another expression at more than one shape level: how far each expression
+    moves the face at each level in face lengths, and how far the levels agree
+    (:mod:`~stimulus_engine.grid.expression_measures`).
+``DIR/clips/<stem>/frame_00000.png`` ..., ``DIR/clips/<stem>.mp4``, ``DIR/filmstrip_<character>.png``
+    With ``animation:`` every cell is a clip from neutral to its apex instead of an image: its
+    lossless PNG frames and an H.264 MP4, one manifest row per clip (its ``file`` the MP4, with
+    ``frames``, ``n_frames``, ``fps``, ``onset_frame``, ``apex_frame``, ``weight_curve``,
+    ``frames_sha256``, ``mp4_sha256``); the contact sheets show the apex frames, a filmstrip per
+    character the onset over time (:mod:`~stimulus_engine.grid.animation`).
 
-A re-run over the same folder (``--resume``) skips images whose ``input_hash`` and file are
-unchanged.
+A re-run over the same folder (``--resume``) skips images (and clips) whose ``input_hash`` and
+files are unchanged.
 
 The package, one step per module (each usable on its own):
 
@@ -38,6 +50,8 @@ The package, one step per module (each usable on its own):
     render item and manifest row per planned image.
 :mod:`~stimulus_engine.grid.worker`
     One image rendered by a render engine (:data:`~stimulus_engine.grid.worker.ENGINES`).
+:mod:`~stimulus_engine.grid.animation`
+    An animated grid's weight curve, its clips' frames prepared and rendered.
 :mod:`~stimulus_engine.grid.sheets`
     Contact sheets.
 :mod:`~stimulus_engine.grid.run`

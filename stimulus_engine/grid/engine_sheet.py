@@ -46,6 +46,7 @@ def engine_grid(grid: GridFile, engine: str, character: str | None = None, shadi
         "characters": chars, "shapes": [0.0], "materials": grid.material_specs()[:1],
         "pair_materials_with_shapes": False, "expressions": list(SHEET_EXPRESSIONS),
         "lighting": list(SHEET_LIGHTING), "shading": [shading], "render": render, "photographs": [],
+        "animation": None,  # still images (an animated grid's apexes)
     })
 
 

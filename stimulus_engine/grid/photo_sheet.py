@@ -106,7 +106,9 @@ def realism_sheet(manifest_path: str | Path, photos: Sequence[str | Path], *, th
     if missing:
         raise AppealInputError(f"{manifest_path}: {', '.join(missing)}: column(s) missing (expected the manifest.csv "
                                "'appeal stimuli grid' writes)")
-    best = realistic_images(manifest)
+    from stimulus_engine.grid.animation import apex_view
+
+    best = realistic_images(apex_view(manifest))  # an animated grid's clips by their apex frames
     cells, rows = [], []
     for k, (_, r) in enumerate(best.iterrows()):
         render = _read_image(manifest_path.parent / r["file"], f"{manifest_path}: file")

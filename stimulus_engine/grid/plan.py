@@ -68,15 +68,18 @@ class PlannedPhoto:
 
 
 def plan_images(grid: GridFile) -> list[PlannedImage]:
-    """Every rendered image of ``grid``, in manifest order."""
+    """Every rendered image of ``grid``, in manifest order (an animated grid's cells: each clip's
+    apex; with ``animation.expression`` a recipe name, that is every cell's ``expression``)."""
     mats = grid.material_specs()
     stylisation = grid.stylisation_index()
+    anim = grid.animation
+    named = anim is not None and anim.expression != "cell"  # every cell animates that expression
     out = []
     for c in grid.characters:
         for pos, level in enumerate(grid.shape_levels()):
             label = shape_label(level)
             for expr in grid.expressions:
-                canon = resolve_expression(expr)
+                canon = resolve_expression(anim.expression if named else expr)
                 for m in [mats[pos]] if grid.pair_materials_with_shapes else mats:
                     for light in grid.lighting:
                         for shading in grid.shading:

@@ -15,6 +15,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -37,7 +38,10 @@ from stimulus_engine.grid.worker import RenderItem
 from stimulus_engine.grid.schema import GridFile, MaterialSpec
 from stimulus_engine.render.vignette import face_oval
 
-__all__ = ["PreparedMaterial", "measured_grid", "posed_vertices", "prepare_grid"]
+if TYPE_CHECKING:
+    from stimulus_engine.grid.animation import ClipItem
+
+__all__ = ["PreparedMaterial", "level_blendshapes", "measured_grid", "posed_vertices", "prepare_grid"]
 
 
 @dataclass(frozen=True)
@@ -188,42 +192,142 @@ def _gaze_target(grid: GridFile, cam: tuple) -> np.ndarray | None:
     return np.asarray(cam[0] if gaze == "camera" else gaze, np.float64)
 
 
+#: Each (character, shape level, method)'s transferred blendshapes, made once per process.
+_LEVEL_RIGS: dict[tuple, dict[str, np.ndarray]] = {}
+
+
+def level_blendshapes(ch: Character, shape: float, shape_v: np.ndarray, method: str) -> dict[str, np.ndarray]:
+    """The character's blendshapes carried onto one shape level by ``method`` (``aligned`` or ``rbf``:
+    :func:`~stimulus_engine.characters.blendshape_transfer.transfer_blendshapes`), made once."""
+    from stimulus_engine.characters.blendshape_transfer import transfer_blendshapes
+
+    key = (ch.rig_hash, float(shape), method)
+    if key not in _LEVEL_RIGS:
+        if len(_LEVEL_RIGS) >= 16:
+            _LEVEL_RIGS.clear()
+        _LEVEL_RIGS[key] = transfer_blendshapes(ch.expression_rig, shape_v, method)
+    return _LEVEL_RIGS[key]
+
+
 def posed_vertices(ch: Character, shape: float, shape_v: np.ndarray, weights: dict[str, float],
                    grid: GridFile) -> np.ndarray:
     """The character's rig at one shape level (neutral ``shape_v``) posed by blendshape ``weights``.
 
     The rig's own blendshapes on its own neutral; carried onto a stylised shape or a
-    corresponded mesh character by the grid's expression transfer. ValueError names a weight's
-    blendshape the rig lacks.
+    corresponded mesh character by the grid's ``expression_transfer``: deformation transfer of
+    the whole pose, or the level's own blendshapes (:func:`level_blendshapes`: aligned to the
+    rig's range of motion in face units, or RBF proportion matching) weighted and added.
+    ValueError names a weight's blendshape the rig lacks.
     """
-    from stimulus_engine.characters.expressions import pose_weights
+    from stimulus_engine.characters.expressions import expression_delta, pose_weights
 
     plain = shape == 0 and ch.expression_rig is ch.rig
-    return pose_weights(ch.expression_rig, weights, target=None if plain else shape_v)
+    method = grid.expression_transfer
+    if plain or method == "deformation_transfer" or not any(weights.values()):
+        return pose_weights(ch.expression_rig, weights, target=None if plain else shape_v)
+    expression_delta(ch.expression_rig, weights)  # ValueError: a blendshape the rig lacks
+    shapes = level_blendshapes(ch, shape, shape_v, method)
+    out = np.array(shape_v, np.float64, copy=True)
+    for name, w in sorted(weights.items()):
+        if w:
+            out += w * shapes[name]
+    return out
+
+
+def rig_geometry(ch: Character, shape: float, shape_v: np.ndarray, weights: dict[str, float], grid: GridFile,
+                 target: np.ndarray | None, what: tuple[str, str]) -> np.ndarray:
+    """The rig at one shape level posed by ``weights`` (:func:`posed_vertices`), its lashes seated
+    on the lids and its eyeballs turned to look at ``target`` (if given); float32, as cached.
+
+    ``what``: (where, expression) for the one-line error of a weight the rig lacks
+    (``"<file>: characters.<name>: <the rig's complaint> needed by '<expression>'"``).
+    """
+    from stimulus_engine.characters.gaze import aim_eyes
+    from stimulus_engine.characters.lashes import seat_lashes
+
+    try:
+        v = posed_vertices(ch, shape, shape_v, weights, grid)
+    except ValueError as exc:  # a recipe shape the rig lacks
+        raise AppealInputError(f"{what[0]}: {exc} needed by '{what[1]}'") from None
+    v = seat_lashes(ch.rig, ch.rig.vertices, v)
+    if target is not None:
+        v = aim_eyes(ch.rig.landmarks, v, target)
+    return v.astype(np.float32)
+
+
+def _upper_teeth(ch: Character, memo: dict[str, np.ndarray]) -> np.ndarray:
+    """A scan character's upper teeth (:func:`~stimulus_engine.characters.incisor_display.upper_teeth`),
+    found once per character (``memo``)."""
+    from stimulus_engine.characters.incisor_display import upper_teeth
+
+    if ch.spec.name not in memo:
+        topo = ch.scan.topology
+        memo[ch.spec.name] = upper_teeth(topo.vertices, topo.faces, topo.face_part, topo.part_names)
+    return memo[ch.spec.name]
+
+
+def drawn_geometry(ch: Character, posed: np.ndarray, target: np.ndarray | None,
+                   teeth: dict[str, np.ndarray]) -> np.ndarray:
+    """What is drawn of the posed rig ``posed`` (:func:`rig_geometry`): the rig itself, or a scan
+    character's own surface posed through it, its eyeballs aimed at ``target``, its upper incisors
+    shown between parted lips and the mouth's inside and the eyeballs kept behind its skin
+    (``teeth``: the upper teeth met so far, by character); float32, as cached."""
+    from stimulus_engine.characters.gaze import aim_eyes
+    from stimulus_engine.characters.incisor_display import show_upper_incisors
+    from stimulus_engine.characters.skin_clearance import eyes_behind_skin, inside_behind_skin
+
+    if ch.scan is None:
+        return posed
+    topo = ch.scan.topology
+    drawn = ch.scan.pose(posed)
+    if target is not None:  # the drawn eyeballs follow the rig's only nearly: aim them too
+        drawn = aim_eyes(topo.landmarks, drawn, target)
+    rig_pose = ch.rig.landmark_points(posed)
+    drawn = show_upper_incisors(drawn, topo.faces, topo.face_part, topo.part_names, _upper_teeth(ch, teeth),
+                                rig_pose["mouth_left"], rig_pose["mouth_right"],
+                                float(np.linalg.norm(rig_pose["eye_left"] - rig_pose["eye_right"])))
+    drawn = inside_behind_skin(drawn, topo.faces, topo.face_part, topo.part_names)
+    drawn = eyes_behind_skin(drawn, topo.faces, topo.face_part, topo.part_names, topo.landmarks)
+    return drawn.astype(np.float32)
+
+
+def cell_vertices(ch: Character, shape: float, shape_v: np.ndarray, weights: dict[str, float], grid: GridFile,
+                  target: np.ndarray | None, teeth: dict[str, np.ndarray], what: tuple[str, str]) -> np.ndarray:
+    """The drawn vertices (float32) of a cell posed by ``weights``: :func:`rig_geometry`, then
+    :func:`drawn_geometry` — the one chain a still image and every frame of a clip go through."""
+    return drawn_geometry(ch, rig_geometry(ch, shape, shape_v, weights, grid, target, what), target, teeth)
 
 
 def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFile, cache: Path,
               source: str, target: np.ndarray | None = None) -> tuple[Path, str]:
     """The posed vertices of (character, shape, expression) in ``cache/geometry`` and their hash
-    (:func:`posed_vertices`, then the eyeballs turned to look at ``target``, if given)."""
+    (:func:`rig_geometry`: the eyeballs turned to look at ``target``, if given)."""
     from stimulus_engine.characters.expressions import expression_weights
-    from stimulus_engine.characters.gaze import aim_eyes
-    from stimulus_engine.characters.lashes import seat_lashes
 
     r = grid.render
     aim = () if target is None else ("gaze", *np.round(target, 6).tolist())
-    gh = sha(GRID_VERSION, ch.rig_hash, im.shape, im.expression, r.intensity, *aim)
+    how = () if grid.expression_transfer == "deformation_transfer" else (grid.expression_transfer,)
+    gh = sha(GRID_VERSION, ch.rig_hash, im.shape, im.expression, r.intensity, *aim, *how)
     gp = cache / "geometry" / f"{gh}.npy"
     if not gp.exists():
-        try:
-            v = posed_vertices(ch, im.shape, shape_v, expression_weights(im.expression, r.intensity), grid)
-        except ValueError as exc:  # a recipe shape the rig lacks
-            raise AppealInputError(f"{source}: characters.{im.character}: {exc} needed by '{im.expression}'") from None
-        v = seat_lashes(ch.rig, ch.rig.vertices, v)
-        if target is not None:
-            v = aim_eyes(ch.rig.landmarks, v, target)
-        save_npy(gp, v.astype(np.float32))
+        save_npy(gp, rig_geometry(ch, im.shape, shape_v, expression_weights(im.expression, r.intensity), grid, target,
+                                  (f"{source}: characters.{im.character}", im.expression)))
     return gp, gh
+
+
+def _as_clip(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFile, target: np.ndarray | None,
+             teeth: dict[str, np.ndarray], cache: Path, source: str, still: RenderItem,
+             row: dict) -> tuple[ClipItem, dict]:
+    """The prepared still cell ``still``/``row`` as a clip of ``grid.animation``
+    (:func:`stimulus_engine.grid.animation.prepare_clip`): every frame its apex weights times the
+    curve's, through :func:`cell_vertices` like the still."""
+    from stimulus_engine.characters.expressions import expression_weights
+    from stimulus_engine.grid.animation import frame_weights, prepare_clip
+
+    apex = expression_weights(im.expression, grid.render.intensity)
+    what = (f"{source}: characters.{im.character}", im.expression)
+    return prepare_clip(still, row, grid.animation, cache, lambda w: cell_vertices(
+        ch, im.shape, shape_v, frame_weights(apex, w), grid, target, teeth, what))
 
 
 def _eye_style(grid: GridFile, im: PlannedImage) -> tuple[float, float] | tuple[()]:
@@ -295,11 +399,14 @@ def measured_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Pat
         return grid
     cache = Path(cache) if cache is not None else Path(out) / ".cache"
     chars = _characters(grid, cache, source, characters)
-    return measured(grid, cache, lambda probe: _probe_images(probe, source, cache, chars))
+    still = grid.model_copy(update={"animation": None})  # measured on still images (an animated grid's apexes)
+    done = measured(still, cache, lambda probe: _probe_images(probe, source, cache, chars))
+    return done.model_copy(update={"animation": grid.animation})
 
 
 def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path | None = None,
-                 characters: dict[str, Character] | None = None) -> tuple[pd.DataFrame, list[RenderItem], pd.DataFrame]:
+                 characters: dict[str, Character] | None = None
+                 ) -> tuple[pd.DataFrame, list[RenderItem | ClipItem], pd.DataFrame]:
     """Prepare the inputs of every image in ``out/.cache`` (or ``cache``) and list the images
     (``characters``: the grid's, already loaded).
 
@@ -310,14 +417,13 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
     manifest : DataFrame
         One row per image (``seconds`` and ``status`` still empty; photographs carry their
         source file in ``_photo``).
-    items : list of RenderItem
-        One per rendered image, in manifest order (photographs need no rendering).
+    items : list of RenderItem or ClipItem
+        One per rendered image, in manifest order (photographs need no rendering); with
+        ``grid.animation`` one :class:`~stimulus_engine.grid.animation.ClipItem` per cell, whose
+        row gives its clip (:mod:`stimulus_engine.grid.animation`).
     landmarks : DataFrame
         Long table: character, shape, stylisation, expression, landmark, x, y, z.
     """
-    from stimulus_engine.characters.gaze import aim_eyes
-    from stimulus_engine.characters.incisor_display import show_upper_incisors, upper_teeth
-    from stimulus_engine.characters.skin_clearance import eyes_behind_skin, inside_behind_skin
     from stimulus_engine.stylisation.shape import stylise
 
     cache = Path(cache) if cache is not None else out / ".cache"
@@ -356,20 +462,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
         if ch.scan is not None:  # the posed rig carries the scan's own surface
             gp = cache / "geometry" / f"{sha(gh, 'scan', ch.scan.topology.name)}.npy"
             if not gp.exists():
-                topo = ch.scan.topology
-                if im.character not in uppers:
-                    uppers[im.character] = upper_teeth(topo.vertices, topo.faces, topo.face_part, topo.part_names)
-                posed = np.load(geometry[gkey][0])
-                drawn = ch.scan.pose(posed)
-                if target is not None:  # the drawn eyeballs follow the rig's only nearly: aim them too
-                    drawn = aim_eyes(topo.landmarks, drawn, target)
-                rig_pose = ch.rig.landmark_points(posed)
-                drawn = show_upper_incisors(drawn, topo.faces, topo.face_part, topo.part_names,
-                                            uppers[im.character], rig_pose["mouth_left"], rig_pose["mouth_right"],
-                                            float(np.linalg.norm(rig_pose["eye_left"] - rig_pose["eye_right"])))
-                drawn = inside_behind_skin(drawn, topo.faces, topo.face_part, topo.part_names)
-                drawn = eyes_behind_skin(drawn, topo.faces, topo.face_part, topo.part_names, topo.landmarks)
-                save_npy(gp, drawn.astype(np.float32))
+                save_npy(gp, drawn_geometry(ch, np.load(geometry[gkey][0]), target, uppers))
         look = looks[im.albedo_from, im.material.name]
         extra = () if look.maps_hash == "none" else (look.maps_hash,)  # hashes without maps as before
         eyes = _eye_style(grid, im)
@@ -389,6 +482,8 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
                      "shading": im.shading, "geometry_hash": gh, "albedo_hash": look.albedo_hash,
                      "maps_hash": look.maps_hash, "input_hash": ih, "camera": _camera_text(cam),
                      "width": r.width, "height": r.height})
+        if grid.animation is not None:  # the cell as a clip
+            items[-1], rows[-1] = _as_clip(ch, im, shape_v, grid, target, uppers, cache, source, items[-1], rows[-1])
     for p in plan_photos(grid):
         rows.append({"file": p.file, "character": p.character, "shape": "photograph", "shape_label": "photograph",
                      "stylisation": len(grid.shape_levels()), "material": "photograph",

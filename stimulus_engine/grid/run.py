@@ -1,4 +1,4 @@
-"""The grid workflow: plan and prepare -> render the images not up to date -> manifest, sheets.
+"""The grid workflow: plan and prepare -> render the images (or clips) not up to date -> manifest, sheets.
 
 :func:`run_grid` is the one entry of ``appeal stimuli grid`` (and the demo's grid stage).
 """
@@ -13,10 +13,12 @@ import pandas as pd
 
 from appeal.atomic import atomic_write_text
 from appeal.logs import logger
+from stimulus_engine.grid.animation import apex_view, clip_checksums, render_clip
 from stimulus_engine.grid.characters import load_character
 from stimulus_engine.grid.continuum import continuum_table, write_continuum
+from stimulus_engine.grid.expression_measures import write_expression_measures
 from stimulus_engine.grid.prepare import measured_grid, prepare_grid
-from stimulus_engine.grid.sheets import write_sheets
+from stimulus_engine.grid.sheets import write_filmstrips, write_sheets
 from stimulus_engine.grid.worker import place_photo, render_item
 from stimulus_engine.grid.schema import GridFile
 
@@ -60,8 +62,11 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
         Its ``attrs["grid"]`` is the grid as rendered: continua measured out into listed levels
         (:func:`stimulus_engine.grid.continuum.pins` turns them into a grid file's pins).
     sheets : list of Path
-        The contact sheets written, then the continuum's figure (``continuum.png``, its table
-        ``continuum.csv`` beside it).
+        The contact sheets written (an animated grid's of its clips' apex frames, then a
+        filmstrip per character), then the continuum's figure (``continuum.png``, its table
+        ``continuum.csv`` beside it), then how far each expression moves the face
+        per shape level (``expression_measures.png``, with ``expression_measures.csv`` and
+        ``expression_agreement.csv``; :mod:`stimulus_engine.grid.expression_measures`).
     """
     from appeal.parallel import parallel_map
 
@@ -73,7 +78,7 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     status = {}
     todo = []
     for it, row in zip(items, manifest[manifest["shape"] != "photograph"].itertuples()):
-        if previous.get(it.file) == row.input_hash and (out / it.file).exists():
+        if previous.get(it.file) == row.input_hash and all((out / f).exists() for f in it.outputs()):
             status[it.file] = ("up to date", float("nan"))
         else:
             todo.append(it)
@@ -82,8 +87,9 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     # keeps the texture it drew last on the GPU, and uploading (and mipmapping) a scan's 2400 x
     # 1600 albedo again for every image was a tenth of its time
     todo.sort(key=lambda t: (t.albedo_png, t.rig_npz))
-    res = parallel_map(render_item, todo, n_jobs=n_jobs, scheduler=scheduler, desc="rendering",
-                       labels=[t.file for t in todo])
+    animated = grid.animation is not None  # every cell a clip (stimulus_engine.grid.animation)
+    res = parallel_map(render_clip if animated else render_item, todo, n_jobs=n_jobs, scheduler=scheduler,
+                       desc="rendering clips" if animated else "rendering", labels=[t.file for t in todo])
     failed = {f.index: f.error for f in res.failures}
     for i, (it, secs) in enumerate(zip(todo, res.results)):
         status[it.file] = (f"failed: {failed[i]}", float("nan")) if i in failed else ("rendered", float(secs))
@@ -96,15 +102,20 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     manifest["seconds"] = [round(status[f][1], 4) for f in manifest["file"]]
     manifest["status"] = [status[f][0] for f in manifest["file"]]
     manifest = manifest.drop(columns=[c for c in manifest.columns if c.startswith("_")])
-    continuum = continuum_table(out, manifest, grid)
+    if animated:
+        manifest = clip_checksums(out, manifest)
+    stills = apex_view(manifest)  # a clip shown by its apex frame
+    continuum = continuum_table(out, stills, grid)
     if not continuum.empty:  # each measured image's identity distance to its character's realistic level
-        manifest["identity_to_realistic"] = manifest["file"].map(
+        manifest["identity_to_realistic"] = stills["file"].map(
             continuum.drop_duplicates("file").set_index("file")["identity_to_realistic"])
     atomic_write_text(out / "manifest.csv", manifest.to_csv(index=False))
     atomic_write_text(out / "landmarks.csv", landmarks.to_csv(index=False))
     atomic_write_text(out / "grid.json", json.dumps(grid.model_dump(mode="json"), indent=2))
     manifest.attrs["grid"] = grid
-    sheets = write_sheets(out, manifest, grid) + write_continuum(out, continuum, grid)[1:]
+    sheets = (write_sheets(out, stills, grid) + (write_filmstrips(out, manifest, grid) if animated else [])
+              + write_continuum(out, continuum, grid)[1:])
+    sheets += write_expression_measures(out, landmarks, grid)[2:]  # how far each expression moves the face, per level
     if res.failures:
         logger.warning(res.summary())
     return manifest, sheets

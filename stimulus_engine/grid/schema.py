@@ -16,6 +16,9 @@ Example (``protocols/grids/exp1a_shape_material.yaml``)::
     lighting: [gi_soft]
     shading: [pbr]
 
+``animation: {fps: 30, onset: 1.0, hold: 0.5}`` renders every cell as a clip from neutral to its
+apex instead of one image (:class:`AnimationSpec`, :mod:`stimulus_engine.grid.animation`).
+
 ``shapes: {levels: N}`` asks for N shape levels spaced by measured image steps, the same for
 every character (:class:`ShapeContinuum`). ``materials: {levels: N}`` asks for N levels of one continuous family (``painted``: detail
 removal, then colour flattening; :mod:`stimulus_engine.stylisation.materials`) from the original
@@ -29,13 +32,15 @@ dataset (:mod:`appeal.datasets`).
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
-__all__ = ["CharacterSpec", "GridFile", "MaterialContinuum", "MaterialSpec", "MeshSpec", "ShapeContinuum", "PhotoSpec", "RenderSettings", "shape_label"]
+__all__ = ["AnimationSpec", "CharacterSpec", "GridFile", "MaterialContinuum", "MaterialSpec", "MeshSpec", "ShapeContinuum",
+           "PhotoSpec", "RenderSettings", "frame_at", "shape_label"]
 
 _STYLES = ("original", "blur25", "blur50", "bilateral", "flat", "painted")
 _LIGHTING = ("direct_hard", "direct_soft", "gi_soft", "flat")
@@ -344,6 +349,86 @@ class RenderSettings(StudyModel):
         return engine
 
 
+#: The longest clip a grid renders, in seconds (lead + onset + hold).
+MAX_CLIP_SECONDS = 60.0
+
+
+def frame_at(seconds: float, fps: int) -> int:
+    """The frame shown at ``seconds`` (frame k at k / fps s), rounded half up.
+
+    Examples
+    --------
+    >>> frame_at(1.5, 30), frame_at(0.05, 30), frame_at(0.1, 30)
+    (45, 2, 3)
+    """
+    return int(math.floor(seconds * fps + 0.5 + 1e-9))
+
+
+class AnimationSpec(StudyModel):
+    """``animation:``: every cell rendered as a short clip from neutral to its apex, all cells
+    sharing one weight curve w(t) in [0, 1] (:func:`stimulus_engine.grid.animation.weight_curve`).
+
+    ``fps`` frames a second (1..120); ``lead`` seconds of neutral before the onset starts,
+    ``onset`` seconds from neutral to the apex (default 1.0, like the ~1 s clips of KDEF-dyn),
+    ``hold`` seconds at the apex; ``easing`` the curve's shape between neutral and apex
+    (``linear``, ``smoothstep``, ``cosine``, ``ease_out``). ``expression``: ``cell`` (default:
+    each cell's own expression, at the grid's ``render.intensity`` at the apex) or a FACS recipe
+    name animated in every cell (the grid then lists one expression, the cells' name for it).
+    Frame k is shown at ``k / fps`` s. A clip has ``n_frames = round((lead + onset + hold) * fps) + 1``
+    frames (rounded half up, as are the two below): frames 0 .. ``onset_frame = round(lead * fps)``
+    are neutral (w = 0; frame 0 always is), frames ``apex_frame = round((lead + onset) * fps)`` ..
+    ``n_frames - 1`` are the apex (w = 1, the cell's still image), the frames between ease from
+    one to the other. Each easing is a function of u in [0, 1] (0 at 0, 1 at 1, increasing):
+    ``linear`` u; ``smoothstep`` 3u² − 2u³; ``cosine`` (1 − cos πu) / 2; ``ease_out``
+    1 − (1 − u)³ (:mod:`stimulus_engine.grid.animation`). The onset must last at least one frame
+    (``apex_frame > onset_frame``), a clip at most :data:`MAX_CLIP_SECONDS`.
+    """
+
+    fps: int = Field(30, gt=0, le=120)
+    lead: float = Field(0.0, ge=0)
+    onset: float = Field(1.0, gt=0)
+    hold: float = Field(0.5, ge=0)
+    easing: Literal["linear", "smoothstep", "cosine", "ease_out"] = "smoothstep"
+    expression: str = "cell"
+
+    @field_validator("expression")
+    @classmethod
+    def _expression(cls, v: str) -> str:
+        from stimulus_engine.characters.expressions import resolve_expression
+
+        if v != "cell":
+            try:
+                resolve_expression(v)
+            except ValueError as exc:
+                raise ValueError(f"expected 'cell' or a FACS recipe name: {exc}") from None
+        return v
+
+    @property
+    def n_frames(self) -> int:
+        """Frames in a clip: ``round((lead + onset + hold) * fps) + 1``."""
+        return frame_at(self.lead + self.onset + self.hold, self.fps) + 1
+
+    @property
+    def onset_frame(self) -> int:
+        """The frame at which the onset starts (``lead`` seconds in; still neutral: the next one moves)."""
+        return frame_at(self.lead, self.fps)
+
+    @property
+    def apex_frame(self) -> int:
+        """The first frame at the apex (``lead + onset`` seconds in)."""
+        return frame_at(self.lead + self.onset, self.fps)
+
+    @model_validator(mode="after")
+    def _frames(self) -> AnimationSpec:
+        if self.apex_frame <= self.onset_frame:
+            raise ValueError(f"onset: {self.onset:g} s rounds to no frame at {self.fps} fps "
+                             f"(expected at least {1 / self.fps:.4g} s)")
+        if self.lead + self.onset + self.hold > MAX_CLIP_SECONDS:
+            raise ValueError(f"lead + onset + hold: {self.lead + self.onset + self.hold:g} s "
+                             f"(expected at most {MAX_CLIP_SECONDS:g} s a clip)")
+        return self
+
+
 def shape_label(level: float | str) -> str:
     """A shape level's name in file names and contact sheets, the same in every grid.
 
@@ -378,8 +463,15 @@ class GridFile(StudyModel):
                                                                                   min_length=1)
     shading: list[Literal["pbr", "phong", "skin", "toon"]] = Field(default_factory=lambda: ["pbr"], min_length=1)
     pair_materials_with_shapes: bool = False
+    expression_transfer: Literal["aligned", "deformation_transfer", "rbf"] = Field(
+        "deformation_transfer",
+        description="how the rig's expressions reach a stylised shape or a mesh character: 'aligned' (thesis ch. 4: "
+                    "the level's own blendshapes, moving as far in units of its face as the rig does), "
+                    "'deformation_transfer' (each pose's deformation gradients) or 'rbf' (RBF proportion matching)")
     photographs: list[PhotoSpec] = Field(default_factory=list)
     render: RenderSettings = Field(default_factory=RenderSettings)
+    #: Clips instead of still images (:class:`AnimationSpec`); None: one still image a cell.
+    animation: AnimationSpec | None = None
 
     def seeds(self) -> dict[str, int]:
         """The seeds of the grid's random textures (painted skin, pores) and generated heads, by field."""
@@ -442,7 +534,18 @@ class GridFile(StudyModel):
                              f"(got {len(self.material_specs())} materials for {len(self.shape_levels())} shapes)")
         if self.n_images() == 0:
             raise ValueError("the grid would produce 0 images")
+        if self.animation is not None:
+            self._check_animation(self.animation)
         return self
+
+    def _check_animation(self, anim: AnimationSpec) -> None:
+        """An animated grid has no photographs, and a named animated expression one cell name."""
+        if self.photographs:
+            raise ValueError("animation: photographs cannot be animated (expected no 'photographs' in an animated "
+                             "grid)")
+        if anim.expression != "cell" and len(self.expressions) != 1:
+            raise ValueError(f"animation.expression '{anim.expression}' animates every cell alike: expected one "
+                             f"entry in 'expressions' (got {len(self.expressions)}), or expression: cell")
 
     def stylisation_index(self) -> dict[float, int]:
         """The manifest's ``stylisation`` number of each shape level, the same way round in every grid.

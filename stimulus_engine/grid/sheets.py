@@ -1,4 +1,5 @@
-"""Contact sheets of a rendered grid: its images side by side, one sheet per pair of factors."""
+"""Contact sheets of a rendered grid: its images side by side, one sheet per pair of factors; an
+animated grid's clips as filmstrips (:func:`write_filmstrips`)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from PIL import Image
 
 from stimulus_engine.grid.schema import GridFile
 
-__all__ = ["sheet_layout", "write_sheets"]
+__all__ = ["FILMSTRIP_FRAMES", "filmstrip_frames", "sheet_layout", "write_filmstrips", "write_sheets"]
 
 
 def sheet_layout(cells: pd.DataFrame, rows: list[str], col: str) -> tuple[list[int | None], int, dict]:
@@ -97,4 +98,52 @@ def write_sheets(out: Path, manifest: pd.DataFrame, grid: GridFile) -> list[Path
         sheet(sel, shape_rows, "light_shading", "contact_sheet_lighting.png",
               f"{grid.name}: shape (rows) x lighting/shading (columns), "
               f"{'paired material' if paired else first.material}, {first.emotion}")
+    return paths
+
+
+#: Frames of a clip on its filmstrip.
+FILMSTRIP_FRAMES = 6
+
+
+def filmstrip_frames(onset_frame: int, apex_frame: int, n: int = FILMSTRIP_FRAMES) -> list[int]:
+    """``n`` frames evenly spaced from the onset's start to the apex (fewer where the onset is shorter).
+
+    Examples
+    --------
+    >>> filmstrip_frames(0, 30)
+    [0, 6, 12, 18, 24, 30]
+    >>> filmstrip_frames(3, 5)
+    [3, 4, 5]
+    """
+    return list(dict.fromkeys(int(round(x)) for x in np.linspace(onset_frame, apex_frame, n)))
+
+
+def write_filmstrips(out: Path, manifest: pd.DataFrame, grid: GridFile) -> list[Path]:
+    """A filmstrip per character of an animated grid (``filmstrip_<character>.png``): rows = shape
+    levels, columns = :func:`filmstrip_frames` of the first expression that moves (its first
+    material, or each level's own when paired, lighting and shading), labelled with frame and
+    weight; returns their paths."""
+    from stimulus_engine.grid.animation import frame_file
+    from stimulus_engine.render import contact_sheet, save_png
+
+    ok = manifest[manifest["status"].isin(["rendered", "up to date"])]
+    if ok.empty:
+        return []
+    moving = ok[ok["expression"] != "neutral"]
+    first = (moving if len(moving) else ok).iloc[0]
+    sel = ok[(ok["expression"] == first.expression) & (ok["lighting"] == first.lighting)
+             & (ok["shading"] == first.shading)]
+    if not grid.pair_materials_with_shapes:
+        sel = sel[sel["material"] == first.material]
+    paths = []
+    for character, clips in sel.groupby("character", sort=False):
+        picks = filmstrip_frames(int(first.onset_frame), int(first.apex_frame))
+        weights = [float(x) for x in str(first.weight_curve).split(";")]
+        imgs = [np.asarray(Image.open(out / folder / frame_file(k)).convert("RGB"))
+                for folder in clips["frames"] for k in picks]
+        arr = contact_sheet(imgs, len(picks), thumb_width=180, row_labels=[str(x) for x in clips["shape_label"]],
+                            col_labels=[f"frame {k} · w {weights[k]:.2f}" for k in picks],
+                            title=f"{grid.name}: {character}, {first.emotion} over time ({first.fps} fps), "
+                                  f"shape (rows), {first.lighting}, {first.shading}")
+        paths.append(save_png(arr, out / f"filmstrip_{character}.png"))
     return paths

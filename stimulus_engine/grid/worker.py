@@ -3,7 +3,9 @@
 A :class:`RenderItem` names files and settings only (it is pickled to the workers); the
 worker reads the prepared inputs from the cache and hands them to a render engine of
 :data:`ENGINES` by the item's ``engine``: ``pyrender`` (OpenGL) or ``cycles`` (Blender's path
-tracer, in its own Python), both drawing the same parts from the same camera.
+tracer, in its own Python), both drawing the same parts from the same camera. A clip's frame is
+an item whose ``geometry_npy`` holds every frame and whose ``frame`` names one
+(:func:`stimulus_engine.grid.animation.render_clip` renders all of a clip's in one call).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from PIL import Image
 
 from stimulus_engine.grid.cache import load_rig
 
-__all__ = ["ENGINES", "RenderItem", "item_scene", "place_photo", "render_item"]
+__all__ = ["ENGINES", "RenderItem", "item_scene", "place_photo", "render_image", "render_item"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,24 @@ class RenderItem:
     vignette: tuple = ()
     supersample: float = 1.0
     eye_style: tuple = ()  # (iris scale, paint) of stylised eyes, lashes and hair (stimulus_engine.stylisation); () as modelled
+    #: -1: ``geometry_npy`` is one (N, 3) geometry; k >= 0: it is a clip's (frames, N, 3) and this draws frame k
+    frame: int = -1
+
+    def outputs(self) -> list[str]:
+        """The files the render writes, relative to ``out_dir``."""
+        return [self.file]
+
+    def geometry(self) -> np.ndarray:
+        """The drawn vertices (float64): the still's, or frame ``frame`` of a clip's."""
+        if self.frame < 0:
+            return np.load(self.geometry_npy).astype(np.float64)
+        return np.asarray(np.load(self.geometry_npy, mmap_mode="r")[self.frame], np.float64)
+
+    def geometry_key(self) -> str:
+        """The path the geometry's baked ambient visibility is kept beside (one per clip frame)."""
+        if self.frame < 0:
+            return self.geometry_npy
+        return str(Path(self.geometry_npy).with_suffix(f".f{self.frame:05d}.npy"))
 
 
 @functools.lru_cache(maxsize=16)
@@ -122,11 +142,11 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     if item.eye_style:  # stylised eyes, lashes and hair (stimulus_engine.stylisation.eyes, .hair)
         rig = dataclasses.replace(rig, part_textures={**rig.part_textures, **_eye_textures(item.rig_npz, *item.eye_style)},
                                   hair=_hair(item.rig_npz, item.eye_style[1]))
-    v = np.load(item.geometry_npy).astype(np.float64)
+    v = item.geometry()
     # baked ambient visibility: skin (and toon) shading's ambient light, and a mouth's inside in every shading
     inside_only = item.shading not in SKIN_LIKE
     wanted = not inside_only or any(p in rig.part_names for p in INSIDE_PARTS)
-    occlusion = _occlusion(rig, v, item.geometry_npy, inside_only) if wanted and item.engine == "pyrender" else None
+    occlusion = _occlusion(rig, v, item.geometry_key(), inside_only) if wanted and item.engine == "pyrender" else None
     parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,
                              normal_map=_map_image(item.normal_png, "normal"),
                              specular_map=_map_image(item.specular_png, "specular"), occlusion=occlusion)
@@ -169,17 +189,22 @@ def _render_cycles(item: RenderItem) -> np.ndarray:
 ENGINES: dict[str, Callable[[RenderItem], np.ndarray]] = {"pyrender": _render_pyrender, "cycles": _render_cycles}
 
 
-def render_item(item: RenderItem) -> float:
-    """Render one grid image to ``item.out_dir/item.file``; returns the seconds it took."""
-    from stimulus_engine.render import save_png
-
-    t0 = time.perf_counter()
+def render_image(item: RenderItem) -> np.ndarray:
+    """The (H, W, 3) uint8 image of ``item`` (its engine, then its vignette), written nowhere."""
     image = ENGINES[item.engine](item)
     if item.vignette:
         from stimulus_engine.render.vignette import oval_vignette
 
         image = oval_vignette(image, item.vignette, item.background)
-    save_png(image, Path(item.out_dir) / item.file)
+    return image
+
+
+def render_item(item: RenderItem) -> float:
+    """Render one grid image to ``item.out_dir/item.file``; returns the seconds it took."""
+    from stimulus_engine.render import save_png
+
+    t0 = time.perf_counter()
+    save_png(render_image(item), Path(item.out_dir) / item.file)
     return time.perf_counter() - t0
 
 
