@@ -52,7 +52,7 @@ def export_web_cmd(protocol: Path, out: Path, participants: int, session: int, s
                      force=force)
     n = sorted(set(res.n_trials.values()))
     click.echo(f"{res.index}: {len(res.participants)} participant lists ({'/'.join(map(str, n))} trials), "
-               f"{res.n_images} images")
+               f"{res.n_images} images" + (f", {res.n_clips} clips" if res.n_clips else ""))
 
 
 @import_.command(name="web", context_settings=CONTEXT, epilog="""\b

@@ -53,7 +53,9 @@ class StimulusSource(StudyModel):
     Exactly one of ``manifest`` (a grid ``manifest.csv``: ``file`` + one column per factor) or
     ``folder`` + ``table`` (any images plus a CSV with a ``file`` column and factor columns).
     Paths are resolved against the protocol's folder; they are checked when the session
-    starts (the stimuli may not be rendered yet when the protocol is validated).
+    starts (the stimuli may not be rendered yet when the protocol is validated). A table with
+    a ``frames`` column holds clips (animated stimuli): each such row names a folder of PNG
+    frames (``frame_00000.png`` ...) and its ``fps`` (see :mod:`experiments.clips`).
     """
 
     manifest: OutputPath | None = None
@@ -107,6 +109,17 @@ class TimingSpec(StudyModel):
     stimulus_visible_during_response: bool = Field(
         False, description="keep a thumbnail of the face on the response screens; the thesis (and the default) "
                            "shows the face for stimulus_s, then asks without it, so every face is seen equally long")
+    clip_end: Literal["hold", "end"] = Field(
+        "hold", description="clips (animated stimuli): after the last frame, hold it until stimulus_s has passed "
+                            "since frame 0 (a longer clip is shown whole), or end the stimulus screen at once")
+    clip_trigger: Literal["first_frame", "onset_frame"] = Field(
+        "first_frame", description="clips: send the trigger on the flip that shows frame 0, or the manifest's "
+                                   "onset_frame (the expression's onset); both flip times are logged")
+    on_dropped_frames: Literal["log", "flag", "repeat"] = Field(
+        "log", description="a trial whose stimulus had a late flip or a clip frame not shown for its flips: "
+                           "log the counts only, also flag it (dropped_flag = 1), or flag it and repeat it at "
+                           "the end of its block")
+    max_repeats: int = Field(1, ge=1, le=10, description="on_dropped_frames: repeat: repeats of one planned trial")
 
     @field_validator("fixation_s")
     @classmethod
@@ -114,6 +127,13 @@ class TimingSpec(StudyModel):
         if isinstance(v, tuple) and v[0] > v[1]:
             raise ValueError(f"expected [min, max] with min <= max (got {list(v)})")
         return v
+
+    @model_validator(mode="after")
+    def _repeats(self) -> TimingSpec:
+        if "max_repeats" in self.model_fields_set and self.on_dropped_frames != "repeat":
+            raise ValueError(f"max_repeats is only used with on_dropped_frames: repeat "
+                             f"(got on_dropped_frames: {self.on_dropped_frames})")
+        return self
 
 
 class OrderSpec(StudyModel):

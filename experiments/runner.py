@@ -1,32 +1,58 @@
 """Walk a trial list on a :class:`~experiments.display.Presenter`: fixation, stimulus (trigger on
-the onset flip), responses, ITI — one durable TSV row per completed trial."""
+the onset flip), responses, ITI — one durable TSV row per completed trial.
+
+A clip (an animated stimulus, :mod:`experiments.clips`) is decoded ahead on a helper thread,
+made into textures before its trial's first screen, shown one frame per ``flips_per_frame``
+flips (each flip logged with the frame it showed) and freed after it; a trial with dropped
+frames is flagged or repeated at the end of its block (``timing.on_dropped_frames``)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 from appeal.levels import level_key
+from experiments.clips import CLIP_COLUMNS, ClipPlan, FramePrefetcher
 from experiments.datafile import TsvWriter
-from experiments.display import PhaseTiming, Presenter
+from experiments.display import DROP_THRESHOLD, ClipTiming, PhaseTiming, Presenter
 from experiments.protocol_schema import ClassificationSpec, LikertSpec, Protocol
 from experiments.screens import markdown_to_text, save_back_buffer
 from experiments.triggers import TriggerSender
-from experiments.trials import Trial
+from experiments.trials import Trial, insert_repeat
 
-__all__ = ["beh_columns", "SessionRunner", "FLIP_COLUMNS"]
+__all__ = ["beh_columns", "flip_columns", "SessionRunner", "FLIP_COLUMNS", "DROP_COLUMNS", "had_dropped_frames"]
 
 FLIP_COLUMNS = ["trial", "screen", "frame", "time_s"]
+#: The columns ``timing.on_dropped_frames: flag | repeat`` adds.
+DROP_COLUMNS = ("dropped_flag", "repeat_of")
 
 
-def beh_columns(protocol: Protocol) -> list[str]:
-    """The ``_beh.tsv`` columns a protocol produces, in order."""
+def flip_columns(clips: bool = False) -> list[str]:
+    """The flip log's columns (a session with clips adds ``clip_frame``: the frame each flip showed)."""
+    return [*FLIP_COLUMNS, *(["clip_frame"] if clips else [])]
+
+
+def beh_columns(protocol: Protocol, clips: bool = False) -> list[str]:
+    """The ``_beh.tsv`` columns a protocol produces, in order.
+
+    Parameters
+    ----------
+    protocol : Protocol
+        The protocol.
+    clips : bool
+        Whether its stimulus set holds clips (adds :data:`experiments.clips.CLIP_COLUMNS`).
+    """
     cols = ["participant_id", "session", "part", "trial", "phase", "block", "repetition", "stimulus", *protocol.stimuli.factors]
     if protocol.timing.fixation_s is not None:
         cols += ["fixation_frames", "fixation_onset_s"]
     cols += ["onset_frame", "onset_s", "offset_s", "duration_frames", "shown_frames", "shown_s", "dropped_frames"]
+    if clips:
+        cols += CLIP_COLUMNS
+    if protocol.timing.on_dropped_frames != "log":
+        cols += DROP_COLUMNS
     for r in protocol.responses:
         cols += [f"response_{r.name}", f"rt_{r.name}"]
         if isinstance(r, ClassificationSpec):
@@ -36,6 +62,11 @@ def beh_columns(protocol: Protocol) -> list[str]:
                 cols += [f"response_{r.intensity.name}", f"rt_{r.intensity.name}"]
     cols += ["trigger", "trigger_s", "trigger_flip_ms"]
     return cols
+
+
+def had_dropped_frames(row: dict[str, Any]) -> bool:
+    """Whether a trial's row counts a late flip or a clip frame not shown for its flips."""
+    return any((row.get(c) or 0) > 0 for c in ("dropped_frames", "clip_dropped_frames", "clip_frame_errors"))
 
 
 class SessionRunner:
@@ -78,6 +109,8 @@ class SessionRunner:
         self.shots: dict[str, Path] = {}
         self._flip_rows: list[dict[str, Any]] = []
         self._trial = 0
+        self.prefetcher = FramePrefetcher()
+        self._upcoming: ClipPlan | None = None
         pulse = protocol.triggers.pulse_ms if protocol.triggers is not None else 10.0
         self.pulse_frames = max(1, math.ceil(pulse / 1000 * presenter.hz - 1e-9))
 
@@ -96,6 +129,39 @@ class SessionRunner:
         for i, t in enumerate(timing.flips):
             frame = timing.onset_frame + (i if not self.p.virtual else 0)
             self._flip_rows.append({"trial": self._trial, "screen": kind, "frame": frame, "time_s": t})
+        return timing
+
+    def _shot(self, kind: str) -> Callable[[], None] | None:
+        """A screenshot of the back buffer as ``kind.png``, unless one was taken (or none are wanted)."""
+        if self.screenshot_dir is None or kind in self.shots or self.screens is None:
+            return None
+        path = self.screenshot_dir / f"{kind}.png"
+
+        def shot() -> None:
+            self.shots[kind] = save_back_buffer(self.screens.win, path)
+        return shot
+
+    def show_clip(self, kind: str, plan: ClipPlan, title: str, on_onset: Callable[[], None] | None) -> ClipTiming:
+        """Show a clip (frame-locked, :meth:`Presenter.show_clip`); log its flips with the frame each showed.
+
+        Screenshots: frame 0 as ``KIND.png`` and the apex frame as ``KIND_apex.png``.
+        """
+        sc = self.screens
+        draws = None
+        if sc is not None:
+            def frame(k: int) -> Callable[[], None]:
+                def draw() -> None:
+                    sc.draw_clip_frame(k)
+                    if title:
+                        sc.title.text = title
+                        sc.title.draw()
+                return draw
+            draws = [frame(k) for k in range(plan.n_frames)]
+        shots = {k: fn for k, fn in ((0, self._shot(kind)), (plan.apex_frame, self._shot(f"{kind}_apex"))) if fn}
+        marks = {plan.trigger_frame: on_onset} if on_onset is not None else {}
+        timing = self.p.show_clip(draws, plan.n_frames, plan.flips_per_frame, plan.hold_flips, marks=marks, shots=shots)
+        for t, k, number in zip(timing.flips, timing.flip_frames, timing.flip_numbers):
+            self._flip_rows.append({"trial": self._trial, "screen": kind, "frame": number, "time_s": t, "clip_frame": k})
         return timing
 
     def page(self, kind: str, text: str, *, title: str = "", min_s: float = 0.0) -> None:
@@ -146,7 +212,9 @@ class SessionRunner:
         if trial.break_before and self.protocol.breaks is not None:
             self.page("break", self.protocol.breaks.text, min_s=self.protocol.breaks.min_s)
             lead_in = True
-        if sc is not None:
+        if trial.clip is not None:
+            row["clip_preload_ms"] = self._preload_clip(trial.clip)
+        elif sc is not None:
             sc.load(trial.path)
         fix_after = self.protocol.timing.fixation_position == "after"
         draw_fix = None if sc is None else sc.draw_fixation
@@ -158,7 +226,8 @@ class SessionRunner:
         if trial.trigger is not None and self.sender is not None:
             code = trial.trigger
             on_onset = lambda: self.sender.send(code)  # noqa: E731 - runs on the onset flip
-            self.p.at_frame(self.p.frame + self.pulse_frames, self.sender.reset)
+            marked = 0 if trial.clip is None else trial.clip.trigger_frame * trial.clip.flips_per_frame
+            self.p.at_frame(self.p.frame + marked + self.pulse_frames, self.sender.reset)
             n_sent = len(self.sender.sent)
         title = trial.title
 
@@ -168,15 +237,27 @@ class SessionRunner:
                 sc.title.text = title
                 sc.title.draw()
 
-        stim = self.show("stimulus" if trial.phase == "main" else trial.phase, None if sc is None else draw_stim,
-                         trial.stimulus_frames, on_onset=on_onset)
+        kind = "stimulus" if trial.phase == "main" else trial.phase
+        if trial.clip is not None:
+            stim: PhaseTiming = self.show_clip(kind, trial.clip, title, on_onset)
+            if sc is not None:
+                sc.end_clip()
+        else:
+            stim = self.show(kind, None if sc is None else draw_stim, trial.stimulus_frames, on_onset=on_onset)
+        # the next clip decodes on the helper thread while this trial's other screens run; it starts on
+        # the first flip after the stimulus, which closes the stimulus's last frame interval first
+        if sc is not None and self._upcoming is not None:
+            self.p.at_frame(self.p.frame, self.prefetcher.prefetch, self._upcoming)
         row.update(onset_frame=stim.onset_frame, onset_s=stim.onset_s, shown_frames=stim.frames)
+        if isinstance(stim, ClipTiming):
+            row.update(_clip_counts(trial.clip, stim))
         if on_onset is not None:
             sent = self.sender.sent[n_sent:]
             if len(sent) != 1:
                 raise RuntimeError(f"trial {trial.trial}: {len(sent)} triggers sent on the onset flip (expected 1)")
+            marked_s = stim.onset_s if not isinstance(stim, ClipTiming) else stim.frame_onsets[trial.clip.trigger_frame]
             row["trigger_s"] = sent[0][1]
-            row["trigger_flip_ms"] = (sent[0][1] - stim.onset_s) * 1000
+            row["trigger_flip_ms"] = (sent[0][1] - marked_s) * 1000
         else:
             row["trigger"] = None
         after: PhaseTiming | None = None
@@ -195,11 +276,33 @@ class SessionRunner:
         row["shown_s"] = after.onset_s - stim.onset_s
         period = 1.0 / self.p.hz
         edges = [*stim.flips, after.onset_s] if not self.p.virtual else []
-        row["dropped_frames"] = sum(1 for a, b in zip(edges, edges[1:]) if b - a > 1.5 * period)
+        row["dropped_frames"] = sum(1 for a, b in zip(edges, edges[1:]) if b - a > DROP_THRESHOLD * period)
+        if isinstance(stim, ClipTiming):
+            row["clip_dropped_frames"] = self.p.dropped_since(stim.intervals_from)
         return row
 
-    def run(self, trials: Sequence[Trial], start: int = 0, *, progress: Callable[[Any], Any] = iter) -> int:
-        """Present ``trials[start:]``, writing each row durably; returns the number completed."""
+    def _preload_clip(self, plan: ClipPlan) -> float | None:
+        """Make the clip's textures before the trial's first screen; the time it took (ms)."""
+        if self.screens is None:
+            return None
+        t0 = time.perf_counter()
+        self.screens.load_clip(self.prefetcher.take(plan))
+        return (time.perf_counter() - t0) * 1000
+
+    def _handle_drops(self, trials: list[Trial], index: int, row: dict[str, Any]) -> None:
+        """``timing.on_dropped_frames``: flag the row, and repeat the trial at the end of its block."""
+        timing = self.protocol.timing
+        if timing.on_dropped_frames == "log":
+            return
+        row["dropped_flag"] = int(had_dropped_frames(row))
+        if timing.on_dropped_frames == "repeat" and row["dropped_flag"]:
+            insert_repeat(trials, index, timing.max_repeats)
+
+    def run(self, trials: list[Trial], start: int = 0, *, progress: Callable[[Any], Any] = iter) -> int:
+        """Present ``trials[start:]``, writing each row durably; returns the number completed.
+
+        ``trials`` grows when a trial is repeated (``timing.on_dropped_frames: repeat``).
+        """
         pr = self.protocol
         if start == 0:
             for i, text in enumerate([*pr.instructions.pages, *(f.read_text(encoding="utf-8") for f in pr.instructions.files)]):
@@ -208,15 +311,45 @@ class SessionRunner:
             self.page("resume", f"The session continues at trial {start + 1} of {len(trials)}.")
         done = start
         lead_in = True
-        for trial in progress(trials[start:]):
-            row = self.run_trial(trial, lead_in=lead_in)
-            lead_in = False
-            self.writer.write(row)
-            self._flush_flips()
-            done += 1
+        self.prefetcher.prefetch(_next_clip(trials, start) if self.screens is not None else None)
+        try:
+            for i in progress(_positions(trials, start)):
+                self._upcoming = _next_clip(trials, i + 1)
+                row = self.run_trial(trials[i], lead_in=lead_in)
+                lead_in = False
+                self._handle_drops(trials, i, row)
+                self.writer.write(row)
+                self._flush_flips()
+                done += 1
+        finally:
+            self.prefetcher.close()
+            if self.screens is not None:
+                self.screens.free_clip()
         # the closing page is timed (no key needed), so an unattended session ends by itself
         end_frames = 1 if self.p.virtual else max(1, round(2.0 * self.p.hz))
         draw = None if self.screens is None else (lambda: self.screens.draw_text(markdown_to_text(pr.instructions.end_text)))
         self.show("end", draw, end_frames)
         self._flush_flips()
         return done
+
+
+def _positions(trials: list[Trial], start: int) -> Iterator[int]:
+    """``start, start + 1, ...`` while the (growing) list has trials there."""
+    i = start
+    while i < len(trials):
+        yield i
+        i += 1
+
+
+def _next_clip(trials: list[Trial], start: int) -> ClipPlan | None:
+    """The clip of the first trial from ``start`` on that shows one."""
+    return next((t.clip for t in trials[start:] if t.clip is not None), None)
+
+
+def _clip_counts(plan: ClipPlan, timing: ClipTiming) -> dict[str, Any]:
+    """A clip trial's frame counts and mark times, from what each flip showed."""
+    shown = timing.frame_flips
+    errors = sum(1 for n in shown if n != plan.flips_per_frame) + (plan.n_frames - len(shown))
+    return {"clip_frames_shown": sum(1 for n in shown if n > 0), "clip_flips": sum(shown),
+            "clip_hold_flips": timing.hold_flips, "clip_frame_errors": errors,
+            "clip_onset_s": timing.frame_onsets[plan.onset_frame], "clip_apex_s": timing.frame_onsets[plan.apex_frame]}

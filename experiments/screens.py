@@ -7,12 +7,14 @@ simulated session never imports it.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from experiments.protocol_schema import ChoiceSpec, ClassificationSpec, LikertSpec, Protocol
 
-__all__ = ["Screens", "markdown_to_text", "open_window", "clamp_to_edge", "save_back_buffer"]
+__all__ = ["Screens", "ClipTextures", "markdown_to_text", "open_window", "clamp_to_edge", "save_back_buffer",
+           "free_image_stim"]
 
 
 def markdown_to_text(md: str) -> str:
@@ -65,10 +67,29 @@ class Screens:
         self._aspect = 1.0
         self._likert: dict[str, tuple[Any, Any, Any, Any]] = {}
         self._choices: dict[str, list[tuple[Any, Any, ChoiceSpec]]] = {}
+        self.clip: ClipTextures | None = None
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Build and draw every response screen once, into the back buffer, which is then cleared.
+
+        Building a Slider (~0.2 s) and drawing it the first time (~50 ms) on the first trial's
+        first response screen held that trial's stimulus on screen longer: a dropped frame in
+        every session's first trial.
+        """
+        for spec in self.protocol.responses:
+            if isinstance(spec, LikertSpec):
+                self.draw_likert(spec, with_stimulus=False)
+                continue
+            self.draw_classification(spec, with_stimulus=False)
+            if spec.intensity is not None:
+                self.draw_likert(spec.intensity, with_stimulus=False)
+        self.win.clearBuffer()
 
     # ------------------------------------------------------------------ stimulus
     def load(self, path: str) -> None:
         """Load the image of a trial (kept until the next one)."""
+        self.free_clip()
         if path == self._image_path:
             return
         from PIL import Image
@@ -90,6 +111,44 @@ class Screens:
         self._image.pos = (0, y)
         self._image.draw()
 
+    # ------------------------------------------------------------------ clips
+    def load_clip(self, images: Sequence[Any]) -> ClipTextures:
+        """Make a clip's frames into textures (one ImageStim each) before its trial starts.
+
+        Parameters
+        ----------
+        images : sequence of PIL.Image.Image
+            The decoded frames (:func:`experiments.clips.decode_frames`).
+
+        Returns
+        -------
+        ClipTextures
+            Kept as :attr:`clip` until :meth:`end_clip` / :meth:`free_clip`.
+        """
+        self.free_clip()
+        self.clip = ClipTextures(self.win, images, self.protocol.screen.stimulus_height)
+        return self.clip
+
+    def draw_clip_frame(self, k: int) -> None:
+        """Draw frame ``k`` of the loaded clip at the stimulus size."""
+        self.clip.draw(k)
+
+    def end_clip(self) -> None:
+        """The clip has left the screen: free its textures (the last frame's stays when the
+        response screens show a thumbnail of the stimulus)."""
+        if self.clip is None:
+            return
+        if self.protocol.timing.stimulus_visible_during_response:
+            self.clip.free(keep=len(self.clip.stims) - 1)
+        else:
+            self.free_clip()
+
+    def free_clip(self) -> None:
+        """Free every texture of the loaded clip."""
+        if self.clip is not None:
+            self.clip.free()
+            self.clip = None
+
     def draw_fixation(self) -> None:
         """Draw the fixation cross."""
         self.fixation.draw()
@@ -107,8 +166,12 @@ class Screens:
             self.hint.draw()
 
     def _thumb(self, with_stimulus: bool) -> None:
-        if with_stimulus and self._image is not None:
-            h = self.protocol.screen.response_stimulus_height
+        if not with_stimulus:
+            return
+        h = self.protocol.screen.response_stimulus_height
+        if self.clip is not None:  # a clip's thumbnail: its last frame
+            self.clip.draw_last(h, y=0.5 - 0.03 - h / 2)
+        elif self._image is not None:
             self.draw_stimulus(h, y=0.5 - 0.03 - h / 2)
 
     # ------------------------------------------------------------------ Likert
@@ -172,6 +235,72 @@ class Screens:
             box.fillColor = [0.2, 0.6, 0.2] if chosen is not None and level_key(c.value) == chosen else None
             box.draw()
             text.draw()
+
+
+class ClipTextures:
+    """A clip's frames as PsychoPy textures: one ImageStim per frame, sized once.
+
+    Made before the trial from decoded frames (8-bit RGBA: a 1024x768 frame is a 3 MiB
+    texture, 4 MiB with its mipmaps) and freed when the clip has been shown.
+
+    Parameters
+    ----------
+    win : psychopy.visual.Window
+        The window.
+    images : sequence of PIL.Image.Image
+        The frames, in order.
+    height : float
+        Height on screen as a fraction of the screen height.
+    """
+
+    def __init__(self, win: Any, images: Sequence[Any], height: float):
+        from psychopy import visual
+
+        w, h = images[0].size
+        self.aspect = w / h
+        self.height = height
+        self.stims: list[Any] = []
+        for im in images:
+            stim = visual.ImageStim(win, image=im, units="height", size=(height * self.aspect, height), pos=(0, 0),
+                                    interpolate=True)
+            clamp_to_edge(stim)
+            self.stims.append(stim)
+
+    def draw(self, k: int) -> None:
+        """Draw frame ``k``."""
+        self.stims[k].draw()
+
+    def draw_last(self, height: float, y: float) -> None:
+        """Draw the last frame ``height`` tall at ``y`` (the response screens' thumbnail)."""
+        stim = self.stims[-1]
+        stim.size = (height * self.aspect, height)
+        stim.pos = (0, y)
+        stim.draw()
+
+    def free(self, keep: int | None = None) -> None:
+        """Delete the textures of every frame (but frame ``keep``)."""
+        kept = []
+        for k, stim in enumerate(self.stims):
+            if k == keep:
+                kept.append(stim)
+            elif stim is not None:
+                free_image_stim(stim)
+        self.stims = kept
+
+
+def free_image_stim(stim: Any) -> None:
+    """Delete an ImageStim's GL objects now: its textures and its pixel-unpack buffer.
+
+    ``ImageStim.clearTextures`` deletes the textures but looks for the pixel buffer under
+    another name (``_pixBuffID``; the stimulus stores ``_pixbuffID``), so the buffer outlived
+    every stimulus (PsychoPy 2026.2.5; ``glIsBuffer`` is still true after ``clearTextures``).
+    """
+    from pyglet import gl
+
+    stim.clearTextures()
+    pbo = getattr(stim, "_pixbuffID", None)
+    if pbo is not None:
+        gl.glDeleteBuffers(1, pbo)
 
 
 def clamp_to_edge(stim: Any) -> None:

@@ -20,16 +20,18 @@ from appeal.outputs import output_run
 from appeal.progress import progress
 from appeal.provenance import file_sha256, now_iso, package_versions
 from appeal.studyfile import load_study_file
+from experiments.clips import CLIP_DESCRIPTIONS
 from experiments.datafile import TsvWriter, read_completed, session_stem, write_demographics, write_sidecar
-from experiments.display import NoWindow, Presenter
+from experiments.display import DROP_THRESHOLD, NoWindow, Presenter
 from experiments.protocol_schema import Protocol
-from experiments.runner import FLIP_COLUMNS, SessionRunner, beh_columns
+from experiments.runner import SessionRunner, beh_columns, flip_columns
 from experiments.simulate import SimulatedParticipant, load_participant_model
 from experiments.stimuli import session_stimuli
 from experiments.triggers import TriggerSender, open_backend
-from experiments.trials import Trial, build_trials
+from experiments.trials import Trial, build_trials, insert_repeat
 
-__all__ = ["SessionResult", "run_session", "default_seed", "session_paths", "load_protocol", "column_descriptions"]
+__all__ = ["SessionResult", "run_session", "default_seed", "session_paths", "load_protocol", "column_descriptions",
+           "check_resume"]
 
 #: Refresh rates outside this range mean the display has no vsync (e.g. a virtual screen).
 PLAUSIBLE_HZ = (20.0, 250.0)
@@ -136,13 +138,30 @@ def _with_triggers(protocol: Protocol, override: dict[str, str | None], source: 
     return protocol.model_copy(update={"triggers": spec})
 
 
-def _check_resume(rows: list[dict[str, str]], trials: list[Trial], beh: Path) -> None:
-    if len(rows) > len(trials):
-        raise AppealInputError(f"{beh}: {len(rows)} rows but the session has only {len(trials)} trials")
-    for row, t in zip(rows, trials):
+def _refresh_before_window(previous: dict[str, Any], refresh_hz: float | None, protocol: Protocol, *,
+                           measured: bool) -> float | None:
+    """The refresh rate a session will use when it is known before a window opens (None: measured)."""
+    if previous:
+        return float(previous["RefreshRate"])
+    given = refresh_hz if refresh_hz is not None else protocol.screen.refresh_hz
+    if given is not None:
+        return float(given)
+    return None if measured else 60.0
+
+
+def check_resume(rows: list[dict[str, str]], trials: list[Trial], beh: Path, protocol: Protocol) -> None:
+    """Check the rows on disk against the trial list, replaying the repeats they asked for
+    (``timing.on_dropped_frames: repeat`` inserted a trial for each row flagged 1)."""
+    repeat = protocol.timing.on_dropped_frames == "repeat"
+    for i, row in enumerate(rows):
+        if i >= len(trials):
+            raise AppealInputError(f"{beh}: {len(rows)} rows but the session has only {len(trials)} trials")
+        t = trials[i]
         if row["trial"] != str(t.trial) or row["stimulus"] != t.stimulus:
             raise AppealInputError(f"{beh}: trial {row['trial']} ({row['stimulus']}) does not match the session's "
                                    f"order (expected trial {t.trial}: {t.stimulus}); was the seed or stimulus set changed?")
+        if repeat and row.get("dropped_flag") == "1":
+            insert_repeat(trials, i, protocol.timing.max_repeats)
 
 
 def run_session(
@@ -243,6 +262,9 @@ def run_session(
         mode = "realtime" if realtime else "virtual"
     else:
         mode = "live"
+    known_hz = _refresh_before_window(previous, refresh_hz, protocol, measured=mode == "live" and window)
+    if known_hz is not None:  # bad inputs (e.g. a clip's fps that does not divide it) fail before the folder exists
+        build_trials(protocol, main, seed=seed, refresh_hz=known_hz, source=str(protocol_file), full_set=full)
     with output_run(out, force=force, resume=resume, seed=seed, inputs=[protocol_file, full.source], argv=argv) as run:
         out = run.out
         paths = session_paths(out, participant, session, protocol.task)
@@ -276,9 +298,9 @@ def run_session(
         else:
             hz = 60.0
         trials = build_trials(protocol, main, seed=seed, refresh_hz=hz, source=str(protocol_file), full_set=full)
-        columns = beh_columns(protocol)
+        columns = beh_columns(protocol, clips=full.has_clips)
         done_rows = read_completed(paths["beh"], columns) if resume else []
-        _check_resume(done_rows, trials, paths["beh"])
+        check_resume(done_rows, trials, paths["beh"], protocol)
         start = len(done_rows)
         sidecar = {
             "TaskName": protocol.task, "Protocol": str(protocol_file.resolve()), "ProtocolName": protocol.name,
@@ -294,6 +316,7 @@ def run_session(
             "NumberOfTrials": len(trials), "Started": previous.get("Started", now_iso()),
             "Resumed": [*previous.get("Resumed", []), *([now_iso()] if start else [])],
             "Status": "running", "Columns": column_descriptions(protocol, columns),
+            "DroppedFrameThreshold": f"flip intervals over {DROP_THRESHOLD} refresh periods",
         }
         write_sidecar(paths["sidecar"], sidecar)
         status, completed, shots = "running", start, {}
@@ -305,7 +328,7 @@ def run_session(
                 status, completed, shots = _present(protocol, trials, start, columns, paths, win, hz, mode, pace,
                                                      model, seed, participant, session, answers, screenshot_dir, full,
                                                      part=len(sidecar["Resumed"]) + 1)
-        sidecar.update(Status=status, CompletedTrials=completed, Ended=now_iso())
+        sidecar.update(Status=status, CompletedTrials=completed, NumberOfTrials=len(trials), Ended=now_iso())
         write_sidecar(paths["sidecar"], sidecar)
         run.extra.update(status_session=status, completed_trials=completed, n_trials=len(trials))
         rep = None
@@ -380,7 +403,7 @@ def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[
                                simulate=model is not None)
         sender = TriggerSender(backend, presenter.clock)
     writer = TsvWriter(paths["beh"], columns, fsync="background")
-    flips = TsvWriter(paths["flips"], FLIP_COLUMNS, fsync="off")
+    flips = TsvWriter(paths["flips"], flip_columns(full.has_clips), fsync="off")
     runner = SessionRunner(protocol, presenter, screens, responder, writer, flips, sender,
                            {"participant_id": participant, "session": session,
                             "part": part},
@@ -418,7 +441,11 @@ def column_descriptions(protocol: Protocol, columns: list[str]) -> dict[str, dic
         "shown_frames": "flips the stimulus was drawn for", "shown_s": "offset_s - onset_s",
         "dropped_frames": "flip intervals longer than 1.5 frames while the stimulus was up",
         "trigger": "EEG trigger code sent on the onset flip", "trigger_s": "time the trigger was sent (s)",
-        "trigger_flip_ms": "trigger_s - onset_s in ms",
+        "trigger_flip_ms": "trigger_s - onset_s in ms (clips: minus the flip time of the frame the trigger marks)",
+        "dropped_flag": "1 if the stimulus had dropped frames (dropped_frames, clip_dropped_frames or "
+                        "clip_frame_errors > 0; timing.on_dropped_frames: flag | repeat)",
+        "repeat_of": "this trial repeats trial N, whose stimulus had dropped frames (timing.on_dropped_frames: repeat)",
+        **CLIP_DESCRIPTIONS,
     }
     for f in protocol.stimuli.factors:
         desc[f] = f"factor '{f}' level"

@@ -12,10 +12,11 @@ import pandas as pd
 
 from appeal.errors import AppealInputError
 from appeal.levels import level_key, order_levels
+from experiments.clips import clip_frame_files, rate_problem
 from experiments.protocol_schema import Protocol, Selection, StimulusSource
 
 __all__ = ["protocol_input_problems", "StimulusSet", "load_stimuli", "select_stimuli", "session_stimuli",
-           "IMAGE_SUFFIXES"]
+           "clip_rate_problems", "IMAGE_SUFFIXES", "CLIP_TABLE_COLUMNS"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".gif")
 
@@ -28,7 +29,10 @@ class StimulusSet:
     ----------
     table : pandas.DataFrame
         One row per image: ``stimulus`` (the file as written in the table), ``path``
-        (absolute) and one string column per factor (levels compared as text).
+        (absolute) and one string column per factor (levels compared as text). Clip rows
+        (a table with a ``frames`` column) have ``path`` = their folder of PNG frames and
+        :data:`CLIP_TABLE_COLUMNS` (``frames``, ``n_frames``, ``fps``, ``onset_frame``,
+        ``apex_frame``; None in still rows).
     factors : list of str
         The factor columns, in protocol order.
     source : Path
@@ -46,6 +50,11 @@ class StimulusSet:
     def levels(self, factor: str) -> list[str]:
         """The levels of ``factor``: in the protocol's declared order, else natural order."""
         return order_levels(self.table[factor], self.order.get(factor, ()))
+
+    @property
+    def has_clips(self) -> bool:
+        """Whether any row is a clip (a folder of PNG frames, :mod:`experiments.clips`)."""
+        return "frames" in self.table and bool(self.table["frames"].notna().any())
 
 
 def _read_table(path: Path, what: str) -> pd.DataFrame:
@@ -126,13 +135,17 @@ def load_stimuli(source: StimulusSource, *, override: str | Path | None = None, 
     out["path"] = [str((image_root / f).resolve()) for f in out["stimulus"]]
     for f in source.factors:
         out[f] = [level_key(v) for v in df[f]]
-    absent = [p for p in out["path"] if not Path(p).is_file()]
+    clip = _clip_rows(df, table_path)
+    stills = out["path"][~clip]
+    absent = [p for p in stills if not Path(p).is_file()]
     if absent:
         more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
         raise AppealInputError(f"{table_path}: file: {len(absent)} image(s) not found: {', '.join(absent[:3])}{more}")
-    bad = [p for p in out["path"] if Path(p).suffix.lower() not in IMAGE_SUFFIXES]
+    bad = [p for p in stills if Path(p).suffix.lower() not in IMAGE_SUFFIXES]
     if bad:
         raise AppealInputError(f"{table_path}: file: not an image ({', '.join(IMAGE_SUFFIXES)}): {bad[0]}")
+    if clip.any():
+        out = _with_clip_columns(out, df, clip, image_root, table_path)
     dup = out["stimulus"][out["stimulus"].duplicated()].tolist()
     if dup:
         raise AppealInputError(f"{table_path}: file: listed twice: {dup[0]}")
@@ -144,6 +157,96 @@ def load_stimuli(source: StimulusSource, *, override: str | Path | None = None, 
     if not len(selected):
         raise AppealInputError(f"{protocol_file}: stimuli.select: selects none of the {len(sset)} images in {table_path}")
     return selected
+
+
+#: What a clip row of a stimulus table adds to :attr:`StimulusSet.table` (None for still images).
+CLIP_TABLE_COLUMNS = ("frames", "n_frames", "fps", "onset_frame", "apex_frame")
+
+
+def _clip_rows(df: pd.DataFrame, table_path: Path) -> pd.Series:
+    """Which rows are clips: those with a ``frames`` folder (a table with ``frames`` needs ``fps``)."""
+    if "frames" not in df.columns:
+        if "fps" in df.columns:
+            raise AppealInputError(f"{table_path}: frames: column missing (a table with 'fps' holds clips: "
+                                   "expected a 'frames' column naming each clip's folder of PNG frames)")
+        return pd.Series(False, index=df.index)
+    if "fps" not in df.columns:
+        raise AppealInputError(f"{table_path}: fps: column missing (expected each clip's frame rate beside 'frames')")
+    return df["frames"].astype(str).str.strip() != ""
+
+
+def _whole(text: str, field: str, where: str, lo: int, hi: int) -> tuple[int | None, str | None]:
+    """``text`` as a whole number in ``lo..hi``, or the one-line problem naming ``where`` and ``field``."""
+    try:
+        value = float(text)
+    except ValueError:
+        return None, f"{where}: {field}: expected a whole number {lo}..{hi} (got {text!r})"
+    if not value.is_integer() or not lo <= value <= hi:
+        return None, f"{where}: {field}: expected a whole number {lo}..{hi} (got {text})"
+    return int(value), None
+
+
+def _clip_row(row: Mapping[str, str], folder: Path, where: str) -> tuple[dict[str, Any], list[str]]:
+    """One clip row's columns (frames folder, counts, rate, onset and apex) and its problems."""
+    files = clip_frame_files(folder)
+    if isinstance(files, str):
+        return {}, [f"{where}: frames: {files}"]
+    n = len(files)
+    problems = []
+    try:
+        fps = float(row["fps"])
+    except ValueError:
+        fps = float("nan")
+    if not 0 < fps <= 1000:
+        problems.append(f"{where}: fps: expected a frame rate > 0 (got {row['fps']!r})")
+    given = str(row.get("n_frames", "")).strip()
+    if given:
+        count, problem = _whole(given, "n_frames", where, 1, 10 ** 6)
+        if problem is None and count != n:
+            problem = f"{where}: n_frames: {count} in the table but {n} frames in {folder}"
+        problems += [problem] if problem else []
+    marks = {}
+    for name, default in (("onset_frame", 0), ("apex_frame", n - 1)):
+        text = str(row.get(name, "")).strip()
+        marks[name], problem = _whole(text, name, where, 0, n - 1) if text else (default, None)
+        problems += [problem] if problem else []
+    return {"frames": str(folder), "n_frames": n, "fps": fps, **marks}, problems
+
+
+def _with_clip_columns(out: pd.DataFrame, df: pd.DataFrame, clip: pd.Series, image_root: Path,
+                       table_path: Path) -> pd.DataFrame:
+    """``out`` with :data:`CLIP_TABLE_COLUMNS` (checked; ``path`` of a clip row = its frames folder)."""
+    values: dict[str, list[Any]] = {c: [None] * len(df) for c in CLIP_TABLE_COLUMNS}
+    problems: list[str] = []
+    for i, (is_clip, row) in enumerate(zip(clip, df.to_dict("records"))):
+        if not is_clip:
+            continue
+        folder = (image_root / str(row["frames"]).strip()).resolve()
+        cols, bad = _clip_row(row, folder, f"{table_path}: line {i + 2} ({row['file']})")
+        problems += bad
+        for c, v in cols.items():
+            values[c][i] = v
+    if problems:
+        more = [f"{table_path}: ... {len(problems) - 10} more problem(s) with clips"] if len(problems) > 10 else []
+        raise AppealInputError(problems[:10] + more)
+    out = out.copy()
+    for c, vs in values.items():
+        out[c] = pd.Series(vs, index=out.index, dtype=object)
+    out.loc[clip.to_numpy(), "path"] = [v for v, is_clip in zip(values["frames"], clip) if is_clip]
+    return out
+
+
+def clip_rate_problems(sset: StimulusSet, refresh_hz: float) -> list[str]:
+    """One line per clip frame rate of ``sset`` that ``refresh_hz`` is no whole multiple of."""
+    if not sset.has_clips:
+        return []
+    clips = sset.table[sset.table["frames"].notna()]
+    out = []
+    for fps, group in clips.groupby("fps", sort=True):
+        problem = rate_problem(float(fps), refresh_hz, str(sset.source), group["stimulus"].iloc[0], len(group))
+        if problem:
+            out.append(problem)
+    return out
 
 
 def _where_mask(table: pd.DataFrame, where: Mapping[str, Any]) -> pd.Series:
@@ -199,13 +302,16 @@ def session_stimuli(protocol: Protocol, protocol_file: str | Path,
 
 def protocol_input_problems(protocol: Protocol, source: str | Path) -> list[str]:
     """Problems with the inputs a protocol needs to run: its stimuli (missing manifest,
-    folder, table or image files, missing factor columns, empty selections).
+    folder, table or image files, missing factor columns, empty selections, clip frame folders,
+    and clip frame rates that do not divide ``screen.refresh_hz`` when the protocol gives it).
 
     ``appeal validate`` reports these after the schema checks. They are kept out of the
     schema because a protocol is normally written before its stimuli are rendered.
     """
     try:
-        load_stimuli(protocol.stimuli, protocol_file=source)
+        sset = load_stimuli(protocol.stimuli, protocol_file=source)
     except AppealInputError as exc:
         return exc.lines
+    if protocol.screen.refresh_hz is not None:
+        return clip_rate_problems(sset, protocol.screen.refresh_hz)
     return []

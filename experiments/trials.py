@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -17,11 +17,13 @@ import pandas as pd
 from appeal.errors import AppealInputError
 from appeal.levels import level_key
 from appeal.triggers import trigger_table
+from experiments.clips import ClipPlan, flips_per_frame, plan_clip, rate_problem
 from experiments.ordering import constrained_order
 from experiments.protocol_schema import ExtraTrialsSpec, Protocol
 from experiments.stimuli import StimulusSet, select_stimuli
 
-__all__ = ["Trial", "seconds_to_frames", "fixation_frame_range", "build_trials", "protocol_trigger_codes", "trials_frame"]
+__all__ = ["Trial", "seconds_to_frames", "fixation_frame_range", "build_trials", "protocol_trigger_codes", "trials_frame",
+           "insert_repeat"]
 
 
 @dataclass
@@ -43,12 +45,18 @@ class Trial:
     break_before: bool = False
     title: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    clip: ClipPlan | None = None
+    repeat_of: int | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        """A flat dict (factors as columns)."""
+        """A flat dict (factors as columns; a clip's plan as ``clip_frames``, ``clip_fps``, ...)."""
         d = asdict(self)
         d.pop("extra")
+        d.pop("clip")
         factors = d.pop("factors")
+        if self.clip is not None:
+            d.update(clip_frames=self.clip.n_frames, clip_fps=self.clip.fps,
+                     clip_flips_per_frame=self.clip.flips_per_frame)
         return {**d, **factors}
 
 
@@ -207,13 +215,21 @@ def build_trials(protocol: Protocol, stimuli: StimulusSet, *, seed: int, refresh
     stim_frames = seconds_to_frames(timing.stimulus_s, refresh_hz)
     iti = int(round(timing.iti_s * refresh_hz))
     trials: list[Trial] = []
+    bad_rates: dict[float, list[str]] = {}
 
     def add(row: Mapping[str, Any], phase: str, block: str, rep: int, *, respond: bool, frames: int,
             trigger: int | None = None, title: str = "") -> None:
+        clip = None
+        if row.get("frames") is not None:
+            if flips_per_frame(float(row["fps"]), refresh_hz) is None:
+                bad_rates.setdefault(float(row["fps"]), []).append(row["stimulus"])
+            else:
+                clip = plan_clip(dict(row), refresh_hz, frames, clip_end=timing.clip_end, trigger_at=timing.clip_trigger)
+                frames = clip.total_flips
         trials.append(Trial(trial=len(trials) + 1, phase=phase, block=block, repetition=rep,
                             stimulus=row["stimulus"], path=row["path"], factors={f: row[f] for f in factors},
                             stimulus_frames=frames, fixation_frames=fixation(), iti_frames=iti,
-                            respond=respond and bool(protocol.responses), trigger=trigger, title=title))
+                            respond=respond and bool(protocol.responses), trigger=trigger, title=title, clip=clip))
 
     for phase in ("anchors", "practice"):
         extra = getattr(protocol, phase)
@@ -231,6 +247,9 @@ def build_trials(protocol: Protocol, stimuli: StimulusSet, *, seed: int, refresh
     for row in _extra(extra, "end_of_session", full_set, protocol, rng_extra, source):
         add(row, "end", "end", 0, respond=extra.respond,
             frames=seconds_to_frames(extra.stimulus_s or timing.stimulus_s, refresh_hz), title=extra.title)
+    if bad_rates:
+        raise AppealInputError([rate_problem(fps, refresh_hz, str(stimuli.source), sorted(set(names))[0],
+                                             len(set(names))) for fps, names in sorted(bad_rates.items())])
     return trials
 
 
@@ -241,6 +260,49 @@ def _with_repetitions(seq: list[str], block: str) -> list[tuple[str, str, int]]:
         seen[s] = seen.get(s, 0) + 1
         out.append((s, block, seen[s]))
     return out
+
+
+def _block_end(trials: list[Trial], index: int) -> int:
+    """The position after the last trial of ``trials[index]``'s block (same phase and block label)."""
+    key = (trials[index].phase, trials[index].block)
+    end = index + 1
+    while end < len(trials) and (trials[end].phase, trials[end].block) == key:
+        end += 1
+    return end
+
+
+def insert_repeat(trials: list[Trial], index: int, max_repeats: int) -> Trial | None:
+    """Repeat ``trials[index]`` at the end of its block (``timing.on_dropped_frames: repeat``).
+
+    The copy keeps the stimulus, fixation, trigger and responses of the trial it repeats;
+    its ``repeat_of`` is the planned trial's number (the first attempt's); the trials after
+    it are renumbered (their numbers are presentation positions). Only trials not yet
+    presented move, so rows already written keep their numbers.
+
+    Parameters
+    ----------
+    trials : list of Trial
+        The session's list, changed in place.
+    index : int
+        The position of the trial that had dropped frames.
+    max_repeats : int
+        Repeats allowed per planned trial.
+
+    Returns
+    -------
+    Trial or None
+        The inserted copy, or None when the planned trial has been repeated ``max_repeats`` times.
+    """
+    original = trials[index]
+    planned = original.repeat_of if original.repeat_of is not None else original.trial
+    if sum(1 for t in trials if t.repeat_of == planned) >= max_repeats:
+        return None
+    at = _block_end(trials, index)
+    copy = replace(original, repeat_of=planned, break_before=False, extra=dict(original.extra))
+    trials.insert(at, copy)
+    for pos in range(at, len(trials)):
+        trials[pos].trial = pos + 1
+    return copy
 
 
 def trials_frame(trials: list[Trial]) -> pd.DataFrame:

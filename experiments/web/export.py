@@ -8,7 +8,13 @@ lists: one per participant slot, built by :func:`experiments.trials.build_trials
 seed the lab runner uses for that participant (:func:`experiments.session.default_seed`), so
 the browser presents exactly the lab's order, repetitions, constraints and fixation jitter.
 
-What a browser cannot do is refused with one line: passive viewing and EEG triggers.
+Clips (animated stimuli) are exported as their PNG frames (``img/clips/<clip>/frame_00000.png``
+...), preloaded with the images, decoded into bitmaps before their trial and drawn on a canvas one
+frame per ``refresh / fps`` animation frames, counted (``requestAnimationFrame``), with the lab
+runner's clip columns.
+
+What a browser cannot do is refused with one line: passive viewing, EEG triggers, and repeating
+trials with dropped frames (the lists are fixed at export; ``flag`` works).
 """
 
 from __future__ import annotations
@@ -24,6 +30,8 @@ from appeal.errors import AppealInputError
 from appeal.levels import level_key
 from appeal.outputs import output_run
 from appeal.provenance import file_sha256
+from experiments.clips import FRAME_NAME, RATE_TOLERANCE, ClipPlan
+from experiments.display import DROP_THRESHOLD
 from experiments.protocol_schema import ClassificationSpec, LikertSpec, Protocol
 from experiments.runner import beh_columns
 from experiments.session import default_seed, load_protocol
@@ -75,6 +83,7 @@ class WebExport:
     participants: list[str]
     n_images: int
     n_trials: dict[str, int]
+    n_clips: int = 0
 
 
 def web_refusal(protocol: Protocol) -> str | None:
@@ -85,12 +94,23 @@ def web_refusal(protocol: Protocol) -> str | None:
     if protocol.triggers is not None:
         return ("triggers: a browser sends no EEG trigger codes; export a copy of the protocol without "
                 "'triggers' for an online rating study")
+    if protocol.timing.on_dropped_frames == "repeat":
+        return ("timing.on_dropped_frames: repeat: the browser study's trial lists are fixed when it is exported; "
+                "export with 'flag' (dropped_flag marks the trials to leave out)")
     return None
 
 
-def web_columns(protocol: Protocol) -> list[str]:
-    """The columns of a browser session's ``_beh.tsv``: the lab runner's, then :data:`WEB_COLUMNS`."""
-    return [*beh_columns(protocol), *WEB_COLUMNS]
+def web_columns(protocol: Protocol, clips: bool = False) -> list[str]:
+    """The columns of a browser session's ``_beh.tsv``: the lab runner's, then :data:`WEB_COLUMNS`.
+
+    Parameters
+    ----------
+    protocol : Protocol
+        The protocol.
+    clips : bool
+        Whether its stimuli include clips (the lab runner's clip columns are written too).
+    """
+    return [*beh_columns(protocol, clips=clips), *WEB_COLUMNS]
 
 
 def participant_slots(n: int) -> list[str]:
@@ -168,12 +188,14 @@ def _markdown_html(text: str) -> str:
     return markdown.markdown(text.strip(), extensions=["sane_lists"])
 
 
-def _image_name(stimulus: str, used: dict[str, str], path: str) -> str:
-    stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(stimulus).stem) or "image"
-    name, n = f"{stem}.png", 1
+def _unique_name(stimulus: str, used: dict[str, str], path: str, suffix: str = ".png", fallback: str = "image") -> str:
+    """A file or folder name for ``stimulus`` (its stem, made safe, plus ``suffix``) that no other
+    source ``path`` in ``used`` has taken (``_2``, ``_3`` ... appended)."""
+    stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(stimulus).stem) or fallback
+    name, n = f"{stem}{suffix}", 1
     while name in used and used[name] != path:
         n += 1
-        name = f"{stem}_{n}.png"
+        name = f"{stem}_{n}{suffix}"
     used[name] = path
     return name
 
@@ -189,10 +211,28 @@ def _resized(src: str, dst: Path, height: int) -> None:
         im.save(dst, optimize=False)
 
 
+def _clip_frames(plan: ClipPlan, dst: Path, height: int) -> None:
+    """A clip's PNG frames, resized like the stills, into ``dst``."""
+    dst.mkdir(parents=True)
+    for k, src in enumerate(plan.frame_paths()):
+        _resized(src, dst / FRAME_NAME.format(k), height)
+
+
 def _trial_record(t: Trial, image: str) -> dict[str, Any]:
-    """A trial as the browser reads it: the lab's fields, the image by its path in the study folder."""
-    record = {k: v for k, v in asdict(t).items() if k not in ("path", "trigger", "extra")}
-    return {**record, "image": f"img/{image}"}
+    """A trial as the browser reads it: the lab's fields, the image by its path in the study folder.
+
+    A clip's record has ``clip`` (its frames' paths, ``fps``, the flips per frame and hold at the
+    protocol's refresh rate, onset and apex frames) and ``image`` = its last frame (the response
+    screens' thumbnail); ``image`` then names a folder under ``img/clips/``.
+    """
+    record = {k: v for k, v in asdict(t).items() if k not in ("path", "trigger", "extra", "clip")}
+    if t.clip is None:
+        return {**record, "image": f"img/{image}", "clip": None}
+    frames = [f"img/clips/{image}/{FRAME_NAME.format(k)}" for k in range(t.clip.n_frames)]
+    clip = {"frames": frames, "n_frames": t.clip.n_frames, "fps": t.clip.fps,
+            "flips_per_frame": t.clip.flips_per_frame, "hold_flips": t.clip.hold_flips,
+            "onset_frame": t.clip.onset_frame, "apex_frame": t.clip.apex_frame}
+    return {**record, "image": frames[-1], "clip": clip}
 
 
 def _script(name: str, value: Any) -> str:
@@ -256,13 +296,20 @@ def export_web(protocol_file: str | Path, out: str | Path, *, participants: int 
         (root / "lib").mkdir()
         used: dict[str, str] = {}
         names: dict[str, str] = {}
+        plans: dict[str, ClipPlan] = {}
         height = round(protocol.screen.stimulus_height * protocol.screen.window_size[1])
         for trials in lists.values():
             for t in trials:
                 if t.path not in names:
-                    names[t.path] = _image_name(t.stimulus, used, t.path)
+                    names[t.path] = (_unique_name(t.stimulus, used, t.path) if t.clip is None
+                                     else _unique_name(t.stimulus, used, t.path, suffix="", fallback="clip"))
+                if t.clip is not None:
+                    plans[t.path] = t.clip
         for path, name in names.items():
-            _resized(path, root / "img" / name, height)
+            if path in plans:
+                _clip_frames(plans[path], root / "img" / "clips" / name, height)
+            else:
+                _resized(path, root / "img" / name, height)
         for src, name in vendor:
             shutil.copyfile(src, root / "lib" / name)
         (root / "lib" / "LICENSES.md").write_text(_licences())
@@ -277,13 +324,15 @@ def export_web(protocol_file: str | Path, out: str | Path, *, participants: int 
                        "response_stimulus_height": protocol.screen.response_stimulus_height},
             "timing": {"response_deadline_s": protocol.timing.response_deadline_s,
                        "stimulus_visible_during_response": protocol.timing.stimulus_visible_during_response,
-                       "fixation_position": protocol.timing.fixation_position},
+                       "fixation_position": protocol.timing.fixation_position,
+                       "clip_end": protocol.timing.clip_end, "on_dropped_frames": protocol.timing.on_dropped_frames,
+                       "drop_threshold": DROP_THRESHOLD, "rate_tolerance": RATE_TOLERANCE},
             "instructions": [_markdown_html(p) for p in pages],
             "continue_text": protocol.instructions.continue_text,
             "end_text": _markdown_html(protocol.instructions.end_text),
             "breaks": None if protocol.breaks is None else {"text": protocol.breaks.text, "min_s": protocol.breaks.min_s},
             "responses": [_response_config(r) for r in protocol.responses],
-            "factors": list(protocol.stimuli.factors), "columns": web_columns(protocol),
+            "factors": list(protocol.stimuli.factors), "columns": web_columns(protocol, clips=full.has_clips),
             "fixation": protocol.timing.fixation_s is not None,
             "participants": slots, "seeds": seeds, "data_url": data_url, "completion_url": completion_url,
             "completion_code": completion_code, "fullscreen": fullscreen,
@@ -291,6 +340,6 @@ def export_web(protocol_file: str | Path, out: str | Path, *, participants: int 
         (root / "config.js").write_text(_script("APPEAL_CONFIG", config), encoding="utf-8")
         records = {p: [_trial_record(t, names[t.path]) for t in trials] for p, trials in lists.items()}
         (root / "trials.js").write_text(_script("APPEAL_TRIALS", records), encoding="utf-8")
-        run.extra.update(participants=len(slots), images=len(names))
-    return WebExport(out=root, index=root / "index.html", participants=slots, n_images=len(names),
-                     n_trials={p: len(t) for p, t in lists.items()})
+        run.extra.update(participants=len(slots), images=len(names) - len(plans), clips=len(plans))
+    return WebExport(out=root, index=root / "index.html", participants=slots, n_images=len(names) - len(plans),
+                     n_trials={p: len(t) for p, t in lists.items()}, n_clips=len(plans))

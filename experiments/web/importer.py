@@ -38,6 +38,12 @@ class ImportedSession:
     complete: bool
 
 
+def _has_clip_columns(path: Path) -> bool:
+    """Whether a session file's header has the clip columns (a study whose stimuli include clips)."""
+    with open(path, encoding="utf-8") as fh:
+        return "clip_frames" in fh.readline().rstrip("\n").split("\t")
+
+
 def _one(rows: list[dict[str, str]], column: str, source: Path) -> str:
     values = sorted({r[column] for r in rows})
     if len(values) != 1:
@@ -84,7 +90,6 @@ def import_web(files: list[str | Path], protocol_file: str | Path, out: str | Pa
     """
     protocol_file = Path(protocol_file)
     protocol = load_protocol(protocol_file)
-    columns = web_columns(protocol)
     out = Path(out)
     checked = []
     for f in map(Path, files):
@@ -92,6 +97,7 @@ def import_web(files: list[str | Path], protocol_file: str | Path, out: str | Pa
             raise AppealInputError(f"{f}: no such file")
         if f.suffix != ".tsv":
             raise AppealInputError(f"{f}: expected a browser session file sub-ID_ses-N_task-{protocol.task}_beh.tsv")
+        columns = web_columns(protocol, clips=_has_clip_columns(f))
         rows = read_completed(f, columns)
         participant, session = _check(rows, f, protocol.name)
         paths = session_paths(out / f"sub-{participant}" / f"ses-{session}" / "beh", participant, session, protocol.task)
@@ -103,11 +109,11 @@ def import_web(files: list[str | Path], protocol_file: str | Path, out: str | Pa
     if dup:
         raise AppealInputError(f"{', '.join(str(c[0]) for c in checked if (c[2], c[3]) == dup[0])}: "
                                f"two files of participant {dup[0][0]}, session {dup[0][1]}")
-    desc = column_descriptions(protocol, columns)
-    for c, text in WEB_DESCRIPTIONS.items():
-        desc[c] = {"Description": text}
     done = []
     for f, rows, participant, session, paths in checked:
+        desc = column_descriptions(protocol, list(rows[0]))
+        for c, text in WEB_DESCRIPTIONS.items():
+            desc[c] = {"Description": text}
         paths["beh"].parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(paths["beh"], f.read_text(encoding="utf-8"))
         hz = statistics.median(float(r["refresh_hz"]) for r in rows)

@@ -2,8 +2,9 @@
  *
  * jsPsych runs the timeline (preload, full screen, instruction pages); the plugin below runs one
  * trial of the protocol's list exactly as the lab runner does: fixation (before or after), the face
- * for a counted number of display frames (requestAnimationFrame), the Likert / classification
- * screens, the inter-trial interval. Every finished trial's row is kept in localStorage at once, so
+ * for a counted number of display frames (requestAnimationFrame) - or a clip, its frames decoded
+ * into bitmaps before the trial and drawn on a canvas one per refresh/fps animation frames - the
+ * Likert / classification screens, the inter-trial interval. Every finished trial's row is kept in localStorage at once, so
  * a reload continues at the next trial; at the end the `_beh.tsv` is offered for download and,
  * when the export named a data URL, POSTed there.
  */
@@ -105,6 +106,88 @@
       window.requestAnimationFrame(step);
     });
   }
+  // ------------------------------------------------------------------ clips
+  /** Flips (animation frames) per clip frame at the measured refresh rate: refresh / fps when it is
+   *  whole (as in the lab), else spread evenly (4 and 5 at 144 Hz for 30 fps); ``nominal`` for the data. */
+  function clipSchedule(clip) {
+    const ratio = clock.hz / clip.fps;
+    const whole = Math.round(ratio);
+    if (whole >= 1 && Math.abs(ratio - whole) <= C.timing.rate_tolerance * whole) {
+      return { perFrame: new Array(clip.n_frames).fill(whole), nominal: whole };
+    }
+    const perFrame = [];
+    for (let k = 0; k < clip.n_frames; k++) perFrame.push(Math.max(1, Math.round((k + 1) * ratio) - Math.round(k * ratio)));
+    return { perFrame: perFrame, nominal: Math.round(ratio * 1000) / 1000 };
+  }
+
+  /** Every frame of a clip fetched (preloaded by jsPsych), decoded and made a bitmap before its trial. */
+  function decodeClip(clip) {
+    return Promise.all(clip.frames.map(function (src) {
+      const img = new Image();
+      img.src = src;
+      return img.decode().then(function () { return window.createImageBitmap(img); });
+    }));
+  }
+
+  /** Play a clip on a canvas: frame k drawn in the first of its perFrame[k] animation frames (counted,
+   *  never timed), then the last frame held for ``hold`` more; resolves with what every frame showed. */
+  function showClip(display, bitmaps, schedule, hold, title) {
+    return new Promise(function (resolve) {
+      const n = bitmaps.length;
+      const out = { flips: [], frameFlips: new Array(n).fill(0), frameOnsets: [], holdFlips: 0, onsetFrame: null };
+      let ctx = null;
+      let k = 0;
+      let j = 0;
+      function step(t) {
+        if (ctx === null) { // the first animation frame builds the screen and draws frame 0
+          const s = screen(display);
+          if (title) at(s, el("div", "appeal-title", title), 0.45);
+          const canvas = el("canvas");
+          canvas.width = bitmaps[0].width;
+          canvas.height = bitmaps[0].height;
+          s.appendChild(sized(canvas, C.screen.stimulus_height, 0));
+          canvas.className += " appeal-clip";
+          ctx = canvas.getContext("2d");
+          out.onsetFrame = clock.frame;
+        }
+        out.flips.push(t);
+        if (k < n) {
+          if (j === 0) {
+            ctx.drawImage(bitmaps[k], 0, 0);
+            out.frameOnsets.push(t);
+            document.body.dataset.appealClipFrame = String(k);
+          }
+          out.frameFlips[k] += 1;
+          j += 1;
+          if (j >= schedule.perFrame[k]) { k += 1; j = 0; }
+        } else {
+          out.holdFlips += 1;
+          document.body.dataset.appealClipHold = String(out.holdFlips);
+        }
+        if (k >= n && out.holdFlips >= hold) {
+          out.onset = out.flips[0];
+          resolve(out);
+        } else {
+          window.requestAnimationFrame(step);
+        }
+      }
+      window.requestAnimationFrame(step);
+    });
+  }
+
+  /** The lab runner's clip columns of one trial. */
+  function clipColumns(clip, schedule, played, preloadMs) {
+    let errors = 0;
+    played.frameFlips.forEach(function (f, k) { if (f !== schedule.perFrame[k]) errors += 1; });
+    return {
+      clip_frames: clip.n_frames, clip_fps: clip.fps, clip_flips_per_frame: schedule.nominal,
+      clip_frames_shown: played.frameFlips.filter(function (f) { return f > 0; }).length,
+      clip_flips: played.frameFlips.reduce(function (a, b) { return a + b; }, 0), clip_hold_flips: played.holdFlips,
+      clip_frame_errors: errors, clip_onset_s: seconds(played.frameOnsets[clip.onset_frame]),
+      clip_apex_s: seconds(played.frameOnsets[clip.apex_frame]), clip_preload_ms: preloadMs,
+    };
+  }
+
   /** The time of the next animation frame: the onset of a screen just built (one that waits for an answer). */
   function nextFrame() {
     return show(function () {}, 1).then(function (r) { return r.onset; });
@@ -300,9 +383,18 @@
       at(s, el("div", "appeal-text", C.breaks.text), 0.05);
       await waitKey(" ", C.breaks.min_s);
     }
-    const img = new Image();
-    img.src = trial.image;
-    await img.decode(); // never a frame before the face is decoded
+    let img = null;
+    let bitmaps = null;
+    let preloadMs = null;
+    if (trial.clip) { // every frame decoded into a bitmap before the trial's first screen
+      const t0 = performance.now();
+      bitmaps = await decodeClip(trial.clip);
+      preloadMs = performance.now() - t0;
+    } else {
+      img = new Image();
+      img.src = trial.image;
+      await img.decode(); // never a frame before the face is decoded
+    }
     const fixAfter = C.timing.fixation_position === "after";
     const fixFrames = trial.fixation_frames ? framesAt(trial.fixation_frames) : 0;
     if (C.fixation) row.fixation_frames = fixFrames || null;
@@ -310,12 +402,27 @@
       const fix = await show(function () { at(screen(display), el("div", "appeal-fixation", "+"), 0); }, fixFrames);
       row.fixation_onset_s = seconds(fix.onset);
     }
-    const n = framesAt(trial.stimulus_frames);
-    const stim = await show(function () {
-      const s = screen(display);
-      if (trial.title) at(s, el("div", "appeal-title", trial.title), 0.45);
-      s.appendChild(sized(img, C.screen.stimulus_height, 0));
-    }, n);
+    let n;
+    let stim;
+    if (trial.clip) {
+      const schedule = clipSchedule(trial.clip);
+      const clipFlips = schedule.perFrame.reduce(function (a, b) { return a + b; }, 0);
+      const hold = trial.clip.hold_flips > 0 ? Math.max(0, framesAt(trial.stimulus_frames) - clipFlips) : 0;
+      n = clipFlips + hold;
+      const played = await showClip(display, bitmaps, schedule, hold, trial.title);
+      bitmaps.forEach(function (b) { b.close(); }); // freed as soon as the clip has been shown
+      delete document.body.dataset.appealClipFrame;
+      delete document.body.dataset.appealClipHold;
+      Object.assign(row, clipColumns(trial.clip, schedule, played, preloadMs));
+      stim = played;
+    } else {
+      n = framesAt(trial.stimulus_frames);
+      stim = await show(function () {
+        const s = screen(display);
+        if (trial.title) at(s, el("div", "appeal-title", trial.title), 0.45);
+        s.appendChild(sized(img, C.screen.stimulus_height, 0));
+      }, n);
+    }
     let after;
     if (fixFrames && fixAfter) {
       after = await show(function () { at(screen(display), el("div", "appeal-fixation", "+"), 0); }, fixFrames);
@@ -327,13 +434,18 @@
     }
     const period = 1000 / clock.hz;
     const edges = stim.flips.concat([after.onset]);
-    let dropped = 0;
-    for (let i = 1; i < edges.length; i++) if (edges[i] - edges[i - 1] > 1.5 * period) dropped += 1;
+    let dropped = 0; // animation-frame intervals over 1.5 refresh periods while the stimulus was up
+    for (let i = 1; i < edges.length; i++) if (edges[i] - edges[i - 1] > C.timing.drop_threshold * period) dropped += 1;
     Object.assign(row, {
       onset_frame: stim.onsetFrame, onset_s: seconds(stim.onset), offset_s: seconds(after.onset),
       duration_frames: n, shown_frames: stim.flips.length, shown_s: (after.onset - stim.onset) / 1000,
       dropped_frames: dropped,
     });
+    if (trial.clip) row.clip_dropped_frames = dropped;
+    if (C.timing.on_dropped_frames === "flag") {
+      row.dropped_flag = (dropped > 0 || (row.clip_frame_errors || 0) > 0) ? 1 : 0;
+      row.repeat_of = null;
+    }
     if (trial.respond) await respond(display, trial, row);
     if (trial.respond && trial.iti_frames) await show(function () { screen(display); }, framesAt(trial.iti_frames));
     row.focus_losses = losses.focus;
@@ -429,8 +541,10 @@
     }
     const todo = list.slice(state.rows.length);
     const timeline = [];
+    const images = [];
+    todo.forEach(function (t) { if (t.clip) images.push.apply(images, t.clip.frames); else images.push(t.image); });
     timeline.push({
-      type: jsPsychPreload, images: Array.from(new Set(todo.map(function (t) { return t.image; }))),
+      type: jsPsychPreload, images: Array.from(new Set(images)),
       message: "Loading the images …", show_progress_bar: true, continue_after_error: false,
       error_message: "The images could not be loaded; please reload the page.",
     });
