@@ -69,8 +69,12 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
         what = "clips" if spec.animation is not None else "images"
         click.echo(f"{n_ok} of {len(manifest)} {what} in {run.out / what}; manifest {run.out / 'manifest.csv'}")
         for s in sheets:
-            click.echo(f"continuum: {s} (table {s.with_suffix('.csv')})" if s.name == "continuum.png"
-                       else f"contact sheet: {s}")
+            if s.name == "continuum.png":
+                click.echo(f"continuum: {s} (table {s.with_suffix('.csv')})")
+            elif s.name == "expression_measures.png":
+                click.echo(f"expression per level: {s} (tables expression_measures.csv, expression_agreement.csv)")
+            else:
+                click.echo(f"{'filmstrip' if s.name.startswith('filmstrip') else 'contact sheet'}: {s}")
         measured = pins(spec, manifest.attrs["grid"])
         for factor, pin in measured.items():  # a study's levels belong in its protocol
             click.echo(f"{factor} measured; to keep these levels, write in {grid_file}:  {factor}: {json.dumps(pin)}")

@@ -238,6 +238,14 @@ def test_retarget_cli_reads_c3d_and_marker_csv_and_recovers_the_weights(rigs, tm
         err = _rmse(got[names].to_numpy(), w)
         print(args[0], "weight RMSE", round(err, 4))
         assert err < 0.05, (args[0], err)  # the rig's own blendshapes would read every weight 1.3x (RMSE ~0.1)
+    # a face tracker's weights (frame + blendshape columns): the rig's own performance read back
+    wt = pd.DataFrame(w[:, :], columns=names)
+    wt.insert(0, "frame", range(len(w)))
+    wt.to_csv(tmp_path / "tracker.csv", index=False)
+    out = tmp_path / "tracker.weights.csv"
+    assert main(["stimuli", "retarget", str(tmp_path / "tracker.csv"), "--ict", ict, "--transfer", "rbf", "--mu", "0",
+                 "--nu", "0", "--out", str(out)]) == 0
+    assert _rmse(pd.read_csv(out)[names].to_numpy(), w) < 1e-6
     if True:  # a marker the map does not place: one line naming it
         pd.DataFrame({"marker": ["M000"], "vertex": [mk[0]]}).to_csv(tmp_path / "short.csv", index=False)
         capsys.readouterr()

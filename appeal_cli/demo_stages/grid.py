@@ -14,7 +14,7 @@ def _run(out: Path, seed: int) -> ReportSection:
     from appeal.studyfile import validate_data
     from stimulus_engine.grid import run_grid
     from stimulus_engine.data import EMBEDDED_SCAN
-    from stimulus_engine.grid.schema import CharacterSpec, GridFile, MaterialContinuum
+    from stimulus_engine.grid.schema import AnimationSpec, CharacterSpec, GridFile, MaterialContinuum
     from stimulus_engine.stylisation.neoteny import neoteny_table, plot_neoteny
 
     import pandas as pd
@@ -30,6 +30,7 @@ def _run(out: Path, seed: int) -> ReportSection:
         "materials": ["original", "blur50", "flat", {"name": "from_headB", "style": "original",
                                                      "from_character": "headB"}],
         "expressions": ["neutral", "happiness", "anger", "surprise"],
+        "expression_transfer": "aligned",
         "lighting": ["gi_soft", "direct_hard"],
         "shading": ["pbr"],
         "render": {"width": 480, "height": 360},
@@ -48,6 +49,12 @@ def _run(out: Path, seed: int) -> ReportSection:
                                      CharacterSpec, source=Path("demo_grid.yaml"))],
         "materials": MaterialContinuum(levels=3), "lighting": ["gi_soft"]})
     _, scan_sheets = run_grid(scan, out / "scan", n_jobs=2)
+    # a dynamic stimulus: the scan's surprise rising from neutral, one clip per shape level
+    clip = scan.model_copy(update={"shapes": [0.0, 1.0], "materials": ["original"], "expressions": ["surprise"],
+                                   "render": scan.render.model_copy(update={"width": 320, "height": 240}),
+                                   "animation": AnimationSpec(fps=15, onset=0.8, hold=0.2)})
+    clips, clip_sheets = run_grid(clip, out / "clips", n_jobs=2)
+    strips = [p for p in clip_sheets if p.name.startswith("filmstrip")]
     table = neoteny_table(pd.read_csv(out / "landmarks.csv"))
     atomic_write_text(out / "neoteny.csv", table.to_csv(index=False))
     figs = plot_neoteny(table, out / "neoteny.png")
@@ -56,14 +63,19 @@ def _run(out: Path, seed: int) -> ReportSection:
             "surface, photographic texture and hair, eyeballs behind its lids that look into the lens, teeth behind "
             "its lips — with its landmarks found automatically, posed through a procedural head's rig for shape "
             "stylisation levels 0, 0.5, 1 (artist-free operator: larger eyes, smaller nose and mouth, shorter jaw, "
-            "larger cranium, smoother skin) and FACS-recipe expressions carried onto the stylised shapes by "
-            "deformation transfer, and three material levels of one painted family spaced by measured image "
-            "steps, with the continuum's report (`scan/continuum.png`: the step between neighbouring levels "
-            "and each level's face-recognition distance to the realistic one). Then "
+            "larger cranium, smoother skin) and FACS-recipe expressions carried onto every level by the "
+            "thesis's range-of-motion-aligned blendshape transfer (ch. 4: each level's own blendshapes, moving "
+            "the face as far in units of its own length as the rig does; `scan/expression_measures.png` shows "
+            "mouth opening, brow raise ... per level), and three material levels of one painted family spaced by "
+            "measured image steps, with the continuum's report (`scan/continuum.png`: the step between "
+            "neighbouring levels and each level's face-recognition distance to the realistic one). The same "
+            f"scan's surprise as {len(clips)} clips ({int(clips['n_frames'].iloc[0])} frames at 15 fps, neutral to "
+            "apex, one weight curve for both levels: lossless PNG frames and an H.264 MP4 each, "
+            "`clips/clips/*.mp4`; the filmstrip shows every level's frames side by side). Then "
             f"{n} images of two procedurally generated, textured heads (no downloaded assets): the same shapes and "
             "expressions, materials original / blurred / flat / albedo of the other head. Every face is framed "
             "with the same size and eye position. Manifest: `manifest.csv`.")
-    return ReportSection(title="Stimulus grid", text=text, figures=[*scan_sheets, *sheets, *lit_sheets, figs[0]],
+    return ReportSection(title="Stimulus grid", text=text, figures=[*scan_sheets, *strips, *sheets, *lit_sheets, figs[0]],
                          tables=[out / "manifest.csv", out / "neoteny.csv"])
 
 
