@@ -40,9 +40,10 @@ three methods:
      not correlate with the true ones (r = −0.17).
   3. **α = β = 10⁻⁴.** After (2) the match of a blendshape weighs about F times more than in the
      thesis, and E_Mesh pulls towards the *unscaled* guess's Laplacian: with α = 0.01 and
-     β = 0.1 the weights came out no better than by deformation transfer (−2 … +33 % on four
-     actors); at 10⁻⁴ the two constraints still fix the markers the match leaves free (with α = 0
-     they are ill-determined) and the recovery beats both baselines by 43–68 %.
+     β = 0.1 the weights came out hardly better than by the better baseline (−7 … +14 % lower
+     RMSE on the four actors of the test); at 10⁻⁴ the two constraints still fix the markers the
+     match leaves free (with α = 0 they are ill-determined) and the RMSE is 43–68 % lower than
+     the better of RBF and deformation transfer.
 
   The three energies are quadratic and separable in x, y and z: one sparse (MK × MK) system,
   factorised once and solved for the three coordinates (§4.3.6). The dense blendshapes (every
