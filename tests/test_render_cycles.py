@@ -252,7 +252,10 @@ def test_the_inside_of_an_open_mouth_agrees_between_the_engines(tmp_path):
     root = Path(__file__).resolve().parents[1]
     grid = yaml.safe_load((root / "protocols/grids/exp2_stylisation.yaml").read_text())
     grid["characters"] = [c for c in grid["characters"] if c["name"] == "lps"]
-    grid.update(shapes=[0.0], materials=["original"], expressions=["surprise"], render={"shadows": False})
+    # the scene this comparison was made on: deformation transfer opens the mouth a little wider at
+    # the realistic level than the aligned transfer the grid file asks for, so the tongue shows
+    grid.update(shapes=[0.0], materials=["original"], expressions=["surprise"], render={"shadows": False},
+                expression_transfer="deformation_transfer")
     path = tmp_path / "mouth.yaml"
     path.write_text(yaml.safe_dump(grid))
     _, items, _ = prepare_grid(load_study_file(path, GridFile), tmp_path / "out")
