@@ -47,13 +47,14 @@ three methods:
 
   The three energies are quadratic and separable in x, y and z: one sparse (MK × MK) system,
   factorised once and solved for the three coordinates (§4.3.6). The dense blendshapes (every
-  vertex, not only the markers) are the dense RBF guesses plus the sparse correction
-  ``δb_k − δg_k`` spread over the face by a thin-plate spline through the markers, faded out
-  where the rig's blendshape does not move the face (so eyeballs and the back of the head stay
-  where they are).
+  vertex, not only the markers) are deformation transfer's, each scaled vertex by vertex by a
+  smooth gain: how much longer the aligned sparse blendshape is than deformation transfer's at
+  each marker, spread by a thin-plate spline (:func:`densify`). Scaling keeps the local shape
+  (a vector correction folded the tiny triangles where the lips meet), and a vertex the rig's
+  blendshape does not move (the eyeballs, the back of the head) stays where it is.
 
 For a stylised shape there is no captured actor; its training sequence is the rig's own range of
-motion (:func:`range_of_motion`: each blendshape and each FACS expression rising to its apex)
+motion (:func:`range_of_motion`: each blendshape alone at its apex)
 measured on the rig's markers and scaled by the ratio of the two faces' lengths (forehead to
 chin, the length the grid frames every face by): the target is asked to move as far, in units of
 its own face, as the rig does. That is what makes an anger at the cartoon level the same anger
@@ -348,6 +349,10 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
         Number of markers when they are chosen here.
     alpha, beta : float
         E_Align's weights (``aligned``).
+    dense_base : {"deformation_transfer", "rbf"}
+        ``aligned``: the dense blendshapes the markers' gains scale (default deformation
+        transfer: on one topology it keeps each triangle's deformation; ``rbf`` needs no
+        triangles to agree).
 
     Returns
     -------
@@ -361,17 +366,20 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
     names = sorted(rig.blendshapes) if names is None else list(names)
     target = np.asarray(target, np.float64)
     deltas = np.stack([rig.blendshapes[n] for n in names])
+    def transferred() -> np.ndarray:  # each blendshape by deformation transfer
+        return np.stack([deformation_transfer(rig.vertices, rig.vertices + d, target, rig.faces) - target
+                         for d in deltas])
+
     if method == "deformation_transfer":
-        return {n: deformation_transfer(rig.vertices, rig.vertices + d, target, rig.faces) - target
-                for n, d in zip(names, deltas)}
+        return dict(zip(names, transferred()))
     markers = marker_vertices(rig, n_markers) if markers is None else np.asarray(markers)
     warp = rbf_warp(rig.vertices[markers], target[markers])
-    dense_g = warp_deltas(warp, rig.vertices, deltas)
-    if method == "rbf":
-        return dict(zip(names, dense_g))
-    if dense_base == "deformation_transfer":  # the aligned correction on deformation transfer's local shape
-        dense_g = np.stack([deformation_transfer(rig.vertices, rig.vertices + d, target, rig.faces) - target
-                            for d in deltas])
+    if method == "rbf" or dense_base == "rbf":
+        dense_g = warp_deltas(warp, rig.vertices, deltas)
+        if method == "rbf":
+            return dict(zip(names, dense_g))
+    else:
+        dense_g = transferred()
     s = deltas[:, markers]
     if frames is None:
         frames = (face_length(rig, target) / face_length(rig)) * np.einsum("fk,kmc->fmc", range_of_motion(names), s)
