@@ -17,7 +17,7 @@ from PIL import Image
 from appeal.errors import StudyFileError
 from appeal.studyfile import load_study_file
 from stimulus_engine.grid import run_grid
-from stimulus_engine.grid.animation import EASINGS, ClipItem, render_clip, weight_curve
+from stimulus_engine.grid.animation import EASINGS, ClipItem, frame_file, render_clip, weight_curve
 from stimulus_engine.grid.schema import AnimationSpec, GridFile
 from stimulus_engine.render.clip_video import decode_frames, encode_mp4, psnr, video_info
 
@@ -334,3 +334,65 @@ animation: {{fps: 4, onset: 0.5, hold: 0.0}}
     assert (_png(folder / "frame_00002.png") == apex).all()
     middle = _png(folder / "frame_00001.png")
     assert not (middle == neutral).all() and not (middle == apex).all()
+
+
+# ------------------------------------------------------------------ a performance in every cell
+def _performance_csv(path: Path, rows: list[dict[str, float]], fps: int | None = 10) -> Path:
+    import pandas as pd
+
+    df = pd.DataFrame(rows).fillna(0.0)
+    df.insert(0, "frame", range(len(df)))
+    if fps is not None:
+        df.insert(1, "time", [k / fps for k in range(len(df))])
+    df.to_csv(path, index=False)
+    return path
+
+
+def test_a_performance_plays_in_every_cell_and_its_frames_are_its_rows(tmp_path, rendered):
+    """A weights CSV (what ``appeal stimuli retarget`` writes) as the clip: frame k posed by row k,
+    on every shape level through the level's own transfer; a row equal to the happy recipe is the
+    happy still image, the neutral rows the neutral still."""
+    from stimulus_engine.characters.expressions import expression_weights
+
+    happy = expression_weights("happiness")
+    rows = [{}, {k: 0.5 * v for k, v in happy.items()}, dict(happy), {"jawOpen": 0.6}, {}]
+    perf = _performance_csv(tmp_path / "take.csv", rows)
+    grid = _load(tmp_path, ANIMATED.replace("animation: {fps: 10, onset: 0.5, hold: 0.2, easing: smoothstep}",
+                                            f"animation: {{fps: 10, performance: {perf}}}"))
+    manifest, _ = run_grid(grid, tmp_path / "out", n_jobs=1)
+    assert (manifest["status"] == "rendered").all() and (manifest["n_frames"] == len(rows)).all()
+    assert (manifest["apex_frame"] == 2).all() and (manifest["onset_frame"] == 0).all()
+    still = rendered["still"].set_index(["shape", "expression"])
+    for r in manifest.itertuples():
+        folder = tmp_path / "out" / r.frames
+        for k, expr in ((0, "neutral"), (2, "happiness"), (4, "neutral")):
+            ref = _png(rendered["root"] / "still" / still.loc[(r.shape, expr), "file"])
+            assert np.array_equal(_png(folder / frame_file(k)), ref), (r.file, k)
+        assert not np.array_equal(_png(folder / frame_file(3)), _png(folder / frame_file(0)))  # the jaw moved
+        assert len(decode_frames(tmp_path / "out" / r.file)) == len(rows)
+
+
+@pytest.mark.parametrize("rows, fps, says", [
+    ([{"grin": 1.0}, {}], 10, ["take.csv", "column 'grin'", "not a blendshape of character 'a'"]),
+    ([{"jawOpen": 1.0}, {}], 25, ["take.csv", "time: steps at 25 fps", "animation.fps 10"]),
+    ([{"jawOpen": 1.0}], 10, ["take.csv", "1 frames", "expected 2.."]),
+])
+def test_a_bad_performance_is_a_one_line_error_before_rendering(tmp_path, rows, fps, says):
+    from appeal.errors import AppealInputError
+
+    perf = _performance_csv(tmp_path / "take.csv", rows, fps)
+    grid = _load(tmp_path, ANIMATED.replace("animation: {fps: 10, onset: 0.5, hold: 0.2, easing: smoothstep}",
+                                            f"animation: {{fps: 10, performance: {perf}}}"))
+    with pytest.raises(AppealInputError) as e:
+        run_grid(grid, tmp_path / "out", n_jobs=1)
+    msg = str(e.value)
+    assert len(msg.splitlines()) == 1 and all(s in msg for s in says), msg
+    assert not (tmp_path / "out" / "clips").exists()
+
+
+def test_a_performance_needs_one_expression_name(tmp_path):
+    perf = _performance_csv(tmp_path / "take.csv", [{}, {"jawOpen": 1.0}])
+    text = STILL + f"animation: {{performance: {perf}}}\n"
+    with pytest.raises(Exception) as e:
+        _load(tmp_path, text)
+    assert "animation.performance plays one performance in every cell" in str(e.value)

@@ -39,6 +39,7 @@ MP4, ``frames`` its PNG folder, ``n_frames``, ``fps``, ``onset_frame`` (L), ``ap
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import os
 import shutil
@@ -55,9 +56,10 @@ from stimulus_engine.grid.cache import GRID_VERSION, file_sha, sha
 from stimulus_engine.grid.schema import AnimationSpec
 from stimulus_engine.grid.worker import RenderItem, render_image
 
-__all__ = ["EASINGS", "ClipItem", "apex_view", "clip_checksums", "clip_columns", "clip_geometry", "cosine",
-           "clip_frames", "curve_text", "ease_out", "frame_file", "frame_weights", "frames_digest", "linear", "prepare_clip",
-           "render_clip", "smoothstep", "weight_curve"]
+__all__ = ["EASINGS", "ClipItem", "apex_view", "clip_checksums", "clip_columns", "clip_frame_weights", "clip_geometry",
+           "cosine", "clip_frames", "curve_text", "ease_out", "frame_file", "frame_keys", "frame_weights",
+           "frames_digest", "linear", "performance_curve", "performance_weights", "prepare_clip", "render_clip",
+           "smoothstep", "timeline", "weight_curve"]
 
 
 # ------------------------------------------------------------------------------------ the curve
@@ -112,7 +114,8 @@ EASINGS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
 
 
 def weight_curve(spec: AnimationSpec) -> np.ndarray:
-    """The weight w_k of every frame of a clip (module docstring): ``(n_frames,)`` in [0, 1].
+    """The weight w_k of every frame of a clip (module docstring): ``(n_frames,)`` in [0, 1]; for a
+    ``performance``, its activation (:func:`performance_curve`).
 
     Examples
     --------
@@ -121,12 +124,96 @@ def weight_curve(spec: AnimationSpec) -> np.ndarray:
     >>> weight_curve(AnimationSpec(fps=2, lead=1.0, onset=1.0, hold=0.0)).tolist()
     [0.0, 0.0, 0.0, 0.5, 1.0]
     """
+    if spec.performance is not None:
+        return performance_curve(performance_weights(spec.performance, spec.fps)[1])
     k = np.arange(spec.n_frames, dtype=np.float64)
     lo, hi = spec.onset_frame, spec.apex_frame
     w = EASINGS[spec.easing](np.clip((k - lo) / (hi - lo), 0.0, 1.0))
     w[k <= lo] = 0.0  # exact ends, whatever the easing's rounding
     w[k >= hi] = 1.0
     return w
+
+
+def timeline(spec: AnimationSpec) -> tuple[int, int, int]:
+    """``(n_frames, onset_frame, apex_frame)`` of a clip: the spec's, or a performance's (its rows;
+    the last frame before its activation first passes 5 % of its largest; the frame of the largest)."""
+    if spec.performance is None:
+        return spec.n_frames, spec.onset_frame, spec.apex_frame
+    curve = weight_curve(spec)
+    moving = np.flatnonzero(curve > 0.05)
+    return len(curve), max(int(moving[0]) - 1, 0) if len(moving) else 0, int(np.argmax(curve))
+
+
+#: A performance's rows a clip may have (60 s at 120 fps).
+MAX_PERFORMANCE_FRAMES = 7200
+
+
+@functools.lru_cache(maxsize=8)
+def _performance_table(path: str, stamp: float, fps: int) -> tuple[tuple[str, ...], np.ndarray]:
+    from appeal.errors import AppealInputError
+
+    try:
+        df = pd.read_csv(path)
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise AppealInputError(f"{path}: cannot read the performance ({str(exc).splitlines()[0]})") from None
+    names = tuple(c for c in df.columns if c not in ("frame", "time"))
+    if "frame" not in df.columns or not names:
+        raise AppealInputError(f"{path}: expected columns frame, optional time, and one per blendshape (as "
+                               "'appeal stimuli retarget' writes)")
+    if not 2 <= len(df) <= MAX_PERFORMANCE_FRAMES:
+        raise AppealInputError(f"{path}: {len(df)} frames (expected 2..{MAX_PERFORMANCE_FRAMES})")
+    w = df[list(names)].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
+    if not np.isfinite(w).all():
+        r, c = np.argwhere(~np.isfinite(w))[0]
+        raise AppealInputError(f"{path}: {names[c]}: row {r + 1} is not a number (expected a weight in every cell)")
+    if "time" in df.columns:
+        step = np.diff(pd.to_numeric(df["time"], errors="coerce").to_numpy(np.float64))
+        rate = 1.0 / float(np.median(step)) if len(step) and np.median(step) > 0 else float("nan")
+        if not abs(rate - fps) <= 0.01 * fps:
+            raise AppealInputError(f"{path}: time: steps at {rate:.4g} fps, expected animation.fps {fps} "
+                                   "(one row per frame)")
+    return names, w
+
+
+def performance_weights(path: str | os.PathLike, fps: int) -> tuple[tuple[str, ...], np.ndarray]:
+    """A performance CSV's blendshape names and weights ``(n_frames, K)``, checked (one-line
+    errors naming the file and column; a ``time`` column must step at ``fps``)."""
+    p = str(path)
+    return _performance_table(p, os.stat(p).st_mtime, int(fps))
+
+
+def performance_curve(weights: np.ndarray) -> np.ndarray:
+    """A performance's activation per frame: its weights' absolute sum over the largest, in [0, 1].
+
+    Examples
+    --------
+    >>> performance_curve(np.array([[0.0, 0.0], [0.2, 0.3], [1.0, -1.0]])).tolist()
+    [0.0, 0.25, 1.0]
+    """
+    a = np.abs(np.asarray(weights, np.float64)).sum(axis=1)
+    return a / a.max() if a.max() > 0 else a
+
+
+def clip_frame_weights(spec: AnimationSpec, apex: dict[str, float]) -> list[dict[str, float]]:
+    """Every frame's blendshape weights: the curve times the cell's ``apex`` weights, or the
+    performance's rows."""
+    if spec.performance is None:
+        return [frame_weights(apex, float(w)) for w in weight_curve(spec)]
+    names, w = performance_weights(spec.performance, spec.fps)
+    return [{n: float(x) for n, x in zip(names, row) if x != 0.0} for row in w]
+
+
+def frame_keys(frames: list[dict[str, float]]) -> tuple[int, ...]:
+    """For each frame the first frame with the same weights (a frame like an earlier one is posed
+    and drawn once).
+
+    Examples
+    --------
+    >>> frame_keys([{}, {}, {"a": 1.0}, {}, {"a": 1.0}])
+    (0, 0, 2, 0, 2)
+    """
+    seen: dict[tuple, int] = {}
+    return tuple(seen.setdefault(tuple(sorted(f.items())), k) for k, f in enumerate(frames))
 
 
 def curve_text(curve: np.ndarray) -> str:
@@ -181,13 +268,17 @@ class ClipItem:
         The PNG folder, relative to ``out_dir`` (``clips/<stem>``).
     fps : int
     weights : tuple of float
-        w_k of every frame (:func:`weight_curve`): frames of one weight are drawn once.
+        w_k of every frame (:func:`weight_curve`).
+    keys : tuple of int
+        Per frame, the first frame with the same blendshape weights (:func:`frame_keys`): such
+        frames are drawn once.
     """
 
     still: RenderItem
     frames: str
     fps: int
     weights: tuple[float, ...]
+    keys: tuple[int, ...] = ()
 
     @property
     def file(self) -> str:
@@ -211,9 +302,9 @@ class ClipItem:
         return [f"{self.frames}/{frame_file(k)}" for k in range(len(self.weights))] + [self.file]
 
 
-def clip_geometry(path: Path, curve: np.ndarray, pose: Callable[[float], np.ndarray]) -> Path:
-    """The drawn vertices of every frame, ``pose(w_k)`` stacked ``(n_frames, N, 3)`` float32, in
-    ``path`` (kept: a re-run reads nothing else). A run of frames of one weight is posed once, and
+def clip_geometry(path: Path, frames: list[dict[str, float]], pose: Callable[[dict[str, float]], np.ndarray]) -> Path:
+    """The drawn vertices of every frame, ``pose(weights_k)`` stacked ``(n_frames, N, 3)`` float32,
+    in ``path`` (kept: a re-run reads nothing else). A run of frames of one weight is posed once, and
     the frames go straight to a memory-mapped temporary file renamed into place when all are
     there (no clip held in memory, nothing half-written left)."""
     from appeal.atomic import current_umask
@@ -224,15 +315,15 @@ def clip_geometry(path: Path, curve: np.ndarray, pose: Callable[[float], np.ndar
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     try:
-        weights = curve.tolist()
-        last, v = weights[0], pose(weights[0])
-        frames = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=(len(weights), *v.shape))
-        for k, w in enumerate(weights):
-            if w != last:
-                last, v = w, pose(w)
-            frames[k] = v
-        frames.flush()
-        del frames
+        keys = frame_keys(frames)
+        last, v = keys[0], pose(frames[0])
+        out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=(len(frames), *v.shape))
+        for k, (key, w) in enumerate(zip(keys, frames)):
+            if key != last:
+                last, v = key, pose(w)
+            out[k] = v
+        out.flush()
+        del out
         os.chmod(tmp, 0o666 & ~current_umask())  # as a plain file's, not mkstemp's private 0o600
         os.replace(tmp, path)
     finally:
@@ -243,43 +334,45 @@ def clip_geometry(path: Path, curve: np.ndarray, pose: Callable[[float], np.ndar
 
 def clip_columns(spec: AnimationSpec, stem: str) -> dict[str, object]:
     """The manifest's clip columns of the cell ``stem`` (but its checksums, :func:`clip_checksums`)."""
-    return {"file": f"clips/{stem}.mp4", "frames": f"clips/{stem}", "n_frames": spec.n_frames, "fps": spec.fps,
-            "onset_frame": spec.onset_frame, "apex_frame": spec.apex_frame,
-            "weight_curve": curve_text(weight_curve(spec))}
+    n, onset, apex = timeline(spec)
+    return {"file": f"clips/{stem}.mp4", "frames": f"clips/{stem}", "n_frames": n, "fps": spec.fps,
+            "onset_frame": onset, "apex_frame": apex, "weight_curve": curve_text(weight_curve(spec))}
 
 
-def prepare_clip(still: RenderItem, row: dict, spec: AnimationSpec, cache: Path,
-                 pose: Callable[[float], np.ndarray]) -> tuple[ClipItem, dict]:
-    """A prepared still cell (its render item and manifest row) as a clip: its frames' geometry
-    (``pose``: a weight -> the drawn vertices) in ``cache/clips``, its render item and its row.
+def prepare_clip(still: RenderItem, row: dict, spec: AnimationSpec, cache: Path, frames: list[dict[str, float]],
+                 pose: Callable[[dict[str, float]], np.ndarray]) -> tuple[ClipItem, dict]:
+    """A prepared still cell (its render item and manifest row) as a clip: its ``frames``' geometry
+    (each frame's blendshape weights, :func:`clip_frame_weights`; ``pose``: weights -> the drawn
+    vertices) in ``cache/clips``, its render item and its row.
 
     The clip's ``geometry_hash`` is that of the still's drawn geometry (everything deciding the
-    apex) with the curve; its ``input_hash`` adds that to the still's and the video settings.
+    apex) with the curve (and a performance's content); its ``input_hash`` adds that to the
+    still's and the video settings.
     """
     from stimulus_engine.render.clip_video import VIDEO_SETTINGS
 
     curve = weight_curve(spec)
     text = curve_text(curve)
-    gh = sha(GRID_VERSION, "clip", Path(still.geometry_npy).stem, row["expression"], text)
-    path = clip_geometry(Path(cache) / "clips" / f"{gh}.npy", curve, pose)
+    played = () if spec.performance is None else ("performance", file_sha(spec.performance))
+    gh = sha(GRID_VERSION, "clip", Path(still.geometry_npy).stem, row["expression"], text, *played)
+    path = clip_geometry(Path(cache) / "clips" / f"{gh}.npy", frames, pose)
     cols = clip_columns(spec, Path(row["file"]).stem)
     item = ClipItem(dataclasses.replace(still, file=str(cols["file"]), geometry_npy=str(path)), str(cols["frames"]),
-                    spec.fps, tuple(curve.tolist()))
+                    spec.fps, tuple(curve.tolist()), frame_keys(frames))
     ih = sha(row["input_hash"], "clip", gh, spec.fps, VIDEO_SETTINGS)
     return item, {**row, **cols, "geometry_hash": gh, "input_hash": ih}
 
 
 # ---------------------------------------------------------------------------------- rendering
 def clip_frames(item: ClipItem, folder: Path) -> Iterator[np.ndarray]:
-    """Every frame of ``item`` in order, each also written to ``folder`` as its PNG; a frame of the
-    same weight as the one before it (the lead's, the hold's: the curve is monotone) is not
-    drawn again."""
+    """Every frame of ``item`` in order, each also written to ``folder`` as its PNG; a frame with
+    the same weights as the one before it (the lead's, the hold's) is not drawn again."""
     from stimulus_engine.render import save_png
 
     last, image = None, None
-    for k, w in enumerate(item.weights):
-        if w != last:
-            image, last = render_image(dataclasses.replace(item.still, frame=k)), w
+    for k, key in enumerate(item.keys or item.weights):
+        if key != last:
+            image, last = render_image(dataclasses.replace(item.still, frame=k)), key
         save_png(image, folder / frame_file(k))
         yield image
 

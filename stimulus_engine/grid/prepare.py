@@ -320,14 +320,20 @@ def _as_clip(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFil
              row: dict) -> tuple[ClipItem, dict]:
     """The prepared still cell ``still``/``row`` as a clip of ``grid.animation``
     (:func:`stimulus_engine.grid.animation.prepare_clip`): every frame its apex weights times the
-    curve's, through :func:`cell_vertices` like the still."""
+    curve's (or a performance's row), through :func:`cell_vertices` like the still."""
     from stimulus_engine.characters.expressions import expression_weights
-    from stimulus_engine.grid.animation import frame_weights, prepare_clip
+    from stimulus_engine.grid.animation import clip_frame_weights, prepare_clip
 
     apex = expression_weights(im.expression, grid.render.intensity)
+    frames = clip_frame_weights(grid.animation, apex)
+    perf = grid.animation.performance
+    unknown = sorted({n for f in frames for n in f} - set(ch.expression_rig.blendshapes))
+    if perf is not None and unknown:
+        raise AppealInputError(f"{perf}: column '{unknown[0]}' is not a blendshape of character '{im.character}' "
+                               f"(expected frame, time or one of: {', '.join(sorted(ch.expression_rig.blendshapes))})")
     what = (f"{source}: characters.{im.character}", im.expression)
-    return prepare_clip(still, row, grid.animation, cache, lambda w: cell_vertices(
-        ch, im.shape, shape_v, frame_weights(apex, w), grid, target, teeth, what))
+    return prepare_clip(still, row, grid.animation, cache, frames, lambda w: cell_vertices(
+        ch, im.shape, shape_v, w, grid, target, teeth, what))
 
 
 def _eye_style(grid: GridFile, im: PlannedImage) -> tuple[float, float] | tuple[()]:

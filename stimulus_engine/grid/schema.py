@@ -380,7 +380,12 @@ class AnimationSpec(StudyModel):
     ``n_frames - 1`` are the apex (w = 1, the cell's still image), the frames between ease from
     one to the other. Each easing is a function of u in [0, 1] (0 at 0, 1 at 1, increasing):
     ``linear`` u; ``smoothstep`` 3u² − 2u³; ``cosine`` (1 − cos πu) / 2; ``ease_out``
-    1 − (1 − u)³ (:mod:`stimulus_engine.grid.animation`). The onset must last at least one frame
+    1 − (1 − u)³ (:mod:`stimulus_engine.grid.animation`). ``performance``: a CSV of blendshape
+    weights per frame (``appeal stimuli retarget``'s output, or a face tracker's) played in every
+    cell instead of the curve, each level through its own expression transfer (a captured
+    performance on every stylisation level alike, thesis ch. 4); one row per frame at ``fps`` (a
+    ``time`` column must step at that rate); ``lead``, ``onset``, ``hold`` and ``easing`` are then
+    unused, and the grid lists one expression, the performance's name. The onset must last at least one frame
     (``apex_frame > onset_frame``), a clip at most :data:`MAX_CLIP_SECONDS`.
     """
 
@@ -390,6 +395,10 @@ class AnimationSpec(StudyModel):
     hold: float = Field(0.5, ge=0)
     easing: Literal["linear", "smoothstep", "cosine", "ease_out"] = "smoothstep"
     expression: str = "cell"
+    performance: InputFile | None = Field(
+        None, description="a CSV of blendshape weights per frame (frame, optional time in s, one column per "
+                          "blendshape: what 'appeal stimuli retarget' writes, or a face tracker's ARKit "
+                          "coefficients), played in every cell instead of the curve; one row per frame at fps")
 
     @field_validator("expression")
     @classmethod
@@ -543,6 +552,9 @@ class GridFile(StudyModel):
         if self.photographs:
             raise ValueError("animation: photographs cannot be animated (expected no 'photographs' in an animated "
                              "grid)")
+        if anim.performance is not None and (anim.expression != "cell" or len(self.expressions) != 1):
+            raise ValueError("animation.performance plays one performance in every cell: expected expression: cell "
+                             f"and one entry in 'expressions', its name (got {len(self.expressions)})")
         if anim.expression != "cell" and len(self.expressions) != 1:
             raise ValueError(f"animation.expression '{anim.expression}' animates every cell alike: expected one "
                              f"entry in 'expressions' (got {len(self.expressions)}), or expression: cell")
