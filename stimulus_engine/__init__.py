@@ -7,9 +7,10 @@ Sub-packages, lowest first; each imports only those listed before it (``docs/arc
 ``geometry``        meshes, OBJ files, closest points, UV rasterisation, sampling, polylines
 ``render``          cameras, lights, the pyrender and Cycles engines, contact sheets
 ``morphpca``        2D morph-space PCA face models, expression projection, avatars
+``audit``           low-level image measures of a stimulus set and SHINE-style equalisation
 ``correspondence``  ElastiFace dense correspondence and texture transfer (thesis ch. 3)
 ``parts``           eyes, eyelashes, hair
-``characters``      rigs of each kind, scans on rigs, expressions, skin maps
+``characters``      rigs of each kind, scans on rigs, expressions, blendshape transfer, retargeting, skin maps
 ``stylisation``     shape and material stylisation, morphs, neoteny measures
 ``grid``            a study's stimulus grid from its file to the PNGs
 

@@ -20,19 +20,9 @@ from stimulus_engine.grid import run_grid
 from stimulus_engine.grid.animation import EASINGS, ClipItem, frame_file, render_clip, weight_curve
 from stimulus_engine.grid.schema import AnimationSpec, GridFile
 from stimulus_engine.render.clip_video import decode_frames, encode_mp4, psnr, video_info
+from grid_fixtures import TINY_GRID
 
-STILL = """kind: grid
-name: still
-characters:
-  - name: a
-    procedural: {seed: 3, texture_size: 128, resolution: 32}
-shapes: [0.0, 1.0]
-materials: [original]
-expressions: [neutral, happy]
-lighting: [flat]
-shading: [pbr]
-render: {width: 96, height: 72}
-"""
+STILL = TINY_GRID
 #: The same cells animated: happy at 10 fps, 0.5 s onset, 0.2 s hold -> 8 frames, apex at 5.
 ANIMATED = STILL.replace("name: still", "name: clips").replace("expressions: [neutral, happy]",
                                                                 "expressions: [happy]") + \

@@ -1,0 +1,126 @@
+"""``appeal stimuli equalise``: SHINE-style luminance, histogram or spectrum equalisation of a grid."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import click
+import numpy as np
+
+from appeal.errors import AppealInputError
+from appeal_cli.groups import CONTEXT, stimuli
+from appeal_cli.options import out_options
+
+
+def _parse_background(value: str) -> float | None:
+    """``--background``: a grey fraction 0..1, or ``keep`` (None: original pixels outside the face)."""
+    if value.strip().lower() == "keep":
+        return None
+    try:
+        b = float(value)
+    except ValueError:
+        raise AppealInputError(f"--background {value}: expected a grey fraction 0..1 (0.5 = 50% grey) or 'keep'") \
+            from None
+    if not 0.0 <= b <= 1.0:
+        raise AppealInputError(f"--background {value}: expected a grey fraction 0..1 (0.5 = 50% grey) or 'keep'")
+    return b
+
+
+def _grid_face_masks(folder: Path, images: list[np.ndarray]) -> list[np.ndarray]:
+    """Face masks of a rendered grid's images (:func:`stimulus_engine.audit.masks.rendered_face_mask`:
+    the framing's face oval from ``folder/grid.json`` minus the background)."""
+    from stimulus_engine.audit.masks import grid_render_settings, rendered_face_mask
+
+    render = grid_render_settings(folder)
+    if render is None:
+        raise AppealInputError(f"{folder / 'grid.json'}: not found; equalising needs a face mask, which is made "
+                               "from a rendered grid's grid.json (point MANIFEST to a grid output folder's "
+                               "manifest.csv)")
+    size = (int(render["height"]), int(render["width"]))
+    return [rendered_face_mask(im, render["width"], render["height"], render["eye_row"], render["face_fraction"],
+                               tuple(render["background"])) if im.shape[:2] == size
+            else np.zeros(im.shape[:2], bool)  # check_set names the size mismatch
+            for im in images]
+
+
+@stimuli.command(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal stimuli equalise stimuli/exp2/manifest.csv --match luminance --out stimuli/exp2_lum
+  appeal stimuli equalise stimuli/exp2/manifest.csv --match histogram --grey --out stimuli/exp2_hist
+  appeal stimuli equalise stimuli/erp/manifest.csv --match spectrum --background keep --out stimuli/erp_spec""")
+@click.argument("manifest", metavar="MANIFEST", type=click.Path(path_type=Path))
+@click.option("--match", "method", required=True, type=click.Choice(["luminance", "histogram", "spectrum"]),
+              help="luminance: masked mean and SD of L*; histogram: exact masked L* histogram; "
+                   "spectrum: Fourier amplitude spectrum.")
+@click.option("--grey", is_flag=True, help="Write grey images (exact 8-bit histograms); default: keep the colour.")
+@click.option("--background", "background", default="0.5", show_default=True, metavar="FRACTION|keep",
+              help="Grey outside the face (0.5 = 8-bit 128), or 'keep' the original pixels.")
+@out_options()
+def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path, force: bool, resume: bool) -> None:
+    """Equalise the luminance of a rendered grid's images (SHINE: lumMatch, histMatch, specMatch).
+
+    \b
+    Reads MANIFEST (a grid's manifest.csv; images relative to its folder) and the grid.json
+    beside it (the face mask: the framing oval, less the background pixels). Works on CIE L*
+    only, keeping a* and b* (or grey with --grey); see stimulus_engine.audit.equalise.
+    Writes the equalised images under DIR with the same relative file names, DIR/manifest.csv
+    (the same columns plus 'equalised' and 'ssim', the SSIM of each image's L* to its
+    original) so a protocol can point to it unchanged, and a copy of landmarks.csv (pixels do
+    not move). Nothing is written when an input is bad.
+    """
+    import pandas as pd
+
+    from appeal.atomic import atomic_write_text
+    from appeal.outputs import output_run
+    from stimulus_engine.audit.equalise import equalise as run_equalise
+    from stimulus_engine.render import save_png
+
+    bg = _parse_background(background)
+    manifest = Path(manifest)
+    if not manifest.is_file():
+        raise AppealInputError(f"{manifest}: manifest not found (expected DIR/manifest.csv of a rendered grid)")
+    try:
+        table = pd.read_csv(manifest)
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise AppealInputError(f"{manifest}: {exc}".splitlines()[0]) from None
+    if "file" not in table.columns:
+        raise AppealInputError(f"{manifest}: no 'file' column (expected a grid manifest)")
+    folder = manifest.parent
+    files = [str(f) for f in table["file"]]
+    for f in files:
+        if Path(f).is_absolute() or ".." in Path(f).parts:
+            raise AppealInputError(f"{manifest}: file {f}: expected a path relative to the manifest's folder")
+        if not (folder / f).is_file():
+            raise AppealInputError(f"{folder / f}: image not found (listed in {manifest})")
+    from stimulus_engine.audit.workflow import read_rgb
+
+    images = [read_rgb(folder / f) for f in files]
+    masks = _grid_face_masks(folder, images)
+    results, ssims = run_equalise(images, masks, method, grey=grey, background=bg, names=files)
+
+    label = f"{method} (grey)" if grey else method
+    new = table.copy()
+    new["equalised"] = label
+    new["ssim"] = np.round(ssims, 4)
+    inputs = [manifest, folder / "grid.json", *(folder / f for f in files)]
+    with output_run(out, force=force, resume=resume, inputs=inputs) as run:
+        run.extra.update({"equalised": label, "background": "keep" if bg is None else bg, "images": len(files)})
+        tmp = Path(tempfile.mkdtemp(prefix=".equalise-", dir=run.out))
+        try:
+            for f, im in zip(files, results):
+                save_png(im, tmp / f)
+            if (folder / "landmarks.csv").is_file():
+                shutil.copyfile(folder / "landmarks.csv", tmp / "landmarks.csv")
+            for entry in sorted(tmp.iterdir()):
+                dest = run.out / entry.name
+                if dest.is_dir() and not dest.is_symlink():
+                    shutil.rmtree(dest)
+                os.replace(entry, dest)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        atomic_write_text(run.out / "manifest.csv", new.to_csv(index=False))
+        click.echo(f"{len(files)} images equalised ({label}) -> {run.out}; manifest {run.out / 'manifest.csv'}; "
+                   f"SSIM to the originals mean {np.mean(ssims):.3f}, min {np.min(ssims):.3f}")
