@@ -11,6 +11,21 @@ from appeal_cli.options import out_options, parallel_options, refuse_existing_fi
 from appeal.errors import AppealInputError
 
 
+def _audit_grid(out: Path, manifest) -> None:
+    """The rendered grid's audit in ``out/audit`` (skipped, with a line saying why, when images failed)."""
+    from appeal.atomic import atomic_write_text
+    from stimulus_engine.audit.workflow import audit_factors, plot_audit, read_audit_inputs, run_audit
+
+    if not manifest["status"].isin(["rendered", "up to date"]).all():
+        click.echo("audit: skipped (some images failed to render; run appeal stimuli audit DIR once they exist)")
+        return
+    table = run_audit(read_audit_inputs(out / "manifest.csv"))
+    (out / "audit").mkdir(exist_ok=True)
+    atomic_write_text(out / "audit" / "audit.csv", table.to_csv(index=False))
+    fig = plot_audit(table, out / "audit" / "audit.png", audit_factors(table))
+    click.echo(f"audit: {out / 'audit' / 'audit.csv'}; figure {fig}")
+
+
 @stimuli.command(context_settings=CONTEXT, epilog="""\b
 Examples:
   appeal stimuli grid protocols/grids/exp1a_shape_material.yaml --out stimuli/exp1a
@@ -19,9 +34,13 @@ Examples:
   appeal stimuli grid my_animated_grid.yaml --out stimuli/clips   # animation: {...}: clips, DIR/clips/*.mp4
   appeal validate protocols/grids/*.yaml                                                    # check without rendering""")
 @click.argument("grid_file", metavar="GRID.yaml", type=click.Path(path_type=Path))
+@click.option("--audit/--no-audit", default=True, show_default=True,
+              help="Also measure every image's luminance, contrast, spectrum, edges and face geometry "
+                   "(DIR/audit/audit.csv and audit.png, as appeal stimuli audit DIR does).")
 @out_options()
 @parallel_options
-def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | None, scheduler: str | None) -> None:
+def grid(grid_file: Path, audit: bool, out: Path, force: bool, resume: bool, n_jobs: int | None,
+         scheduler: str | None) -> None:
     """Render a stimulus grid: characters x shapes x materials x expressions x lighting x shading.
 
     \b
@@ -51,7 +70,8 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
     n_frames, fps, onset_frame, apex_frame, weight_curve, frames_sha256, mp4_sha256), contact
     sheets of the apex frames and a filmstrip per character.
     With --resume, images (and clips) whose inputs are unchanged are kept. All input problems are
-    reported before rendering.
+    reported before rendering. Unless --no-audit, the rendered set is audited into DIR/audit/
+    (appeal stimuli audit: low-level measures per image and their means per level of every factor).
     """
     import json
 
@@ -68,6 +88,8 @@ def grid(grid_file: Path, out: Path, force: bool, resume: bool, n_jobs: int | No
         run.extra["images"] = len(manifest)
         what = "clips" if spec.animation is not None else "images"
         click.echo(f"{n_ok} of {len(manifest)} {what} in {run.out / what}; manifest {run.out / 'manifest.csv'}")
+        if audit:
+            _audit_grid(run.out, manifest)
         for s in sheets:
             if s.name == "continuum.png":
                 click.echo(f"continuum: {s} (table {s.with_suffix('.csv')})")

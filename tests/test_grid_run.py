@@ -159,6 +159,11 @@ def test_cli_grid_and_neoteny(tmp_path, capsys):
                                         "from_character: b}]", "materials: [flat]"))
     out = tmp_path / "o"
     assert main(["stimuli", "grid", str(p), "--out", str(out), "--n-jobs", "1"]) == 0
+    audit = pd.read_csv(out / "audit" / "audit.csv")  # the grid audits itself (appeal stimuli audit)
+    assert list(audit["file"]) == list(pd.read_csv(out / "manifest.csv")["file"])
+    assert audit["face_L_mean"].between(1, 99).all() and (out / "audit" / "audit.png").exists()
+    assert main(["stimuli", "grid", str(p), "--out", str(tmp_path / "o2"), "--n-jobs", "1", "--no-audit"]) == 0
+    assert not (tmp_path / "o2" / "audit").exists()
     assert main(["stimuli", "neoteny", str(out / "manifest.csv")]) == 0
     table = pd.read_csv(out / "neoteny" / "neoteny.csv")
     eye = table[(table.measure == "eye_width") & (table.expression == "neutral")].groupby("shape")["value"].mean()
