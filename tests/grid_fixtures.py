@@ -12,3 +12,17 @@ lighting: [flat]
 shading: [pbr]
 render: {width: 96, height: 72}
 """
+
+
+def render_tiny_grid(root, name: str = "still"):
+    """:data:`TINY_GRID` rendered into ``root/name`` (pyrender, one process); returns that folder."""
+    from pathlib import Path
+
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid.schema import GridFile
+
+    root = Path(root)
+    (root / f"{name}.yaml").write_text(TINY_GRID)
+    run_grid(load_study_file(root / f"{name}.yaml", GridFile), root / name, n_jobs=1)
+    return root / name

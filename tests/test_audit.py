@@ -13,15 +13,11 @@ import pytest
 from PIL import Image
 
 from appeal.errors import AppealInputError
-from appeal.studyfile import load_study_file
 from appeal_cli import main
 from stimulus_engine.audit import masks as M
 from stimulus_engine.audit import measures as X
 from stimulus_engine.audit.workflow import FACTOR_COLUMNS, audit_factors, audit_manifest, read_audit_inputs
-from grid_fixtures import TINY_GRID
-
-STILL = TINY_GRID
-
+from grid_fixtures import render_tiny_grid
 
 def _srgb_lightness(v: int) -> float:
     """L* of the grey sRGB level ``v`` by hand: linearise, Y = linear value, L* = 116 Y^(1/3) - 16."""
@@ -127,14 +123,8 @@ def test_masks_oval_background_hull_and_area():
 # ------------------------------------------------------------------------------ the workflow
 @pytest.fixture(scope="module")
 def grid_dir(tmp_path_factory) -> Path:
-    """The still grid of tests/test_grid_animation.py rendered once (pyrender, 96 x 72)."""
-    from stimulus_engine.grid import run_grid
-    from stimulus_engine.grid.schema import GridFile
-
-    root = tmp_path_factory.mktemp("audit")
-    (root / "still.yaml").write_text(STILL)
-    run_grid(load_study_file(root / "still.yaml", GridFile), root / "still", n_jobs=1)
-    return root / "still"
+    """The tiny still grid rendered once (pyrender, 96 x 72)."""
+    return render_tiny_grid(tmp_path_factory.mktemp("audit"))
 
 
 def test_a_rendered_grid_gives_a_row_per_image_with_its_factors(grid_dir, tmp_path):

@@ -12,7 +12,7 @@ from PIL import Image
 
 from appeal.errors import AppealInputError
 from stimulus_engine.audit import equalise as E
-from grid_fixtures import TINY_GRID
+from grid_fixtures import render_tiny_grid
 
 H, W = 72, 96
 
@@ -133,19 +133,9 @@ def test_one_line_errors(image_set):
 
 
 # ------------------------------------------------------------------------------ the command
-STILL = TINY_GRID
-
-
 @pytest.fixture(scope="module")
 def grid_dir(tmp_path_factory) -> Path:
-    from appeal.studyfile import load_study_file
-    from stimulus_engine.grid import run_grid
-    from stimulus_engine.grid.schema import GridFile
-
-    root = tmp_path_factory.mktemp("eqgrid")
-    (root / "g.yaml").write_text(STILL)
-    run_grid(load_study_file(root / "g.yaml", GridFile), root / "grid", n_jobs=1)
-    return root / "grid"
+    return render_tiny_grid(tmp_path_factory.mktemp("eqgrid"), "grid")
 
 
 def test_cli_writes_equalised_images_and_manifest(grid_dir, tmp_path, capsys):

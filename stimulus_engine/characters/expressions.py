@@ -32,6 +32,7 @@ from stimulus_engine.data import DATA_DIR
 __all__ = [
     "EXPRESSIONS",
     "apply_expression",
+    "check_blendshapes",
     "deformation_transfer",
     "expression_delta",
     "expression_weights",
@@ -203,12 +204,17 @@ def deformation_transfer(src_rest: np.ndarray, src_deformed: np.ndarray, tgt_res
     return out
 
 
-def expression_delta(rig: FaceRig, weights: dict[str, float]) -> np.ndarray:
-    """``Σ w_k δ_k`` of ``rig``'s blendshapes (the weights' names must be the rig's; ValueError names
-    those it lacks)."""
+def check_blendshapes(rig: FaceRig, weights: dict[str, float]) -> None:
+    """ValueError naming the blendshapes of ``weights`` that ``rig`` lacks."""
     missing = sorted(s for s in weights if s not in rig.blendshapes)
     if missing:
         raise ValueError(f"rig '{rig.name}' lacks blendshape(s) {', '.join(missing)}")
+
+
+def expression_delta(rig: FaceRig, weights: dict[str, float]) -> np.ndarray:
+    """``Σ w_k δ_k`` of ``rig``'s blendshapes (the weights' names must be the rig's; ValueError names
+    those it lacks)."""
+    check_blendshapes(rig, weights)
     delta = np.zeros_like(rig.vertices)
     for s, w in sorted(weights.items()):
         if w:

@@ -278,7 +278,7 @@ class ClipItem:
     frames: str
     fps: int
     weights: tuple[float, ...]
-    keys: tuple[int, ...] = ()
+    keys: tuple[int, ...]
 
     @property
     def file(self) -> str:
@@ -370,7 +370,7 @@ def clip_frames(item: ClipItem, folder: Path) -> Iterator[np.ndarray]:
     from stimulus_engine.render import save_png
 
     last, image = None, None
-    for k, key in enumerate(item.keys or item.weights):
+    for k, key in enumerate(item.keys):
         if key != last:
             image, last = render_image(dataclasses.replace(item.still, frame=k)), key
         save_png(image, folder / frame_file(k))

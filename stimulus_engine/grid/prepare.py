@@ -219,13 +219,13 @@ def posed_vertices(ch: Character, shape: float, shape_v: np.ndarray, weights: di
     rig's range of motion in face units, or RBF proportion matching) weighted and added.
     ValueError names a weight's blendshape the rig lacks.
     """
-    from stimulus_engine.characters.expressions import expression_delta, pose_weights
+    from stimulus_engine.characters.expressions import check_blendshapes, pose_weights
 
     plain = shape == 0 and ch.expression_rig is ch.rig
     method = grid.expression_transfer
     if plain or method == "deformation_transfer" or not any(weights.values()):
         return pose_weights(ch.expression_rig, weights, target=None if plain else shape_v)
-    expression_delta(ch.expression_rig, weights)  # ValueError: a blendshape the rig lacks
+    check_blendshapes(ch.expression_rig, weights)
     shapes = level_blendshapes(ch, shape, shape_v, method)
     out = np.array(shape_v, np.float64, copy=True)
     for name, w in sorted(weights.items()):
