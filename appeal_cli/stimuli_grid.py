@@ -11,19 +11,17 @@ from appeal_cli.options import out_options, parallel_options, refuse_existing_fi
 from appeal.errors import AppealInputError
 
 
-def _audit_grid(out: Path, manifest) -> None:
+def _audit_grid(out: Path, manifest):
     """The rendered grid's audit in ``out/audit`` (skipped, with a line saying why, when images failed)."""
-    from appeal.atomic import atomic_write_text
-    from stimulus_engine.audit.workflow import audit_factors, plot_audit, read_audit_inputs, run_audit
+    from appeal_cli.audit_outputs import write_audit
+    from stimulus_engine.audit.workflow import read_audit_inputs
 
     if not manifest["status"].isin(["rendered", "up to date"]).all():
         click.echo("audit: skipped (some images failed to render; run appeal stimuli audit DIR once they exist)")
-        return
-    table = run_audit(read_audit_inputs(out / "manifest.csv"))
-    (out / "audit").mkdir(exist_ok=True)
-    atomic_write_text(out / "audit" / "audit.csv", table.to_csv(index=False))
-    fig = plot_audit(table, out / "audit" / "audit.png", audit_factors(table))
-    click.echo(f"audit: {out / 'audit' / 'audit.csv'}; figure {fig}")
+        return None
+    result = write_audit(read_audit_inputs(out / "manifest.csv"), out / "audit")
+    click.echo(f"audit: {result.summary()}")
+    return result
 
 
 @stimuli.command(context_settings=CONTEXT, epilog="""\b
@@ -35,8 +33,8 @@ Examples:
   appeal validate protocols/grids/*.yaml                                                    # check without rendering""")
 @click.argument("grid_file", metavar="GRID.yaml", type=click.Path(path_type=Path))
 @click.option("--audit/--no-audit", default=True, show_default=True,
-              help="Also measure every image's luminance, contrast, spectrum, edges and face geometry "
-                   "(DIR/audit/audit.csv and audit.png, as appeal stimuli audit DIR does).")
+              help="Also measure every image's luminance, contrast, spectrum, edges and face geometry and "
+                   "test them against the design (DIR/audit/, as appeal stimuli audit DIR does).")
 @out_options()
 @parallel_options
 def grid(grid_file: Path, audit: bool, out: Path, force: bool, resume: bool, n_jobs: int | None,
@@ -71,7 +69,9 @@ def grid(grid_file: Path, audit: bool, out: Path, force: bool, resume: bool, n_j
     sheets of the apex frames and a filmstrip per character.
     With --resume, images (and clips) whose inputs are unchanged are kept. All input problems are
     reported before rendering. Unless --no-audit, the rendered set is audited into DIR/audit/
-    (appeal stimuli audit: low-level measures per image and their means per level of every factor).
+    (appeal stimuli audit: low-level measures per image, their means per level of every factor,
+    which differ beyond the default thresholds, DIR/audit/report.html). DIR/index.html shows the
+    contact sheets and measures with what the audit found to differ between levels.
     """
     import json
 
@@ -88,8 +88,7 @@ def grid(grid_file: Path, audit: bool, out: Path, force: bool, resume: bool, n_j
         run.extra["images"] = len(manifest)
         what = "clips" if spec.animation is not None else "images"
         click.echo(f"{n_ok} of {len(manifest)} {what} in {run.out / what}; manifest {run.out / 'manifest.csv'}")
-        if audit:
-            _audit_grid(run.out, manifest)
+        result = _audit_grid(run.out, manifest) if audit else None
         for s in sheets:
             if s.name == "continuum.png":
                 click.echo(f"continuum: {s} (table {s.with_suffix('.csv')})")
@@ -97,6 +96,10 @@ def grid(grid_file: Path, audit: bool, out: Path, force: bool, resume: bool, n_j
                 click.echo(f"expression per level: {s} (tables expression_measures.csv, expression_agreement.csv)")
             else:
                 click.echo(f"{'filmstrip' if s.name.startswith('filmstrip') else 'contact sheet'}: {s}")
+        from appeal_cli.audit_outputs import write_grid_page
+
+        page = write_grid_page(run.out, sheets, result, f"Stimulus grid: {grid_file.name}")
+        click.echo(f"page: {page} (contact sheets{', what differs between levels' if result else ''})")
         measured = pins(spec, manifest.attrs["grid"])
         for factor, pin in measured.items():  # a study's levels belong in its protocol
             click.echo(f"{factor} measured; to keep these levels, write in {grid_file}:  {factor}: {json.dumps(pin)}")

@@ -162,8 +162,12 @@ def test_cli_grid_and_neoteny(tmp_path, capsys):
     audit = pd.read_csv(out / "audit" / "audit.csv")  # the grid audits itself (appeal stimuli audit)
     assert list(audit["file"]) == list(pd.read_csv(out / "manifest.csv")["file"])
     assert audit["face_L_mean"].between(1, 99).all() and (out / "audit" / "audit.png").exists()
+    # the grid's page: contact sheets and what the audit found to differ, linking its report
+    page = (out / "index.html").read_text()
+    assert "What differs between levels" in page and "audit/report.html" in page and "contact_sheet.png" in page
+    assert (out / "audit" / "design_tests.csv").exists() and (out / "audit" / "report.html").exists()
     assert main(["stimuli", "grid", str(p), "--out", str(tmp_path / "o2"), "--n-jobs", "1", "--no-audit"]) == 0
-    assert not (tmp_path / "o2" / "audit").exists()
+    assert not (tmp_path / "o2" / "audit").exists() and "Not run (--no-audit)" in (tmp_path / "o2" / "index.html").read_text()
     assert main(["stimuli", "neoteny", str(out / "manifest.csv")]) == 0
     table = pd.read_csv(out / "neoteny" / "neoteny.csv")
     eye = table[(table.measure == "eye_width") & (table.expression == "neutral")].groupby("shape")["value"].mean()

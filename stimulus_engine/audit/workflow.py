@@ -25,7 +25,7 @@ from stimulus_engine.audit import masks as M
 from stimulus_engine.audit import measures as X
 
 __all__ = ["IMAGE_SUFFIXES", "FACTOR_COLUMNS", "MAIN_MEASURES", "AuditItem", "AuditJob", "read_audit_inputs", "read_rgb",
-           "measure_image", "run_audit", "audit_manifest", "audit_factors", "plot_audit"]
+           "measure_image", "run_audit", "audit_manifest", "paired_factors", "audit_factors", "plot_audit"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 #: A grid manifest's factor columns (those present are kept and plotted).
@@ -206,16 +206,32 @@ def audit_manifest(manifest_csv: Path) -> pd.DataFrame:
     return run_audit(read_audit_inputs(Path(manifest_csv)))
 
 
+def paired_factors(table: pd.DataFrame, factors: list[str]) -> dict[str, str]:
+    """Factors whose levels pair one to one with an earlier factor's (the same split of the images,
+    e.g. the ERP grid's combined shape + material levels, or ``stylisation`` beside ``shape``):
+    ``{paired factor: the earlier factor it repeats}``."""
+    kept: list[str] = []
+    out: dict[str, str] = {}
+    for f in factors:
+        sub = table[[f]].astype(str)
+        for g in kept:
+            pair = pd.DataFrame({"f": sub[f], "g": table[g].astype(str)})
+            if (pair.groupby("g")["f"].nunique() == 1).all() and (pair.groupby("f")["g"].nunique() == 1).all():
+                out[f] = g
+                break
+        else:
+            kept.append(f)
+    return out
+
+
 def audit_factors(table: pd.DataFrame) -> list[str]:
-    """The factors to plot: the grid's factor columns with two levels or more (``table.attrs['factors']``,
-    else :data:`FACTOR_COLUMNS` present); none gives ``['file']`` (one level per image)."""
+    """The factors to plot and test: the grid's factor columns with two levels or more
+    (``table.attrs['factors']``, else :data:`FACTOR_COLUMNS` present), less those that only repeat
+    an earlier one (:func:`paired_factors`); none gives ``['file']`` (one level per image)."""
     declared = table.attrs.get("factors") or [c for c in FACTOR_COLUMNS if c in table.columns]
     factors = [f for f in declared if f in table.columns and table[f].nunique(dropna=True) >= 2]
-    # stylisation duplicates shape, emotion duplicates expression: keep one of each pair
-    for dup, of in (("stylisation", "shape"), ("emotion", "expression")):
-        if dup in factors and of in factors:
-            factors.remove(dup)
-    return factors or ["file"]
+    paired = paired_factors(table, factors)
+    return [f for f in factors if f not in paired] or ["file"]
 
 
 def plot_audit(table: pd.DataFrame, path: Path, factors: list[str] | None = None) -> Path:
