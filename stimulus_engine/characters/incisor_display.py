@@ -38,6 +38,8 @@ def upper_teeth(vertices: np.ndarray, faces: np.ndarray, face_part: np.ndarray, 
     if "teeth" not in part_names:
         return np.zeros(0, np.int64)
     tf = faces[face_part == part_names.index("teeth")]
+    if not len(tf):  # a part list that names teeth the mesh has none of (a procedural head)
+        return np.zeros(0, np.int64)
     n = len(vertices)
     graph = coo_matrix((np.ones(tf.size), (tf.ravel(), np.roll(tf, 1, axis=1).ravel())), shape=(n, n))
     label = connected_components(graph, directed=False)[1]
