@@ -18,6 +18,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from analysis.covariates_schema import CovariatesSpec
 from analysis.mixed_schema import MixedOptions
 from appeal.studyfile import InputDir, InputFile, OutputPath, StudyModel
 
@@ -275,6 +276,11 @@ class ErpConfig(StudyModel):
     figures: FiguresConfig = Field(default_factory=FiguresConfig)
     quality: QualityConfig = Field(default_factory=QualityConfig)
     mixed: ErpMixedConfig = Field(default_factory=ErpMixedConfig)
+    covariates: CovariatesSpec | None = Field(
+        None, description="Stimulus audit measures as centred fixed covariates of the single-trial mixed models, "
+                          "e.g. {audit: stimuli/erp/audit/audit.csv, measures: [face_L_mean]}; needs mixed: "
+                          "{enabled: true} and beh (each trial's stimulus). The rm-ANOVA of amplitudes.csv "
+                          "(per subject x condition) is not adjusted.")
     beh: OutputPath | list[OutputPath] | None = Field(
         None, description="the runner's *_beh.tsv files (globs), one per recording (same subject id): "
                           "single_trials.csv takes each trial's stimulus from them")
@@ -294,6 +300,18 @@ class ErpConfig(StudyModel):
                     raise ValueError(f"code {code}: expected a mapping of factor to level, "
                                      f"e.g. {{stylisation: 0, emotion: angry}} (got {levels!r})")
         return v
+
+    @model_validator(mode="after")
+    def _covariates(self) -> ErpConfig:
+        if self.covariates is None:
+            return self
+        if not self.mixed.enabled:
+            raise ValueError("covariates: the single-trial mixed models use them: set mixed: {enabled: true}")
+        if self.beh is None:
+            raise ValueError("covariates: need beh (the runner's *_beh.tsv files give each trial's stimulus)")
+        if self.covariates.by != "stimulus":
+            raise ValueError(f"covariates.by: single_trials.csv names each trial's image in 'stimulus' (got {self.covariates.by!r})")
+        return self
 
     @field_validator("montage")
     @classmethod

@@ -9,6 +9,7 @@ Example (protocols/analysis/exp2_ratings.yaml)::
     scales: [realism, appeal]              # default: every response_* column
     model: both                            # anova | mixed | ordinal | both (anova + mixed) | all
     mixed: {random: maximal, ddf: satterthwaite}
+    covariates: {audit: ../../stimuli/exp2/audit/audit.csv, measures: [face_L_mean]}   # optional
     figures:
       interactions: [{x: material, trace: shape}]
       realism_vs_appeal: {x_scale: realism, y_scale: appeal, line: shape, point: material}
@@ -21,10 +22,11 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, Field, ValidationInfo, model_validator
 
+from analysis.covariates_schema import CovariatesSpec
 from analysis.mixed_schema import MixedOptions
 from appeal.studyfile import StudyModel
 
-__all__ = ["RatingsAnalysis", "MixedOptions", "OrdinalOptions", "PosthocOptions", "ContrastSpec", "InteractionFigure", "ScatterFigure", "Figures"]
+__all__ = ["RatingsAnalysis", "CovariatesSpec", "MixedOptions", "OrdinalOptions", "PosthocOptions", "ContrastSpec", "InteractionFigure", "ScatterFigure", "Figures"]
 
 
 def _data_path(value: str, info: ValidationInfo) -> str:
@@ -126,6 +128,11 @@ class RatingsAnalysis(StudyModel):
                              "participants and stimuli as crossed random factors; ordinal: cumulative-link mixed "
                              "model; both: anova + mixed; all: anova + mixed + ordinal.")
     mixed: MixedOptions = Field(default_factory=MixedOptions)
+    covariates: CovariatesSpec | None = Field(
+        None, description="Stimulus audit measures as covariates, e.g. {audit: ../../stimuli/exp2/audit/audit.csv, "
+                          "measures: [face_L_mean], by: stimulus}: centred fixed effects of the mixed models, an "
+                          "ANCOVA-style adjustment of the trials before the rm-ANOVA's cell means (the stimuli of a "
+                          "cell must differ: leave character out of within).")
     ordinal: OrdinalOptions = Field(default_factory=OrdinalOptions)
     posthoc: PosthocOptions = Field(default_factory=PosthocOptions)
     contrasts: list[ContrastSpec] = Field(default_factory=list)
@@ -163,6 +170,12 @@ class RatingsAnalysis(StudyModel):
             bad = [f for f in self.reference.matched if f not in self.within]
             if bad:
                 raise ValueError(f"reference.matched: '{bad[0]}' is not a within factor (expected some of: {', '.join(self.within)})")
+        if self.covariates is not None:
+            roles = {*factors, self.subject}
+            clash = [m for m in self.covariates.measures if m in roles]
+            if clash:
+                raise ValueError(f"covariates.measures: '{clash[0]}' is also a factor or the subject column "
+                                 "(expected audit measures such as face_L_mean)")
         for group in self.reliability:
             if len(group) < 2:
                 raise ValueError(f"reliability: each group needs at least 2 scales (got {group})")

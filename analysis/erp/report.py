@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from appeal.atomic import atomic_write_text
+from appeal.errors import AppealInputError
 from appeal.logs import logger
 
 from analysis.erp.quality import flag_sme, sme_rms
@@ -242,12 +243,26 @@ def single_trial_models(trials: pd.DataFrame, factors: list[str], cfg: ErpConfig
 
     has_stim = "stimulus" in trials.columns and trials["stimulus"].notna().any()
     text = ["### Linear mixed models of the single-trial window means", ""]
+    measures, audit = [], None
+    if cfg.covariates is not None:
+        from analysis.stats.covariates import read_audit
+
+        measures, audit = list(cfg.covariates.measures), read_audit(cfg.covariates.audit, cfg.covariates.measures)
+        text += [f"Covariates: stimulus audit measures {', '.join(measures)} from `{cfg.covariates.audit}`, joined by "
+                 "each trial's stimulus and centred at their grand mean per component × cluster (fixed main effects; "
+                 "the rm-ANOVA of amplitudes.csv is not adjusted).", ""]
     for (comp, cluster), part in trials.groupby(["component", "cluster"], sort=False):
+        src = f"single_trials.csv: {comp} {cluster}"
         try:
+            means = None
+            if audit is not None:
+                from analysis.stats.covariates import centre_covariates, join_audit
+
+                part, means = centre_covariates(join_audit(part, audit, measures, "stimulus", src)[0], measures)
             sec = lmm_section(part, "mean_uV", f"{comp} {cluster} (µV)", factors, ["subject"] + (["stimulus"] if has_stim else []),
                               out / f"{comp}_{cluster}", random=cfg.mixed.random, ddf=cfg.mixed.ddf,
-                              levels=cfg.levels or None, source=f"single_trials.csv: {comp} {cluster}")
-        except FormulaError as exc:
+                              levels=cfg.levels or None, source=src, covariates=measures, covariate_means=means)
+        except (FormulaError, AppealInputError) as exc:
             text += [f"#### {comp}, {cluster}", "", f"Not fitted: {exc}", ""]
             continue
         o.tables += sec.tables

@@ -9,7 +9,7 @@ maths is in :mod:`analysis.stats.lmm`, :mod:`analysis.stats.lmm_anova`,
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from analysis.stats.covariates import MIXED_HINT, check_estimable
 from analysis.stats.lmm import LmmFit
 from analysis.stats.lmm_anova import inference, lmm_anova
 from analysis.stats.lmm_emmeans import emm_pairs, emmeans
@@ -25,7 +26,7 @@ from analysis.stats.random_structures import fit_with_fallback, structure_table
 from analysis.stats.records import json_records, write_csv
 from analysis.stats.reporting import format_p, markdown_table
 
-__all__ = ["LmmSection", "lmm_section", "coefficient_table", "model_formula"]
+__all__ = ["LmmSection", "lmm_section", "coefficient_table", "model_formula", "covariate_text"]
 
 
 @dataclass
@@ -39,9 +40,20 @@ class LmmSection:
     fit: LmmFit | None = None
 
 
-def model_formula(response: str, factors: Sequence[str]) -> str:
-    """``response ~ a * b * c`` (every interaction of the design's factors)."""
-    return f"{response} ~ " + (" * ".join(factors) if factors else "1")
+def model_formula(response: str, factors: Sequence[str], covariates: Sequence[str] = ()) -> str:
+    """``response ~ a * b * c`` (every interaction of the design's factors) ``+ x₁ + x₂`` (covariates as main effects)."""
+    return f"{response} ~ " + (" * ".join(factors) if factors else "1") + "".join(f" + {c}" for c in covariates)
+
+
+def covariate_text(coefs: pd.DataFrame, covariates: Sequence[str], means: Mapping[str, float] | None = None) -> str:
+    """One sentence on the covariates' coefficients (estimate, SE, df, t, p)."""
+    means = means or {}
+    rows = coefs.set_index("term")
+    parts = [f"{c}: b = {rows.at[c, 'estimate']:.4g} (SE {rows.at[c, 'se']:.3g}), t({rows.at[c, 'df']:.1f}) = "
+             f"{rows.at[c, 't']:.2f}, {format_p(rows.at[c, 'p'])}" + (f"; mean {means[c]:.4g}" if c in means else "")
+             for c in covariates]
+    return ("Covariates (stimulus audit measures, centred at their grand mean, so the factor tests and EMMs hold at "
+            "the mean covariate): " + "; ".join(parts) + ".")
 
 
 def coefficient_table(fit: LmmFit, tests) -> pd.DataFrame:
@@ -57,8 +69,9 @@ def coefficient_table(fit: LmmFit, tests) -> pd.DataFrame:
 def lmm_section(data: pd.DataFrame, response: str, label: str, factors: Sequence[str], groups: Sequence[str],
                 out_dir: Path, *, random: str = "maximal", ddf: str = "satterthwaite", levels=None, alpha: float = 0.05,
                 max_order: int = 2, max_cells: int = 60, figures: Sequence[tuple[str, str | None]] = (),
-                ylim: tuple[float, float] | None = None, source: str = "data") -> LmmSection:
-    """Fit and report the mixed model ``response ~ factors (all interactions) + random``.
+                ylim: tuple[float, float] | None = None, source: str = "data", covariates: Sequence[str] = (),
+                covariate_means: Mapping[str, float] | None = None) -> LmmSection:
+    """Fit and report the mixed model ``response ~ factors (all interactions) + covariates + random``.
 
     Parameters
     ----------
@@ -78,11 +91,21 @@ def lmm_section(data: pd.DataFrame, response: str, label: str, factors: Sequence
         Denominator dfs of the tests, the coefficients and the EMMs.
     figures : sequence of (x, trace)
         EMM plots to draw.
+    covariates : sequence of str
+        Numeric columns (centred: :func:`analysis.stats.covariates.centre_covariates`) added as
+        fixed main effects, without random slopes; refused when they cannot be separated from
+        the factors (:func:`analysis.stats.covariates.check_estimable`).
+    covariate_means : mapping, optional
+        The covariates' means before centring (for the report).
     """
     sec = LmmSection()
     groups = [g for g in groups if g in data.columns and data[g].nunique() >= 2]
-    fit, attempts = fit_with_fallback(data, model_formula(response, factors), random=random, groups=groups,
-                                      factors=list(factors) + list(groups), levels=levels, source=source)
+    if covariates:
+        check_estimable(data.dropna(subset=[response, *covariates]), covariates, [list(factors)], source=source,
+                        hint=MIXED_HINT)
+    fit, attempts = fit_with_fallback(data, model_formula(response, factors, covariates), random=random, groups=groups,
+                                      factors=list(factors) + list(groups), levels=levels, source=source,
+                                      fixed_only=covariates)
     sec.fit = fit
     tests = inference(fit, ddf)
     table = lmm_anova(fit, ddf, tests=tests)
@@ -103,12 +126,17 @@ def lmm_section(data: pd.DataFrame, response: str, label: str, factors: Sequence
     if fit.warnings:
         sec.text += ["Warnings: " + "; ".join(fit.warnings) + ".", ""]
     sec.text += [markdown_table(table.drop(columns="method")), ""]
+    if covariates:
+        sec.text += [covariate_text(coefs, covariates, covariate_means), ""]
+        sec.records["covariates"] = json_records(coefs[coefs.term.isin(list(covariates))])
     sds = [f"{r.group} {r.term} SD {r.sd:.3f}" for r in vc.itertuples() if np.isfinite(r.sd)]
     sec.text += ["Variance components: " + "; ".join(sds) + ".", ""]
     ph_lines = []
     sec.records["pairs"] = {}
     for row in table.itertuples():
         fac = row.effect.split(":")
+        if any(f not in fit.mm.levels for f in fac):  # a covariate: its coefficient is in the text
+            continue
         n_cells = int(np.prod([len(fit.mm.levels[f]) for f in fac]))
         if row.p >= alpha or len(fac) > max_order or n_cells > max_cells:
             continue

@@ -51,9 +51,12 @@ def slope_terms(data: pd.DataFrame, fixed: Sequence[tuple[str, ...]], group: str
     return out
 
 
-def fallback_structures(data: pd.DataFrame, formula: Formula, groups: Sequence[str]) -> list[tuple[str, tuple[RandomTerm, ...]]]:
-    """The candidate random parts, most complex first, each with a label."""
-    slopes = {g: slope_terms(data, formula.fixed, g) for g in groups}
+def fallback_structures(data: pd.DataFrame, formula: Formula, groups: Sequence[str],
+                        fixed_only: Sequence[str] = ()) -> list[tuple[str, tuple[RandomTerm, ...]]]:
+    """The candidate random parts, most complex first, each with a label; terms naming a variable
+    of ``fixed_only`` (covariates) get no random slopes."""
+    terms = [t for t in formula.fixed if not set(t) & set(fixed_only)]
+    slopes = {g: slope_terms(data, terms, g) for g in groups}
     max_order = max((len(t) for s in slopes.values() for t in s), default=0)
     out = []
     corr = tuple(RandomTerm(True, tuple(slopes[g]), g) for g in groups)
@@ -104,7 +107,8 @@ def _size_problem(mm) -> str | None:
 
 
 def fit_with_fallback(data: pd.DataFrame, formula: str, *, random: str = "maximal", groups: Sequence[str] = (),
-                      factors=(), levels=None, source: str = "data", reml: bool = True) -> tuple[LmmFit, list[Attempt]]:
+                      factors=(), levels=None, source: str = "data", reml: bool = True,
+                      fixed_only: Sequence[str] = ()) -> tuple[LmmFit, list[Attempt]]:
     """Fit ``formula`` (its fixed part) with ``random`` effects, simplifying a maximal structure
     in the documented order until a fit converges without a singular fit.
 
@@ -119,6 +123,8 @@ def fit_with_fallback(data: pd.DataFrame, formula: str, *, random: str = "maxima
         ``"(1 + shape | participant) + (1 | stimulus)"`` (fitted as written, no fallback).
     groups : sequence of str
         Grouping factors of the maximal structure.
+    fixed_only : sequence of str
+        Fixed-part variables without random slopes in the maximal structure (covariates).
 
     Returns
     -------
@@ -141,7 +147,7 @@ def fit_with_fallback(data: pd.DataFrame, formula: str, *, random: str = "maxima
     groups, dropped = identifiable_groups(data, base, groups, factors, levels, source)
     attempts: list[Attempt] = []
     chosen = None
-    queue = fallback_structures(used, base, groups)
+    queue = fallback_structures(used, base, groups, fixed_only)
     while queue:
         label, terms = queue.pop(0)
         f = base.with_random(terms)

@@ -5,6 +5,7 @@ of significant effects, contrasts, Cronbach's alpha between scales, figures and 
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import pandas as pd
 
 from analysis.stats.anova import fit_design
 from analysis.stats.contrasts import compare_trends, contrasts_from_design
+from analysis.stats.covariates import MIXED_HINT, CovariateSet, ancova_adjust, check_estimable, prepare_covariates
 from analysis.stats.design import keep_rows, prepare_design, read_ratings
 from analysis.stats.intervals import within_ci_from_design
 from analysis.stats.mixed import mixed_model_anova
@@ -87,7 +89,8 @@ def _trials(cfg, data: pd.DataFrame, col: str) -> pd.DataFrame:
     return data.assign(**{col: pd.to_numeric(data[col], errors="coerce")})
 
 
-def _lmm(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source: str) -> tuple[list[str], list, list, dict]:
+def _lmm(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source: str,
+         covariates: Sequence[str] = (), means: dict | None = None) -> tuple[list[str], list, list, dict]:
     """The linear mixed model of one scale (``model: mixed | both | all``)."""
     from analysis.stats.formula import FormulaError
     from analysis.stats.lmm_report import lmm_section
@@ -98,13 +101,15 @@ def _lmm(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source: st
                           sec_dir, random=cfg.mixed.random, ddf=cfg.mixed.ddf, levels=cfg.levels, alpha=cfg.alpha,
                           max_order=cfg.posthoc.max_order, max_cells=cfg.posthoc.max_cells,
                           figures=[(f.x, f.trace) for f in cfg.figures.interactions],
-                          ylim=tuple(cfg.scale_range) if cfg.scale_range else None, source=f"{source}: mixed")
+                          ylim=tuple(cfg.scale_range) if cfg.scale_range else None, source=f"{source}: mixed",
+                          covariates=covariates, covariate_means=means)
     except FormulaError as exc:
         raise AppealInputError(str(exc)) from None
     return ["### Linear mixed model", "", *sec.text], sec.figures, sec.tables, sec.records
 
 
-def _ordinal(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source: str) -> tuple[list[str], list, list, dict]:
+def _ordinal(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source: str,
+             covariates: Sequence[str] = ()) -> tuple[list[str], list, list, dict]:
     """The cumulative-link mixed model of one scale (``model: ordinal | all``)."""
     from analysis.stats.clmm import fit_clmm, likelihood_ratio_tests
     from analysis.stats.clmm_figures import probability_plot
@@ -117,10 +122,12 @@ def _ordinal(cfg, data: pd.DataFrame, col: str, name: str, sec_dir: Path, source
     groups = [g for g in [cfg.subject] + ([cfg.stimulus] if cfg.stimulus and cfg.stimulus in data.columns else [])
               if trials[g].nunique() >= 3]
     src = f"{source}: ordinal"
+    if covariates:
+        check_estimable(trials.dropna(subset=[col]), covariates, [factors], source=src, hint=MIXED_HINT)
     try:
-        groups, dropped = identifiable_groups(trials, model_formula(col, factors), groups, factors + groups,
+        groups, dropped = identifiable_groups(trials, model_formula(col, factors, covariates), groups, factors + groups,
                                               cfg.levels, src)
-        formula = model_formula(col, factors) + "".join(f" + (1 | {g})" for g in groups)
+        formula = model_formula(col, factors, covariates) + "".join(f" + (1 | {g})" for g in groups)
         fit = fit_clmm(formula, trials, link=cfg.ordinal.link, factors=factors + groups, levels=cfg.levels, source=src)
         lr = likelihood_ratio_tests(fit)
     except FormulaError as exc:
@@ -169,6 +176,12 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
     raw, data = data, keep_rows(data, cfg.rows)
     source = data.attrs.get("source", str(cfg.data))
     scales = scale_columns(data, cfg.scales, source)
+    cov: CovariateSet | None = None
+    if cfg.covariates is not None:
+        spec = cfg.covariates
+        cov = prepare_covariates(data, spec.audit, spec.measures, spec.by, source)
+        data = cov.data
+    measures = cov.measures if cov is not None else []
     result = StudyResult()
     md = [f"# {cfg.title}", "", f"Data: `{source}` — {data[cfg.subject].nunique()} participants, {len(data)} rows. "
           f"Design: within {' × '.join(cfg.within)}" + (f", between {' × '.join(cfg.between)}" if cfg.between else "")
@@ -176,7 +189,13 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
           "Repeated-measures ANOVA (type III; Mauchly's test; Greenhouse–Geisser correction, marked F*, "
           f"when Mauchly is significant at α = {cfg.alpha}); Tukey HSD for significant effects "
           "(from each effect's error stratum, as emmeans); 95% within-subject CIs (Cousineau–Morey).", ""]
+    if cov is not None:
+        md += [f"Covariates: stimulus audit measures {', '.join(cov.measures)} from `{cov.audit}`, joined by "
+               f"`{cfg.covariates.by}` and centred at their grand mean"
+               + (f" ({cov.dropped} rows without a stimulus left out)" if cov.dropped else "") + ".", ""]
     summary: dict = {"title": cfg.title, "scales": {}, "reliability": []}
+    if cov is not None:
+        summary["covariates"] = {"audit": cov.audit, "measures": cov.measures, "means": cov.means, "rows_left_out": cov.dropped}
     run_anova = cfg.model in ("anova", "both", "all")
     run_mixed = cfg.model in ("mixed", "both", "all")
     run_ordinal = cfg.model in ("ordinal", "all")
@@ -219,12 +238,19 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
                 summary["scales"][name] = info
                 continue
         info.setdefault("analysis", "rm-ANOVA")
+        adjustment = None
+        if run_anova and measures:
+            adjusted, adjustment = ancova_adjust(data, col, list(cfg.within) + list(cfg.between), cfg.subject, measures,
+                                                 means=cov.means, source=source)
+            design = prepare_design(adjusted, col, cfg.subject, cfg.within, cfg.between, cfg.aggregate,
+                                    drop_incomplete=cfg.incomplete != "error", levels=cfg.levels, source=source)
+            info["ancova"] = {"slopes": adjustment.slopes, "means": adjustment.means, "n_trials": adjustment.n}
         designs[name] = design
         if run_anova:
             fit = fit_design(design)
             table = fit.table
             tables.append(write_csv(table, sec_dir / "anova.csv"))
-            text += [anova_text(table, cfg.alpha), ""]
+            text += [anova_text(table, cfg.alpha), ""] + ([adjustment.text, ""] if adjustment else [])
             info["anova"] = json_records(table)
             info["n_subjects"], info["dropped"] = design.n, design.dropped
             # post-hocs for significant effects
@@ -263,10 +289,11 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
             rtext, rfigs, rtables, info["reference"] = _reference(cfg, raw, data, col, name, sec_dir, ylim, source)
             text, figs, tables = text + rtext, figs + rfigs, tables + rtables
         if run_mixed:
-            mtext, mfigs, mtables, info["lmm"] = _lmm(cfg, data, col, name, sec_dir, source)
+            mtext, mfigs, mtables, info["lmm"] = _lmm(cfg, data, col, name, sec_dir, source, measures,
+                                                      cov.means if cov is not None else None)
             text, figs, tables = text + mtext, figs + mfigs, tables + mtables
         if run_ordinal:
-            otext, ofigs, otables, info["ordinal"] = _ordinal(cfg, data, col, name, sec_dir, source)
+            otext, ofigs, otables, info["ordinal"] = _ordinal(cfg, data, col, name, sec_dir, source, measures)
             text, figs, tables = text + otext, figs + ofigs, tables + otables
         result.sections.append(ReportSection(title=f"Scale: {name}", text="\n".join(text[2:]), figures=figs, tables=tables))
         md += text + [f"![{Path(f).stem}]({Path(f).relative_to(out)})" for f in figs] + [""]
