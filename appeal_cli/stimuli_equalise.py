@@ -68,8 +68,9 @@ def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path
     only, keeping a* and b* (or grey with --grey); see stimulus_engine.audit.equalise.
     Writes the equalised images under DIR with the same relative file names, DIR/manifest.csv
     (the same columns plus 'equalised' and 'ssim', the SSIM of each image's L* to its
-    original) so a protocol can point to it unchanged, and a copy of landmarks.csv (pixels do
-    not move). Nothing is written when an input is bad.
+    original) so a protocol can point to it unchanged, and copies of landmarks.csv and grid.json
+    (pixels do not move: appeal stimuli audit DIR measures the equalised set inside the same
+    face masks). Nothing is written when an input is bad.
     """
     import pandas as pd
 
@@ -112,8 +113,9 @@ def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path
         try:
             for f, im in zip(files, results):
                 save_png(im, tmp / f)
-            if (folder / "landmarks.csv").is_file():
-                shutil.copyfile(folder / "landmarks.csv", tmp / "landmarks.csv")
+            for name in ("landmarks.csv", "grid.json"):  # the framing is unchanged: the audit finds the same masks
+                if (folder / name).is_file():
+                    shutil.copyfile(folder / name, tmp / name)
             for entry in sorted(tmp.iterdir()):
                 dest = run.out / entry.name
                 if dest.is_dir() and not dest.is_symlink():

@@ -196,3 +196,17 @@ def test_photographs_listed_in_a_csv_are_tested_by_the_columns_named(shared_data
     per_face = table.groupby(["face_id", "gender"])["face_L_mean"].mean().reset_index()
     F, _ = stats.f_oneway(*(g["face_L_mean"] for _, g in per_face.groupby("gender")))
     assert sex["F"] == pytest.approx(F, rel=1e-9)
+
+
+def test_an_equalised_set_is_audited_in_the_same_masks_and_its_luminance_no_longer_differs(grid_dir, tmp_path):
+    eq = tmp_path / "eq"
+    assert main(["stimuli", "equalise", str(grid_dir / "manifest.csv"), "--match", "luminance", "--out", str(eq)]) == 0
+    assert (eq / "grid.json").is_file()  # the framing travels with the images
+    assert main(["stimuli", "audit", str(eq), "--out", str(tmp_path / "a")]) == 0
+    table = pd.read_csv(tmp_path / "a" / "audit.csv")
+    assert set(table["mask"]) == {"rendered"}
+    tests = pd.read_csv(tmp_path / "a" / "design_tests.csv").set_index(["factor", "measure"])
+    for factor in ("shape", "expression"):  # mean and sd of L* inside the mask: equal up to 8-bit rounding
+        assert tests.loc[(factor, "face_L_mean"), "range"] < 0.3
+        assert tests.loc[(factor, "face_rms_contrast"), "range"] < 0.005
+        assert not tests.loc[(factor, "face_L_mean"), "flagged"]
