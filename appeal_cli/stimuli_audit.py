@@ -59,8 +59,8 @@ def audit(source: Path, thresholds: tuple[str, ...], factor: tuple[str, ...], it
     another, e.g. the ERP grid's material paired with shape), each measure's mean per level and
     the range of those means against its threshold (--threshold): beyond it the measure is
     flagged. A test says whether the difference holds across the items (the images'
-    combinations of the other factors, or --item): a one-way rm-ANOVA when every item is seen
-    at every level, a between-items ANOVA when each is seen at one.
+    combinations of the other factors crossed with it, or --item): a one-way rm-ANOVA when
+    every item is seen at every level, a between-items ANOVA when each is seen at one.
 
     \b
     Writes DIR/audit.csv (one row per image: the manifest's columns, then the measures),

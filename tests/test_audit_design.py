@@ -102,6 +102,8 @@ def test_designs_without_a_test_say_why():
     ragged = pd.DataFrame({"file": list("abcde"), "shape": [0, 1, 0, 1, 1], "expression": ["n", "n", "h", "h", "s"],
                            "face_L_mean": [40.0, 41, 42, 43, 44]})
     row = design_tests(ragged, ["shape", "expression"]).query("factor == 'shape'").iloc[0]
+    assert row["test"] == "none: one item (no other factor crossed with it; name the items)"
+    row = design_tests(ragged, ["shape"], item=["expression"]).iloc[0]
     assert row["test"] == "none: items seen at some levels only"
     with pytest.raises(AppealInputError, match="no column 'lighting'"):
         design_tests(one, ["lighting"])
@@ -210,3 +212,25 @@ def test_an_equalised_set_is_audited_in_the_same_masks_and_its_luminance_no_long
         assert tests.loc[(factor, "face_L_mean"), "range"] < 0.3
         assert tests.loc[(factor, "face_rms_contrast"), "range"] < 0.005
         assert not tests.loc[(factor, "face_L_mean"), "flagged"]
+
+
+def test_a_grid_with_photographs_measures_them_in_landmark_masks(shared_data, tmp_path):
+    """The ERP set's layout: photographs as the top level, with their own material; the audit
+    masks them by their landmarks and tests shape across the expressions (material, found at the
+    photograph level only, is not crossed with shape)."""
+    from grid_fixtures import TINY_GRID
+
+    london = shared_data / "faces2d" / "london-frl"
+    spec = TINY_GRID.replace("render: {width: 96, height: 72}", "render: {width: 240, height: 180}") + (
+        "photographs:\n  - character: a\n    files: {"
+        f"neutral: {london / 'neutral_front' / '001_03.jpg'}, happy: {london / 'smiling_front' / '001_08.jpg'}}}\n")
+    (tmp_path / "g.yaml").write_text(spec)
+    assert main(["stimuli", "grid", str(tmp_path / "g.yaml"), "--out", str(tmp_path / "o"), "--n-jobs", "1"]) == 0
+    table = pd.read_csv(tmp_path / "o" / "audit" / "audit.csv")
+    photo = table["shape"].astype(str) == "photograph"
+    assert photo.sum() == 2 and set(table.loc[photo, "mask"]) == {"landmarks"}
+    assert set(table.loc[~photo, "mask"]) == {"rendered"} and table.loc[photo, "iod_px"].notna().all()
+    tests = pd.read_csv(tmp_path / "o" / "audit" / "design_tests.csv")
+    by = tests.groupby("factor")["test"].first()
+    assert by["shape"] == "rm-ANOVA across 2 items" and by["material"] == "rm-ANOVA across 2 items"
+    assert by["expression"] == "rm-ANOVA across 3 items"

@@ -8,8 +8,10 @@ measures) is tested factor by factor. For a factor F and a measure m:
   *flagged*. Thresholds are in the measure's own units (:data:`DEFAULT_THRESHOLDS`, each the
   size of a difference a reviewer would ask about) and the user can set any of them;
 * a **test across the items**. The items of F are the images' combinations of the other factors
-  (for Exp. 2's shape: character × material × expression, 50 items seen at 5 shape levels each),
-  or the column(s) the user names as item (the other factors then averaged within an item).
+  crossed with F (for Exp. 2's shape: character × material × expression, 50 items seen at 5 shape
+  levels each; a grid's photograph material, found at the photograph level only, is not crossed
+  with shape and is averaged within the items), or the column(s) the user names as item (the
+  other factors then averaged within an item).
   Items seen at every level of F: a one-way repeated-measures ANOVA with the items as subjects
   (:func:`analysis.stats.rm_anova`, Greenhouse–Geisser p beside the uncorrected one). Items each
   seen at one level: a one-way between-items ANOVA (:func:`scipy.stats.f_oneway`). Anything else
@@ -90,8 +92,18 @@ def level_means(table: pd.DataFrame, factors: Sequence[str], measures: Sequence[
     return pd.DataFrame(rows, columns=["factor", "level", "measure", "mean", "sd", "n"])
 
 
+def _crossed(table: pd.DataFrame, factor: str, other: str) -> bool:
+    """Every level of ``other`` occurs at every level of ``factor`` (a grid's photographs, with their
+    own material level at the photograph shape level only, are not crossed with shape)."""
+    seen = table.groupby(other, sort=False)[factor].nunique()
+    return bool((seen == table[factor].nunique()).all())
+
+
 def _item_ids(table: pd.DataFrame, factor: str, factors: Sequence[str], item: Sequence[str] | None) -> pd.Series:
-    cols = list(item) if item and factor not in item else [f for f in factors if f != factor]
+    if item and factor not in item:
+        cols = list(item)
+    else:
+        cols = [f for f in factors if f != factor and _crossed(table, factor, f)]
     if not cols:
         return pd.Series(["all"] * len(table), index=table.index)
     return table[cols].astype(str).agg(" / ".join, axis=1)
@@ -139,7 +151,8 @@ def _test(table: pd.DataFrame, factor: str, measure: str, items: pd.Series) -> d
     if (per_item == 1).all() and (per_level >= 2).all() and n_items > n_levels:
         return {**_between_test(cells, factor, n_items), "n_items": n_items}
     if n_items < 2:
-        why = "one image per level"
+        why = ("one image per level" if (data.groupby(factor).size() == 1).all()
+               else "one item (no other factor crossed with it; name the items)")
     elif (per_item == 1).all():
         why = "a level with one item"
     else:
@@ -157,7 +170,8 @@ def design_tests(table: pd.DataFrame, factors: Sequence[str], *, thresholds: Map
         The audit table: one row per image, the factor columns and the measures.
     factors : sequence of str
         The factors to test (each with two levels or more). The items of a factor are the
-        combinations of the other factors named here, unless ``item`` is given.
+        combinations of the other factors named here that are crossed with it (each of their
+        levels at every level of the factor), unless ``item`` is given.
     thresholds : mapping, optional
         Thresholds that replace those of :data:`DEFAULT_THRESHOLDS` (measure → value in its units).
     item : sequence of str, optional

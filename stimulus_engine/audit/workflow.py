@@ -33,7 +33,8 @@ FACTOR_COLUMNS = ("character", "shape", "stylisation", "material", "expression",
 #: The measures drawn by :func:`plot_audit`, with their axis labels.
 MAIN_MEASURES = {"face_L_mean": "face L*", "face_rms_contrast": "face RMS contrast (sd L*/100)",
                  "spectrum_slope": "spectrum slope", "energy_high": "energy share >= 32 c/img",
-                 "face_edge_density": "face edge density", "face_area": "face area (share)", "iod_px": "IOD (px)"}
+                 "face_edge_density": "face edge density", "face_area": "face area (share)", "iod_px": "IOD (px)",
+                 "eye_left_y": "left eye y (px from top)"}
 
 
 @dataclass(frozen=True, eq=False)
