@@ -79,6 +79,15 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     assert len(scan) == 36 and (scan.status == "rendered").all()  # 3 shapes x 3 measured materials x 4 expressions
     assert (out / "grid" / "scan" / "continuum.png").is_file()
     assert "grid/scan/contact_sheet_expressions.png" in links
+    # its stimulus audit: the tests against the design and the grid's page that shows them
+    assert {"grid/scan/audit/flags.png", "grid/scan/index.html", "grid/scan/audit/report.html"} <= links
+    tests = pd.read_csv(out / "grid" / "scan" / "audit" / "design_tests.csv")
+    assert {"shape", "expression"} <= set(tests["factor"]) and tests["p"].notna().any()
+    # ... whose measures serve as a covariate of simulated ratings of those images: the slope is recovered
+    summary = json.loads((out / "ratings" / "analysis_covariates" / "results.json").read_text())
+    slope = summary["scales"]["appeal"]["lmm"]["covariates"][0]
+    assert slope["term"] == "face_edge_density" and abs(slope["estimate"] - 25) < 4 * slope["se"]
+    assert "ratings/scan_covariates.yaml" in links
     assert "part_morph/part_morph_sheet.png" in links  # the cartoon's eyes on the real face
 
 

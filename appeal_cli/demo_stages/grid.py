@@ -12,6 +12,8 @@ from appeal.report import ReportSection
 def _run(out: Path, seed: int) -> ReportSection:
     from appeal.atomic import atomic_write_text
     from appeal.studyfile import validate_data
+    from appeal_cli.audit_outputs import write_audit, write_grid_page
+    from stimulus_engine.audit.workflow import read_audit_inputs
     from stimulus_engine.grid import run_grid
     from stimulus_engine.data import EMBEDDED_SCAN
     from stimulus_engine.grid.schema import AnimationSpec, CharacterSpec, GridFile, MaterialContinuum
@@ -49,6 +51,9 @@ def _run(out: Path, seed: int) -> ReportSection:
                                      CharacterSpec, source=Path("demo_grid.yaml"))],
         "materials": MaterialContinuum(levels=3), "lighting": ["gi_soft"]})
     _, scan_sheets = run_grid(scan, out / "scan", n_jobs=2)
+    # the scan grid audits itself, as appeal stimuli grid does: what differs between its levels
+    audit = write_audit(read_audit_inputs(out / "scan" / "manifest.csv"), out / "scan" / "audit")
+    write_grid_page(out / "scan", scan_sheets, audit, "Demo grid: the embedded scan")
     # a dynamic stimulus: the scan's surprise rising from neutral, one clip per shape level
     clip = scan.model_copy(update={"shapes": [0.0, 1.0], "materials": ["original"], "expressions": ["surprise"],
                                    "render": scan.render.model_copy(update={"width": 320, "height": 240}),
@@ -68,15 +73,19 @@ def _run(out: Path, seed: int) -> ReportSection:
             "the face as far in units of its own length as the rig does; `scan/expression_measures.png` shows "
             "mouth opening, brow raise ... per level), and three material levels of one painted family spaced by "
             "measured image steps, with the continuum's report (`scan/continuum.png`: the step between "
-            "neighbouring levels and each level's face-recognition distance to the realistic one). The same "
+            "neighbouring levels and each level's face-recognition distance to the realistic one) and its stimulus "
+            f"audit (`scan/audit/report.html`, `scan/index.html`): {audit.n_flagged} factor × measure pairs of "
+            "luminance, colour, contrast, spectrum, edges and face geometry differ between levels beyond their "
+            "thresholds, each tested across the items. The same "
             f"scan's surprise as {len(clips)} clips ({int(clips['n_frames'].iloc[0])} frames at 15 fps, neutral to "
             "apex, one weight curve for both levels: lossless PNG frames and an H.264 MP4 each, "
             "`clips/clips/*.mp4`; the filmstrip shows every level's frames side by side). Then "
             f"{n} images of two procedurally generated, textured heads (no downloaded assets): the same shapes and "
             "expressions, materials original / blurred / flat / albedo of the other head. Every face is framed "
             "with the same size and eye position. Manifest: `manifest.csv`.")
-    return ReportSection(title="Stimulus grid", text=text, figures=[*scan_sheets, *strips, *sheets, *lit_sheets, figs[0]],
-                         tables=[out / "manifest.csv", out / "neoteny.csv"])
+    return ReportSection(title="Stimulus grid", text=text, figures=[*scan_sheets, audit.folder / "flags.png", *strips, *sheets, *lit_sheets, figs[0]],
+                         tables=[out / "manifest.csv", out / "neoteny.csv", audit.folder / "design_tests.csv"],
+                         links=[out / "scan" / "index.html", audit.report_html])
 
 
 STAGE = DemoStage(name="grid", title="Stimulus grid (a real scan, then procedural heads)", order=100, run=_run)
