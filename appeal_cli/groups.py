@@ -32,6 +32,7 @@ def cli(verbose: bool, quiet: bool) -> None:
     \b
     The three parts, each a group of commands:
       stimuli   build face stimuli (3D correspondence, grids, morph-space PCA models)
+      faces     2-D photographs: align, composites, continua, transforms, caricatures
       run       present a protocol to a participant (PsychoPy) and record the data
       analyze   statistics on ratings and EEG (rm-ANOVA, post-hocs, ERP windows)
       data      fetch and check the third-party datasets the study files name (data:NAME)
@@ -45,6 +46,11 @@ def cli(verbose: bool, quiet: bool) -> None:
 @cli.group(context_settings=CONTEXT)
 def stimuli() -> None:
     """Make stimuli: correspondence, texture transfer, morphs, rendered grids, 2D face models."""
+
+
+@cli.group(context_settings=CONTEXT)
+def faces() -> None:
+    """2-D face photographs, WebMorph-style: align, average, continuum, transform, caricature, symmetrise, mask."""
 
 
 @cli.group(context_settings=CONTEXT)

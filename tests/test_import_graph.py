@@ -41,6 +41,7 @@ ENGINE_LAYERS: dict[str, set[str]] = {
     "stylisation": {"data", "geometry", "render", "morphpca", "correspondence", "parts", "characters"},
     "grid": {"data", "geometry", "render", "morphpca", "correspondence", "parts", "characters", "stylisation"},
     "audit": {"data", "geometry", "render", "morphpca"},
+    "faces2d": {"data", "geometry", "render", "morphpca"},
 }
 #: At most this many modules at the stimulus engine's top level, its ``__init__`` included.
 ENGINE_TOP_LEVEL_MAX = 8
