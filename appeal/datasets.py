@@ -16,11 +16,17 @@ Data trees (each laid out like ``shared/data``), in the order they are searched:
 
 A study file names a dataset instead of a path: ``data:ict-facekit`` is the dataset's folder,
 ``data:menpo3d-james/james.obj`` a file in it (:func:`resolve_reference`).
+
+A *dataset group* names several datasets laid out alike as one set (:data:`DATASET_GROUPS`):
+``data:london-frl-all/neutral_front`` is the ``neutral_front`` folder of both London-set
+datasets. Where a command takes a list of inputs, :func:`expand_inputs` turns group references
+and glob patterns (``data:london-frl-all/neutral_front/*.jpg``) into the paths they name.
 """
 
 from __future__ import annotations
 
 import functools
+import glob
 import json
 import os
 from dataclasses import dataclass
@@ -29,11 +35,17 @@ from pathlib import Path
 from appeal.assets import DATA_ENV, asset_path, repo_root
 from appeal.errors import AppealInputError
 
-__all__ = ["DATA_PREFIX", "DataFile", "Dataset", "data_roots", "dataset", "dataset_names", "find_dataset",
-           "fetch_root", "resolve_reference", "user_cache_dir"]
+__all__ = ["DATA_PREFIX", "DATASET_GROUPS", "DataFile", "Dataset", "data_roots", "dataset", "dataset_names",
+           "expand_inputs", "find_dataset", "fetch_root", "group_members", "resolve_reference", "resolve_references",
+           "user_cache_dir"]
 
 #: Prefix of a dataset reference in study files.
 DATA_PREFIX = "data:"
+
+#: Dataset groups: one name for datasets whose folders are laid out alike (one image set).
+DATASET_GROUPS: dict[str, tuple[str, ...]] = {
+    "london-frl-all": ("london-frl", "london-frl-more"),  # the 87 public London-set identities
+}
 
 
 @dataclass(frozen=True)
@@ -121,6 +133,16 @@ def dataset(name: str) -> Dataset:
     return reg[name]
 
 
+def group_members(name: str) -> tuple[str, ...]:
+    """The datasets a name stands for: a group's members, or the dataset itself (checked)."""
+    if name in DATASET_GROUPS:
+        return DATASET_GROUPS[name]
+    if name not in _registry():
+        known = ", ".join([*_registry(), *DATASET_GROUPS])
+        raise AppealInputError(f"unknown dataset '{name}' (expected one of: {known}; see appeal data list)")
+    return (name,)
+
+
 def user_cache_dir() -> Path:
     """The user cache's data tree (``$XDG_CACHE_HOME/appeal-lab/data``)."""
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
@@ -170,6 +192,9 @@ def resolve_reference(ref: str, missing_ok: bool = False) -> Path:
         Unknown dataset, or a dataset not on this machine (the message says how to fetch it).
     """
     name, _, sub = ref[len(DATA_PREFIX):].partition("/")
+    if name in DATASET_GROUPS:
+        raise AppealInputError(f"{ref}: '{name}' is a group of datasets ({', '.join(DATASET_GROUPS[name])}), not one "
+                               "folder (expected a dataset here; groups name image sets where a command takes a list)")
     ds = dataset(name)
     folder = find_dataset(name)
     if folder is None and missing_ok:
@@ -179,3 +204,38 @@ def resolve_reference(ref: str, missing_ok: bool = False) -> Path:
         raise AppealInputError(f"{ref}: dataset '{name}' is not on this machine (looked in {where}); "
                                f"fetch it with: {ds.fetch_command}")
     return folder / sub if sub else folder
+
+
+def resolve_references(ref: str, missing_ok: bool = False) -> list[Path]:
+    """The paths a ``data:NAME[/sub/path]`` reference names: one, or one per member of a group
+    (:data:`DATASET_GROUPS`). Errors as :func:`resolve_reference`."""
+    name, _, sub = ref[len(DATA_PREFIX):].partition("/")
+    return [resolve_reference(f"{DATA_PREFIX}{member}" + (f"/{sub}" if sub else ""), missing_ok)
+            for member in group_members(name)]
+
+
+def expand_inputs(items) -> list[Path]:
+    """Input paths with ``data:`` references (groups included) resolved and glob patterns expanded.
+
+    Parameters
+    ----------
+    items : iterable of str or Path
+        Plain paths, ``data:NAME/sub/path`` references, and patterns with ``*``, ``?`` or ``[``
+        in either (each pattern's matches sorted by name).
+
+    Raises
+    ------
+    AppealInputError
+        An unknown or missing dataset, or a pattern that matches nothing (one line naming it).
+    """
+    out: list[Path] = []
+    for item in map(str, items):
+        paths = resolve_references(item) if item.startswith(DATA_PREFIX) else [Path(item)]
+        if not glob.has_magic(item) or all(p.exists() for p in paths):  # a file named "a[1].png" is itself
+            out += paths
+            continue
+        matches = [Path(m) for p in paths for m in sorted(glob.glob(str(p)))]
+        if not matches:
+            raise AppealInputError(f"{item}: the pattern matches no file (looked in {', '.join(map(str, paths))})")
+        out += matches
+    return out

@@ -37,13 +37,22 @@ Examples:
   appeal data list | grep "not fetched"     # what is still missing""")
 def list_() -> None:
     """List the registered datasets: size, licence, and where each is on this machine."""
-    from appeal.datasets import dataset, dataset_names, find_dataset
+    from appeal.datasets import DATASET_GROUPS, dataset, dataset_names, find_dataset
 
     for name in dataset_names():
         ds = dataset(name)
         where = find_dataset(name)
         click.echo(f"{name:20s} {_size(ds.size):>9s}  {ds.licence:13s} {where if where else 'not fetched'}")
         click.echo(f"{'':20s} {ds.description}")
+    for name, members in DATASET_GROUPS.items():
+        click.echo(f"{name:20s} {'group':>9s}  of {', '.join(members)}")
+
+
+def _members(names: tuple[str, ...]) -> list[str]:
+    """Dataset names with groups (e.g. london-frl-all) replaced by their members, each once."""
+    from appeal.datasets import group_members
+
+    return list(dict.fromkeys(m for name in names for m in group_members(name)))
 
 
 def _names_for(files: tuple[str, ...]) -> list[str]:
@@ -51,7 +60,7 @@ def _names_for(files: tuple[str, ...]) -> list[str]:
     import re
     from pathlib import Path
 
-    from appeal.datasets import DATA_PREFIX, dataset
+    from appeal.datasets import DATA_PREFIX, group_members
 
     names = []
     for f in files:
@@ -60,8 +69,7 @@ def _names_for(files: tuple[str, ...]) -> list[str]:
         except OSError as exc:
             raise AppealInputError(f"{f}: cannot read ({exc.strerror})") from None
         for m in re.finditer(re.escape(DATA_PREFIX) + r"([A-Za-z0-9_.-]+)", text):
-            dataset(m.group(1))
-            names.append(m.group(1))
+            names += group_members(m.group(1))
     return list(dict.fromkeys(names))
 
 
@@ -86,7 +94,7 @@ def fetch(names: tuple[str, ...], all_: bool, for_files: tuple[str, ...], url: s
     from appeal.data_fetch import fetch_dataset
     from appeal.datasets import dataset_names
 
-    chosen = list(dataset_names()) if all_ else list(dict.fromkeys([*names, *_names_for(for_files)]))
+    chosen = list(dataset_names()) if all_ else list(dict.fromkeys([*_members(names), *_names_for(for_files)]))
     if not chosen:
         raise AppealInputError("appeal data fetch: name a dataset (appeal data list), --all, or --for STUDY.yaml")
     for name in chosen:
@@ -101,13 +109,15 @@ def fetch(names: tuple[str, ...], all_: bool, for_files: tuple[str, ...], url: s
 @data.command(context_settings=CONTEXT, epilog="""\b
 Examples:
   appeal data path ict-facekit
+  appeal data path london-frl-all                   # a group: one folder per line
   appeal stimuli photo-sheet stimuli/exp2/manifest.csv --photo "$(appeal data path london-frl)/neutral_front/001_03.jpg" --out sheet.png""")
 @click.argument("name")
 def path(name: str) -> None:
-    """Print the folder of dataset NAME (exit 2 if it is not on this machine)."""
-    from appeal.datasets import resolve_reference
+    """Print the folder of dataset NAME, one per member for a group (exit 2 if it is not on this machine)."""
+    from appeal.datasets import resolve_references
 
-    click.echo(str(resolve_reference(f"data:{name}")))
+    for folder in resolve_references(f"data:{name}"):
+        click.echo(str(folder))
 
 
 @data.command(context_settings=CONTEXT, epilog="""\b
@@ -125,7 +135,7 @@ def verify(names: tuple[str, ...]) -> None:
     from appeal.datasets import dataset, dataset_names, fetch_root
 
     problems = []
-    for name in names or dataset_names():
+    for name in _members(names) or dataset_names():
         states = verify_dataset(name)
         bad = [(f, s) for f, s in states if s != "ok"]
         if not names and len(bad) == len(states):

@@ -89,6 +89,16 @@ DATASETS: dict[str, dict] = {
                   "doi:10.6084/m9.figshare.5047666.v5",
         "upstream": "https://github.com/debruine/webmorphR.stim (inst/)",
     },
+    "london-frl-more": {
+        "folder": "faces2d/london-frl-more",
+        "description": "Face Research Lab London Set, the other 57 public identities (067-173): neutral photos "
+                       "with 189-point .tem templates, smiling photos; 1350x1350 (ages etc. in london-frl's table)",
+        "licence": "CC-BY-4.0",
+        "credit": "DeBruine, L. & Jones, B. (2017). Face Research Lab London Set. figshare. "
+                  "doi:10.6084/m9.figshare.5047666.v5",
+        "upstream": "https://github.com/debruine/webmorphR.stim (inst/)",
+        "docs": ["README.md", "SHA256SUMS"],
+    },
     "biosemi-mne": {
         "folder": "eeg/biosemi",
         "files": ["test.bdf", "test_bdf_eeglab.mat", "test_bdf_stim_channel.bdf", "multiple_annotation_chans.bdf"],
