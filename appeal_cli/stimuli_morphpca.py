@@ -47,7 +47,9 @@ Examples:
   appeal stimuli morphpca build frames/ --out models/alice --components 50
   appeal stimuli morphpca build frames/*.png --keypoints keypoints.csv --out models/alice
   appeal stimuli morphpca build faces/ --keypoints tem --register --size 240x200 --out models/facespace
-  appeal stimuli morphpca build photos/ --keypoints detect --register --out models/bob --json bob.json""")
+  appeal stimuli morphpca build photos/ --keypoints detect --register --out models/bob --json bob.json
+  appeal stimuli morphpca build data:london-frl-all/neutral_front --keypoints tem --register --size 240x200 \
+      --holdout-every 5 --out models/london87     # the 87 London identities, a fifth held out""")
 @click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
 @out_options()
 @click.option("--keypoints", "keypoints", default=None, metavar="FILE|tem|detect",
@@ -66,14 +68,16 @@ Examples:
               help="Optical flow (the paper's McGM is not available).")
 @click.option("--holdout", type=click.IntRange(min=0), default=0, show_default=True,
               help="Leave the last N images out of the model and report their reconstruction PSNR/SSIM.")
+@click.option("--holdout-every", type=click.IntRange(min=2), default=None, metavar="K",
+              help="Leave every K-th image out instead (5: a fifth, spread over the set).")
 @click.option("--warp", type=click.Choice(["guided", "flow", "landmarks"]), default="guided", show_default=True,
               help="With dense landmarks (tem, detect, or pK_x/pK_y columns): 'guided' = a thin-plate spline through "
                    "them refined by optical flow inside the face (for faces of different people), 'flow' = optical "
                    "flow alone (frames of one person), 'landmarks' = the spline alone (Psychomorph-style).")
 @click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
 def build(images, out, force, resume, keypoints, register, size, components, variance, reference, backend, holdout,
-          warp, json_path) -> None:
-    """Build a PCA morph model from aligned face IMAGES (files or folders).
+          holdout_every, warp, json_path) -> None:
+    """Build a PCA morph model from aligned face IMAGES (files, folders, data:NAME/sub references, patterns).
 
     Writes DIR/model.npz (+ model.json metadata), DIR/mean.png, DIR/components.png (the mean
     ± 2 SD along the first components), DIR/metrics.json and, with --keypoints, the faceframe.
@@ -82,14 +86,15 @@ def build(images, out, force, resume, keypoints, register, size, components, var
     from stimulus_engine.morphpca.workflow import build_morph_model, read_morph_inputs
 
     inputs = read_morph_inputs(images, keypoints=keypoints, register=register, size=size, reference=reference,
-                               holdout=holdout)  # bad input: one-line errors before any output folder is made
+                               holdout=holdout, holdout_every=holdout_every or 0)  # bad input: one-line errors before any output folder is made
     with output_run(out, force=force, resume=resume, inputs=inputs.files) as run:
         model, metrics = build_morph_model(inputs, run.out, components=components, variance=variance, backend=backend,
                                            warp=warp)
         _write_metrics(run, metrics, json_path)
     click.echo(f"{run.out / 'model.npz'}: {model.n_components} components, "
                f"{100 * metrics['explained_variance']:.1f}% variance, train PSNR {metrics['train_psnr_db']:.1f} dB"
-               + (f", hold-out PSNR {metrics['holdout_psnr_db']:.1f} dB" if "holdout_psnr_db" in metrics else ""))
+               + (f", hold-out PSNR {metrics['holdout_psnr_db']:.1f} dB (orthogonal projection "
+                  f"{metrics['holdout_psnr_projection_db']:.1f} dB)" if "holdout_psnr_db" in metrics else ""))
 
 
 @morphpca.command(context_settings=CONTEXT, epilog="""\b
@@ -140,7 +145,8 @@ def pair(neutral, expressive, out, force, resume, n_frames, size, json_path) -> 
 Examples:
   appeal stimuli morphpca project smile.png --from models/alice/model.npz --to models/bob/model.npz --out proj
   appeal stimuli morphpca project frames/ --from A.npz --to B.npz --out proj --caricature 1.5 --naive
-  appeal stimuli morphpca project a.png --from A.npz --to B.npz --truth b.png --out proj --json m.json""")
+  appeal stimuli morphpca project a.png --from A.npz --to B.npz --truth b.png --out proj --json m.json
+  appeal stimuli morphpca project alice.mp4 --from A.npz --to B.npz --out proj      # every frame of a recording""")
 @click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("--from", "source", required=True, type=click.Path(path_type=Path), metavar="A.npz", help="Model of the person in IMAGES.")
 @click.option("--to", "target", required=True, type=click.Path(path_type=Path), metavar="B.npz", help="Model to render the expressions on.")
@@ -158,7 +164,7 @@ Examples:
 @click.option("--json", "json_path", type=click.Path(path_type=Path), default=None, metavar="METRICS", help=_JSON_HELP)
 def project(images, source, target, out, force, resume, no_align, caricature, texture_weight, keypoints, naive, truth,
             json_path) -> None:
-    """Project the expressions of IMAGES (person A) onto the face of model B.
+    """Project the expressions of IMAGES (person A: image files, folders or video files) onto the face of model B.
 
     Writes DIR/projected/NAME.png (and DIR/naive/NAME.png with --naive), DIR/loadings.csv
     (loadings in B), DIR/sheet.png (inputs beside their projections) and DIR/metrics.json.
@@ -171,7 +177,7 @@ def project(images, source, target, out, force, resume, no_align, caricature, te
         metrics = project_images(inputs, run.out, align=not no_align, caricature=caricature,
                                  texture_weight=texture_weight, naive=naive)
         _write_metrics(run, metrics, json_path)
-    click.echo(f"{run.out / 'projected'}: {len(inputs.files)} image(s)" +
+    click.echo(f"{run.out / 'projected'}: {len(inputs.images)} image(s)" +
                (f"; SSIM to truth {metrics['ssim_projection']:.3f} (naive {metrics['ssim_naive']:.3f})"
                 if inputs.truth is not None else ""))
 
@@ -241,13 +247,15 @@ def reconstruct(model_path, loadings, out, force, resume, json_path) -> None:
 Examples:
   appeal stimuli morphpca mimicry models/alice/model.npz models/bob/model.npz \\
       --source alice_clip/ --mimic bob_mimics_alice/ --out mimicry
-  appeal stimuli morphpca mimicry A.npz B.npz --source a*.png --mimic b*.png --bins 8 --out m --json m.json""")
+  appeal stimuli morphpca mimicry A.npz B.npz --source a*.png --mimic b*.png --bins 8 --out m --json m.json
+  appeal stimuli morphpca mimicry A.npz B.npz --source alice.mp4 --mimic bob.mp4 --out m    # recordings""")
 @click.argument("source_model", metavar="A.npz", type=click.Path(path_type=Path))
 @click.argument("mimic_model", metavar="B.npz", type=click.Path(path_type=Path))
 @click.option("--source", "source_frames", multiple=True, required=True, type=click.Path(path_type=Path),
-              help="Frames of A's sequence (files or folders, in name order; repeatable).")
+              help="Frames of A's sequence (files or folders, in name order, or a video file: .mp4, .avi, ...; "
+                   "repeatable).")
 @click.option("--mimic", "mimic_frames", multiple=True, required=True, type=click.Path(path_type=Path),
-              help="Frames of B mimicking it, one per source frame.")
+              help="Frames (or a video) of B mimicking it, one frame per source frame.")
 @out_options()
 @click.option("--no-align", is_flag=True, help="Skip the faceframe affine transform (models of equal size only).")
 @click.option("--bins", type=click.IntRange(min=2), default=None,
@@ -270,9 +278,9 @@ def mimicry(source_model, mimic_model, source_frames, mimic_frames, out, force, 
     from stimulus_engine.morphpca.io import load_model
     from stimulus_engine.morphpca.mimicry_run import measure_mimicry, mimicry_frames
 
-    sf, mf = mimicry_frames(source_frames, mimic_frames)  # bad input: one line, before any output
     ma, mb = load_model(source_model), load_model(mimic_model)
-    with output_run(out, force=force, resume=resume, inputs=[source_model, mimic_model, *sf, *mf]) as run:
+    sf, mf = mimicry_frames(source_frames, mimic_frames, ma, mb)  # bad input: one line, before any output
+    with output_run(out, force=force, resume=resume, inputs=[source_model, mimic_model, *sf.sources, *mf.sources]) as run:
         summary = measure_mimicry(ma, mb, sf, mf, run.out, align=not no_align, bins=bins)
         _write_metrics(run, summary, json_path)
     click.echo(f"{run.out}: {summary['frames']} frames; mean frame correlation {summary['mean_frame_correlation']:.2f}, "

@@ -39,9 +39,15 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def list_images(paths: Sequence[str | Path]) -> list[Path]:
-    """Image files from files and folders (folders: their images, sorted by name)."""
+    """Image files from files and folders (folders: their images, sorted by name).
+
+    An entry may be a ``data:`` reference (a dataset group names one folder per member, e.g.
+    ``data:london-frl-all/neutral_front``) or a glob pattern (:func:`appeal.datasets.expand_inputs`).
+    """
+    from appeal.datasets import expand_inputs
+
     out: list[Path] = []
-    for p in map(Path, paths):
+    for p in expand_inputs(paths):
         if p.is_dir():
             out.extend(sorted(q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES))
         elif p.is_file():

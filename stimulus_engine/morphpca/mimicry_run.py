@@ -2,7 +2,8 @@
 into the source person's expression space and compared with the source's own loadings.
 
 ``appeal stimuli morphpca mimicry`` calls :func:`measure_mimicry`; the measures themselves are
-:mod:`stimulus_engine.morphpca.mimicry`.
+:mod:`stimulus_engine.morphpca.mimicry`. Either sequence may be frame images or a video file
+(:func:`~.frame_source.read_frames`).
 """
 
 from __future__ import annotations
@@ -19,11 +20,13 @@ from appeal.errors import AppealInputError
 __all__ = ["mimicry_frames", "measure_mimicry", "plot_loadings"]
 
 
-def mimicry_frames(source_frames: Sequence[str | Path], mimic_frames: Sequence[str | Path]) -> tuple[list[Path], list[Path]]:
-    """The source and mimic frame files, one mimic frame per source frame (one-line error otherwise)."""
-    from stimulus_engine.morphpca.io import list_images
+def mimicry_frames(source_frames: Sequence[str | Path], mimic_frames: Sequence[str | Path], ma, mb):
+    """The source frames at model A's size and the mimic frames at model B's (:class:`~.frame_source.Frames`,
+    from image files, folders or videos), one mimic frame per source frame (one-line error otherwise)."""
+    from stimulus_engine.morphpca.frame_source import read_frames
 
-    sf, mf = list_images(source_frames), list_images(mimic_frames)
+    sf = read_frames(source_frames, ma.size, "--source")
+    mf = read_frames(mimic_frames, mb.size, "--mimic")
     if len(sf) != len(mf):
         raise AppealInputError(f"--mimic: expected one mimic frame per source frame ({len(sf)}), got {len(mf)}")
     if len(sf) < 2:
@@ -56,7 +59,7 @@ def plot_loadings(source: np.ndarray, mimic: np.ndarray, variances: np.ndarray, 
     return path
 
 
-def measure_mimicry(ma, mb, sf: Sequence[Path], mf: Sequence[Path], out: Path, *, align: bool = True,
+def measure_mimicry(ma, mb, sf, mf, out: Path, *, align: bool = True,
                     bins: int | None = None) -> dict:
     """Compare a mimicry with its source in the source's expression space.
 
@@ -65,8 +68,8 @@ def measure_mimicry(ma, mb, sf: Sequence[Path], mf: Sequence[Path], out: Path, *
     ma, mb : MorphModel
         Morph-PCA models (``appeal stimuli morphpca build``) of the source person (A) and of the
         person mimicking (B).
-    sf, mf : sequence of paths
-        Frame files of the source sequence and of its mimicry, one mimic frame per source frame
+    sf, mf : Frames
+        The source sequence at A's size and its mimicry at B's, one mimic frame per source frame
         (:func:`mimicry_frames`).
     out : Path
         An existing output folder: ``loadings_source.csv``, ``loadings_mimic.csv`` (the mimic
@@ -85,7 +88,6 @@ def measure_mimicry(ma, mb, sf: Sequence[Path], mf: Sequence[Path], out: Path, *
     """
     import pandas as pd
 
-    from stimulus_engine.morphpca.io import read_images
     from stimulus_engine.morphpca.mimicry import (
         component_correlations,
         information_measures,
@@ -95,13 +97,13 @@ def measure_mimicry(ma, mb, sf: Sequence[Path], mf: Sequence[Path], out: Path, *
     from stimulus_engine.morphpca.project import project_expression
 
     t0 = time.perf_counter()
-    src, mim = read_images(sf, ma.size), read_images(mf, mb.size)
+    src, mim = sf.images, mf.images
     la = ma.project(ma.encode(src))
     proj = project_expression(mim, mb, ma, align=align)
     lm = proj.loadings
     cols = [f"pc{j + 1}" for j in range(la.shape[1])]
-    pd.DataFrame(la, columns=cols).assign(frame=[f.name for f in sf]).to_csv(out / "loadings_source.csv", index=False)
-    pd.DataFrame(lm, columns=cols).assign(frame=[f.name for f in mf]).to_csv(out / "loadings_mimic.csv", index=False)
+    pd.DataFrame(la, columns=cols).assign(frame=sf.names).to_csv(out / "loadings_source.csv", index=False)
+    pd.DataFrame(lm, columns=cols).assign(frame=mf.names).to_csv(out / "loadings_mimic.csv", index=False)
     frames = mimicry_measures(la, lm, ma.variances)
     frames.to_csv(out / "frames.csv", index=False)
     comps = component_correlations(la, lm).merge(information_measures(la, lm, bins), on="component")
@@ -109,7 +111,7 @@ def measure_mimicry(ma, mb, sf: Sequence[Path], mf: Sequence[Path], out: Path, *
     plot_loadings(la, lm, ma.variances, out / "loadings.png")
     pick = np.unique(np.linspace(0, len(sf) - 1, min(8, len(sf))).round().astype(int))
     save_contact_sheet(out / "sheet.png", [src[pick], mim[pick], proj.images[pick]],
-                       ["source A", "mimic B", "B on A"], [sf[i].stem for i in pick])
+                       ["source A", "mimic B", "B on A"], [Path(sf.names[i]).stem for i in pick])
     summary = {"frames": len(sf), "components": int(la.shape[1]),
                "mean_euclidean": float(frames["euclidean"].mean()),
                "mean_normalised_distance": float(frames["normalised"].mean()),

@@ -197,8 +197,19 @@ class MorphModel:
         """Mean-relative morph vectors ``R = M - M_m``."""
         return np.atleast_2d(vectors).astype(np.float32) - self.mean
 
-    def project(self, vectors: np.ndarray) -> np.ndarray:
-        """Loadings ``(n, k)`` of absolute morph vectors."""
+    def project(self, vectors: np.ndarray, fit: str = "orthogonal") -> np.ndarray:
+        """Loadings ``(n, k)`` of absolute morph vectors.
+
+        ``fit``: ``"orthogonal"`` (the paper's ``L = Pᵀ R``, nearest in morph space) or
+        ``"image"`` (nearest as an image, :func:`~.fit.image_fit_loadings`: better for faces of
+        people not in the model).
+        """
+        if fit == "image":
+            from stimulus_engine.morphpca.fit import image_fit_loadings
+
+            return image_fit_loadings(self, vectors)
+        if fit != "orthogonal":
+            raise AppealInputError(f"fit: expected 'orthogonal' or 'image' (got {fit!r})")
         return self.relative(vectors) @ self.components.T
 
     def vectors(self, loadings: np.ndarray) -> np.ndarray:

@@ -113,7 +113,8 @@ def read_keypoints(spec: str | None, files: list[Path], images: list[np.ndarray]
 
 
 def read_morph_inputs(images: Sequence[str | Path], *, keypoints: str | None = None, register: bool = False,
-                      size: str | None = None, reference: str = "0", holdout: int = 0) -> MorphInputs:
+                      size: str | None = None, reference: str = "0", holdout: int = 0,
+                      holdout_every: int = 0) -> MorphInputs:
     """Read and check the images of a morph model.
 
     Parameters
@@ -130,6 +131,9 @@ def read_morph_inputs(images: Sequence[str | Path], *, keypoints: str | None = N
         Index or file name of the reference image.
     holdout : int
         Leave the last ``holdout`` images out of the model.
+    holdout_every : int
+        Leave every ``holdout_every``-th image out instead (the 5th, 10th, … for 5: a fifth,
+        spread over the set); they are moved to the end, so ``files[n_train:]`` are the held out.
 
     Raises
     ------
@@ -140,6 +144,14 @@ def read_morph_inputs(images: Sequence[str | Path], *, keypoints: str | None = N
 
     t0 = time.perf_counter()
     files = list_images(images)
+    if holdout_every:
+        if holdout:
+            raise AppealInputError("--holdout-every: give either --holdout N (the last N) or --holdout-every K, not both")
+        if holdout_every < 2:
+            raise AppealInputError(f"--holdout-every: expected 2 or more (got {holdout_every})")
+        held = files[holdout_every - 1::holdout_every]
+        files = [f for i, f in enumerate(files) if (i + 1) % holdout_every] + held
+        holdout = len(held)
     if len(files) < 2:
         raise AppealInputError(f"IMAGES: a model needs at least 2 images (got {len(files)}"
                                f"{': ' + files[0].name if files else ''})")
@@ -193,7 +205,9 @@ def build_morph_model(inputs: MorphInputs, out: Path, *, components: int | None 
     model : MorphModel
     metrics : dict
         n_images, n_components, explained variance (total and per component, first 20),
-        train_psnr_db, train_ssim, hold-out PSNR/SSIM when images were held out, seconds.
+        train_psnr_db, train_ssim, seconds and, when images were held out, their PSNR/SSIM with
+        loadings fitted as images (``holdout_psnr_db``, ``holdout_ssim``; :func:`~.fit.image_fit_loadings`)
+        and the PSNR with the orthogonal projection (``holdout_psnr_projection_db``).
     """
     from stimulus_engine.morphpca.io import save_image, save_model
     from stimulus_engine.morphpca.metrics import psnr, ssim
@@ -228,8 +242,11 @@ def build_morph_model(inputs: MorphInputs, out: Path, *, components: int | None 
                "seconds_build": model.meta["seconds_total"]}
     if n < len(imgs):
         test = imgs[n:]
-        rec = model.reconstruct(model.project(model.encode(test, None if lm is None else lm[n:])))
-        metrics.update(holdout_psnr_db=_mean_scores(test, rec, psnr), holdout_ssim=_mean_scores(test, rec, ssim))
+        enc = model.encode(test, None if lm is None else lm[n:])
+        rec = model.reconstruct(model.project(enc, fit="image"))
+        orth = model.reconstruct(model.project(enc))
+        metrics.update(holdout_psnr_db=_mean_scores(test, rec, psnr), holdout_ssim=_mean_scores(test, rec, ssim),
+                       holdout_psnr_projection_db=_mean_scores(test, orth, psnr))
     metrics["seconds"] = inputs.seconds + time.perf_counter() - t0
     return model, metrics
 
@@ -245,6 +262,7 @@ class ProjectionInputs:
     Attributes
     ----------
     files : list of Path
+        The files read: frame images, or video files (:func:`~.frame_source.read_frames`).
     images : (n, H, W, 3) array
         At model A's size.
     source, target : MorphModel
@@ -255,6 +273,8 @@ class ProjectionInputs:
         Time spent reading.
     landmarks : (n, K, 2) array or None
         The images' keypoints (for a source model built with landmark-guided warps).
+    names : list of str or None
+        One per image (default: the files' names).
     """
 
     files: list[Path]
@@ -264,19 +284,30 @@ class ProjectionInputs:
     truth: np.ndarray | None
     seconds: float = 0.0
     landmarks: np.ndarray | None = None
+    names: list[str] | None = None
+
+    @property
+    def image_names(self) -> list[str]:
+        """One name per image: ``names``, else the files' names."""
+        return self.names if self.names is not None else [f.name for f in self.files]
 
 
 def read_projection_inputs(images: Sequence[str | Path], source: str | Path, target: str | Path,
                            truth: Sequence[str | Path] = (), keypoints: str | None = None) -> ProjectionInputs:
     """Read and check the inputs of an expression projection (``--truth``: one image per input;
-    ``keypoints``: a CSV with the images' landmarks, for a source model built with them)."""
+    ``keypoints``: a CSV with the images' landmarks, for a source model built with them). Without
+    keypoints the images may be video files too (:func:`~.frame_source.read_frames`)."""
+    from stimulus_engine.morphpca.frame_source import read_frames
     from stimulus_engine.morphpca.io import list_images, load_model, read_images
 
     t0 = time.perf_counter()
     ma, mb = load_model(source), load_model(target)
-    files = [f for f in list_images(images) if f.suffix.lower() != ".csv"]
-    landmarks = None
-    if keypoints is not None:
+    landmarks = names = None
+    if keypoints is None:
+        frames = read_frames([p for p in images if Path(p).suffix.lower() != ".csv"], ma.size, "IMAGES")
+        files, names, imgs = frames.sources, frames.names, frames.images
+    else:
+        files = [f for f in list_images(images) if f.suffix.lower() != ".csv"]
         imgs = read_images(files)
         if imgs.shape[1:3] != tuple(ma.size):
             raise AppealInputError(f"--keypoints: the images are {imgs.shape[1]}x{imgs.shape[2]}, model A "
@@ -286,15 +317,13 @@ def read_projection_inputs(images: Sequence[str | Path], source: str | Path, tar
         if landmarks is None:
             raise AppealInputError(f"{keypoints}: no landmark columns p0_x, p0_y, … (expected the model's "
                                    "keypoints, e.g. frames/keypoints.csv written by 'appeal stimuli morphpca pair')")
-    else:
-        imgs = read_images(files, ma.size)
     truth_imgs = None
     if truth:
-        tfiles = list_images(truth)
-        if len(tfiles) != len(files):
-            raise AppealInputError(f"--truth: expected one true image per input image ({len(files)}), got {len(tfiles)}")
-        truth_imgs = read_images(tfiles, mb.size)
-    return ProjectionInputs(files, imgs, ma, mb, truth_imgs, time.perf_counter() - t0, landmarks)
+        truth_imgs = read_frames(truth, mb.size, "--truth").images
+        if len(truth_imgs) != len(imgs):
+            raise AppealInputError(f"--truth: expected one true image per input image ({len(imgs)}), "
+                                   f"got {len(truth_imgs)}")
+    return ProjectionInputs(files, imgs, ma, mb, truth_imgs, time.perf_counter() - t0, landmarks, names)
 
 
 def project_images(inputs: ProjectionInputs, out: Path, *, align: bool = True, caricature: float = 1.0,
@@ -330,20 +359,20 @@ def project_images(inputs: ProjectionInputs, out: Path, *, align: bool = True, c
     from stimulus_engine.morphpca.project import naive_transfer, project_expression
 
     t0 = time.perf_counter()
-    files, imgs, truth = inputs.files, inputs.images, inputs.truth
+    names, imgs, truth = inputs.image_names, inputs.images, inputs.truth
     res = project_expression(imgs, inputs.source, inputs.target, align=align, warp_factor=caricature,
                              texture_weight=texture_weight, landmarks=inputs.landmarks)
     for name in ("projected", "naive") if naive else ("projected",):
         (out / name).mkdir(parents=True, exist_ok=True)
-    for f, img in zip(files, res.images):
-        save_image(out / "projected" / (f.stem + ".png"), img)
+    for name, img in zip(names, res.images):
+        save_image(out / "projected" / (Path(name).stem + ".png"), img)
     pd.DataFrame(res.loadings, columns=[f"pc{j + 1}" for j in range(res.loadings.shape[1])]).assign(
-        image=[f.name for f in files]).to_csv(out / "loadings.csv", index=False)
-    metrics: dict = {"n_images": len(files)}
+        image=names).to_csv(out / "loadings.csv", index=False)
+    metrics: dict = {"n_images": len(names)}
     base = naive_transfer(imgs, inputs.source, inputs.target) if naive or truth is not None else None
     if base is not None and naive:
-        for f, img in zip(files, base.images):
-            save_image(out / "naive" / (f.stem + ".png"), img)
+        for name, img in zip(names, base.images):
+            save_image(out / "naive" / (Path(name).stem + ".png"), img)
     if truth is not None:
         metrics.update(ssim_projection=_mean_scores(res.images, truth, ssim),
                        ssim_naive=_mean_scores(base.images, truth, ssim),
