@@ -48,7 +48,12 @@ def stimuli() -> None:
     """Make stimuli: correspondence, texture transfer, morphs, rendered grids, 2D face models."""
 
 
-@cli.group(context_settings=CONTEXT)
+@cli.group(context_settings=CONTEXT, epilog="""\b
+Examples:
+  appeal faces align "$(appeal data path london-frl)"/neutral_front/*.jpg --out aligned
+  appeal faces average aligned --out composite          # a composite of every aligned face
+  appeal faces continuum female.png male.png --steps 7 --out f2m
+  appeal faces transform face.jpg --from female.png --to male.png --shape 0.5 --out masc""")
 def faces() -> None:
     """2-D face photographs, WebMorph-style: align, average, continuum, transform, caricature, symmetrise, mask."""
 

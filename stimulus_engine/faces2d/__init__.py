@@ -16,3 +16,12 @@ from stimulus_engine.faces2d.outputs import FaceOutput, write_outputs
 __all__ += ["Face", "align_face", "default_eyes", "eye_points", "load_faces", "read_face", "average_faces",
             "composite_ghosting", "pixel_average", "continuum", "morph", "apply_mask", "face_mask", "FaceOutput",
             "write_outputs"]
+
+# transform, caricature, symmetrise (issue 33)
+from stimulus_engine.faces2d.caricature import caricature, caricature_points
+from stimulus_engine.faces2d.symmetry import (DLIB_68_MIRROR, FRL_189_MIRROR, derive_mirror_map, mirror_map,
+                                              mirror_template, symmetric_points, symmetrise)
+from stimulus_engine.faces2d.transform import face_region, transform
+
+__all__ += ["caricature", "caricature_points", "DLIB_68_MIRROR", "FRL_189_MIRROR", "derive_mirror_map", "mirror_map",
+            "mirror_template", "symmetric_points", "symmetrise", "face_region", "transform"]
