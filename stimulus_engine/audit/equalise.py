@@ -267,6 +267,21 @@ def match_histogram(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *
 
 
 # ------------------------------------------------------------------------------ specMatch
+def _rings(shape: tuple[int, int]) -> tuple[np.ndarray, int]:
+    """Each Fourier coefficient's ring ``k = rint(f min(H, W))`` (``fftfreq`` order) and ``kmax = min(H, W) // 2``."""
+    h, w = shape
+    fy, fx = np.meshgrid(np.fft.fftfreq(h), np.fft.fftfreq(w), indexing="ij")
+    return np.rint(np.hypot(fy, fx) * min(h, w)).astype(np.int64), min(h, w) // 2
+
+
+def _ring_means(values: np.ndarray, rings: np.ndarray, kmax: int) -> np.ndarray:
+    k = rings.ravel()
+    keep = (k >= 1) & (k <= kmax)
+    sums = np.bincount(k[keep], weights=values.ravel()[keep], minlength=kmax + 1)
+    n = np.bincount(k[keep], minlength=kmax + 1)
+    return sums[1:] / n[1:]
+
+
 def rotational_average(lstar: np.ndarray) -> np.ndarray:
     """Rotational average of the Fourier amplitude spectrum :math:`|\\mathcal{F}(L)|`.
 
@@ -275,21 +290,18 @@ def rotational_average(lstar: np.ndarray) -> np.ndarray:
     :math:`k = 1 .. \\min(H, W)/2` (cycles per shorter side, DC and the corners beyond it left
     out). Returns the mean amplitude of each bin, index ``k - 1``.
     """
-    h, w = lstar.shape
-    fy, fx = np.meshgrid(np.fft.fftfreq(h), np.fft.fftfreq(w), indexing="ij")
-    k = np.rint(np.hypot(fy, fx) * min(h, w)).astype(np.int64).ravel()
-    amp = np.abs(np.fft.fft2(lstar)).ravel()
-    kmax = min(h, w) // 2
-    keep = (k >= 1) & (k <= kmax)
-    sums = np.bincount(k[keep], weights=amp[keep], minlength=kmax + 1)
-    n = np.bincount(k[keep], minlength=kmax + 1)
-    return sums[1:] / n[1:]
+    rings, kmax = _rings(lstar.shape)
+    return _ring_means(np.abs(np.fft.fft2(lstar)), rings, kmax)
 
 
 def spectrum_agreement(images: Sequence[np.ndarray]) -> float:
     """Largest relative deviation of an image's rotational average (of the L* of its 8-bit RGB)
     from the set's mean: :math:`\\max_{i,k} |R_i(k)/\\bar R(k) - 1|`."""
-    r = np.array([rotational_average(lightness(im)) for im in images])
+    return _agreement([lightness(im) for im in images])
+
+
+def _agreement(lstars: Sequence[np.ndarray]) -> float:
+    r = np.array([rotational_average(l) for l in lstars])
     return float(np.max(np.abs(r / r.mean(axis=0) - 1)))
 
 
@@ -301,22 +313,16 @@ def _spec_match(lstars: list[np.ndarray]) -> list[np.ndarray]:
     return [np.real(np.fft.ifft2(mean_amp * np.exp(1j * np.angle(f)))) for f in spectra]
 
 
-def _radial_match(lstars: list[np.ndarray]) -> list[np.ndarray]:
-    """Each image's spectrum scaled, ring by ring, to the set's mean rotational average (SHINE sfMatch):
-    :math:`F_i'(u, v) = F_i(u, v)\\,\\bar R(k)/R_i(k)` for the coefficients of bin :math:`k`
-    (:func:`rotational_average`); DC and the corners beyond the last bin are left as they are."""
-    h, w = lstars[0].shape
-    fy, fx = np.meshgrid(np.fft.fftfreq(h), np.fft.fftfreq(w), indexing="ij")
-    kmax = min(h, w) // 2
-    k = np.minimum(np.rint(np.hypot(fy, fx) * min(h, w)).astype(np.int64), kmax + 1)
-    r = np.array([rotational_average(l) for l in lstars])
-    mean_r = r.mean(axis=0)
-    out = []
-    for l, ri in zip(lstars, r):
-        gain = np.ones(kmax + 2)
-        gain[1:kmax + 1] = np.divide(mean_r, ri, out=np.ones_like(ri), where=ri > 0)
-        out.append(np.real(np.fft.ifft2(np.fft.fft2(l) * gain[k])))
-    return out
+def _ring_step(lstar: np.ndarray, target: np.ndarray, rings: np.ndarray, kmax: int, power: float) -> np.ndarray:
+    """SHINE's sfMatch step raised to ``power``: ring :math:`k` of the image's spectrum scaled by
+    :math:`(T_k/R_k)^{p}` (:math:`p = 1`: sfMatch; :math:`p > 1` over-relaxes, which pays where the
+    restored background holds most of each change back); DC and the corners beyond the last ring
+    are left as they are."""
+    spectrum = np.fft.fft2(lstar)
+    now = _ring_means(np.abs(spectrum), rings, kmax)
+    gain = np.ones(kmax + 2)
+    gain[1:kmax + 1] = np.divide(target, now, out=np.ones_like(now), where=now > 0) ** power
+    return np.real(np.fft.ifft2(spectrum * gain[np.minimum(rings, kmax + 1)]))
 
 
 def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *, grey: bool = False,
@@ -326,17 +332,19 @@ def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *,
 
     The spectrum is that of the whole image's L* (as SHINE's specMatch): first
     :func:`_spec_match` replaces every amplitude spectrum by the set's mean. Restoring the
-    background outside the masks afterwards changes the spectra again, so, like SHINE's
-    iterated ``'both'`` option, a correction and the background restore then alternate. Plain
-    repetition of the full-spectrum match converges slowly (measured on 96 x 72 test images:
-    2 % rotational disagreement after 20 passes); the correction is therefore SHINE's sfMatch
-    step (:func:`_radial_match`: each ring scaled to the set's mean rotational average), which
-    shrinks the disagreement about 0.6-fold a pass. Each pass clips L* to 0..100, restores the
-    background (grey or original) outside the masks and encodes to 8 bit; the loop stops when
-    the 8-bit results' rotational averages agree within ``tolerance``
-    (:func:`spectrum_agreement`) or after ``max_iterations`` passes (then the closest pass is
-    returned). Each pass starts from the previous pass's unrounded L*, so the full 2-D
-    amplitude spectra agree only approximately; their rotational averages are what is matched.
+    background outside the masks afterwards changes the spectra again, so a ring-by-ring
+    correction towards the set's mean rotational average (SHINE's sfMatch, :func:`_ring_step`)
+    and the background restore then alternate. Plain sfMatch passes converge slowly where the
+    face is a small part of the picture (the restored background holds most of each change back;
+    measured on eight 1350 x 1350 London photographs with landmark masks: 5.4 % disagreement
+    after 30 passes), so each pass over-relaxes: its gains are raised to the largest power (1,
+    2, 4 ... 16, doubled after a pass that helped) that still lowers the disagreement.
+    Each pass clips L* to 0..100 and restores the background (grey or original) outside the
+    masks; when the unrounded results agree within half the tolerance they are encoded to 8 bit
+    and the loop stops if the 8-bit results agree within ``tolerance``
+    (:func:`spectrum_agreement`), else goes on (at most ``max_iterations`` passes; then the
+    closest encoded pass is returned). The full 2-D amplitude spectra agree only approximately;
+    their rotational averages are what is matched.
 
     Parameters and returns as :func:`match_luminance` (no ``target``), and
 
@@ -349,17 +357,30 @@ def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *,
     originals = [lightness(im) for im in images]
     outside = [orig if background is None else np.full_like(orig, grey_levels()[_background_code(background)])
                for orig in originals]
-    current = originals
+    restores = [lambda l, m=m, bg=bg: np.where(m, np.clip(l, 0, 100), bg) for m, bg in zip(masks, outside)]
+    current = [r(l) for r, l in zip(restores, _spec_match(originals))]
+    rings, kmax = _rings(originals[0].shape)
+    power, now = 1.0, _agreement(current)
     best: tuple[float, list[np.ndarray]] | None = None
-    for i in range(max(1, max_iterations)):
-        step = _spec_match if i == 0 else _radial_match
-        current = [np.where(m, np.clip(l, 0, 100), bg) for l, m, bg in zip(step(current), masks, outside)]
-        out = [encode(l, im, m, grey=grey, background=background) for l, im, m in zip(current, images, masks)]
-        agreement = spectrum_agreement(out)
-        if best is None or agreement < best[0]:
-            best = (agreement, out)
-        if agreement <= tolerance:
-            break
+    passes = max(1, max_iterations)
+    for i in range(passes + 1):
+        if now <= tolerance / 2 or best is None or i == passes:
+            out = [encode(l, im, m, grey=grey, background=background) for l, im, m in zip(current, images, masks)]
+            agreement = spectrum_agreement(out)
+            if best is None or agreement < best[0]:
+                best = (agreement, out)
+            if agreement <= tolerance or i == passes:
+                break
+        target = np.mean([rotational_average(l) for l in current], axis=0)
+        while True:  # the largest power (up to 16) that lowers the disagreement; sfMatch's 1 at least
+            trial = [r(_ring_step(l, target, rings, kmax, power)) for l, r in zip(current, restores)]
+            score = _agreement(trial)
+            if score < now or power <= 1.0:
+                break
+            power = max(1.0, power / 2)
+        improved = score < now
+        current, now = trial, score
+        power = min(16.0, power * 2) if improved else power
     return best[1]
 
 
