@@ -69,7 +69,8 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     page = (out / "index.html").read_text()
     assert "This stage failed" not in page
     names = [s.name for s in discover_stages()]
-    assert {"environment", "grid", "correspond", "part_morph", "avatar", "experiment", "ratings", "erp"} <= set(names)
+    assert {"environment", "grid", "correspond", "part_morph", "avatar", "faces2d", "experiment", "ratings",
+            "erp"} <= set(names)
     links = set(re.findall(r"(?:src|href)='([^'#]+)'", page))
     assert len(links) > 20
     missing = [link for link in links if not (out / link).exists()]
@@ -89,6 +90,10 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     assert slope["term"] == "face_edge_density" and abs(slope["estimate"] - 25) < 4 * slope["se"]
     assert "ratings/scan_covariates.yaml" in links
     assert "part_morph/part_morph_sheet.png" in links  # the cartoon's eyes on the real face
+    # WebMorph-style 2-D operations: a composite (its ghosting recorded) and a transform
+    assert {"faces2d/composites/contact_sheet.png", "faces2d/transform/contact_sheet.png"} <= links
+    comp = pd.read_csv(out / "faces2d" / "composites" / "manifest.csv")
+    assert comp.loc[comp["file"] == "all_neutral.png", "ghosting"].item() < 0.4
 
 
 def test_report_page_fits_a_laptop_screen(tmp_path):
