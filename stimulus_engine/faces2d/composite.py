@@ -18,6 +18,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from stimulus_engine.faces2d.pyramid import band_amplitudes, collapse_pyramid, laplacian_pyramid
+
 from stimulus_engine.faces2d.warp import warp_to_points
 
 __all__ = ["COLOUR_SPACES", "srgb_to_linear", "linear_to_srgb", "average_faces", "pixel_average",
@@ -54,36 +56,6 @@ def blend(images: Sequence[np.ndarray], weights: Sequence[float], colour_space: 
     return linear_to_srgb(acc) if colour_space == "linear" else np.clip(acc, 0.0, 1.0).astype(np.float32)
 
 
-def _pyramid(image: np.ndarray, levels: int) -> list[np.ndarray]:
-    """Laplacian pyramid: ``levels`` band-pass images (finest first), then the low-pass residual."""
-    import cv2
-
-    bands, cur = [], np.asarray(image, np.float32)
-    for _ in range(levels):
-        down = cv2.pyrDown(cur)
-        up = cv2.pyrUp(down, dstsize=(cur.shape[1], cur.shape[0]))
-        bands.append(cur - up)
-        cur = down
-    return bands + [cur]
-
-
-def _collapse(bands: list[np.ndarray]) -> np.ndarray:
-    import cv2
-
-    cur = bands[-1]
-    for band in reversed(bands[:-1]):
-        cur = cv2.pyrUp(cur, dstsize=(band.shape[1], band.shape[0])) + band
-    return cur
-
-
-def _amplitudes(image: np.ndarray, levels: int) -> list[np.ndarray]:
-    """Local contrast of each band of the image's luminance (smoothed |band|)."""
-    import cv2
-
-    grey = np.asarray(image, np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
-    return [cv2.GaussianBlur(np.abs(b), (0, 0), 2.0) for b in _pyramid(grey, levels)[:-1]]
-
-
 def texture_levels(size: tuple[int, int]) -> int:
     """Pyramid levels the texture step adjusts: down to bands about 1/32 of the shorter side."""
     return int(max(1, min(6, np.floor(np.log2(max(8, min(size)) / 32)) + 1)))
@@ -93,12 +65,12 @@ def restore_texture(composite: np.ndarray, target: list[np.ndarray], *, max_gain
     """Scale each band of ``composite`` so its local contrast matches ``target`` (the inputs' mean
     :func:`_amplitudes`); gains are kept within [1, ``max_gain``] (averaging only lowers contrast)."""
     levels = len(target)
-    bands = _pyramid(composite, levels)
-    have = _amplitudes(composite, levels)
+    bands = laplacian_pyramid(composite, levels)
+    have = band_amplitudes(composite, levels)
     for k in range(levels):
         gain = np.clip(target[k] / np.maximum(have[k], 1e-4), 1.0, max_gain)
         bands[k] = bands[k] * gain[..., None]
-    return np.clip(_collapse(bands), 0.0, 1.0).astype(np.float32)
+    return np.clip(collapse_pyramid(bands), 0.0, 1.0).astype(np.float32)
 
 
 def average_faces(images: Sequence[np.ndarray], points: Sequence[np.ndarray], *, colour_space: str = "srgb",
@@ -139,7 +111,7 @@ def average_faces(images: Sequence[np.ndarray], points: Sequence[np.ndarray], *,
         x = srgb_to_linear(warped) if colour_space == "linear" else warped
         acc = wi * x if acc is None else acc + wi * x
         if texture:
-            a = _amplitudes(warped, levels)
+            a = band_amplitudes(warped, levels)
             amp = [wi * b for b in a] if amp is None else [s + wi * b for s, b in zip(amp, a)]
     assert acc is not None
     out = linear_to_srgb(acc) if colour_space == "linear" else np.clip(acc, 0.0, 1.0).astype(np.float32)

@@ -36,13 +36,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from stimulus_engine.faces2d.pyramid import band_amplitudes, collapse_pyramid, laplacian_pyramid
+
 from appeal.errors import AppealInputError
 from stimulus_engine.faces2d.warp import warp_to_points
 
 __all__ = ["REGIONS", "face_region", "eye_distance", "align_prototype", "shape_difference", "low_frequency",
-           "band_amplitudes", "texture_levels", "transform"]
-
-_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+           "texture_levels", "transform"]
 
 
 def _check_points(points: np.ndarray, other: np.ndarray, what: str) -> None:
@@ -92,40 +92,15 @@ def texture_levels(sigma: float) -> int:
     return int(np.clip(np.floor(np.log2(max(float(sigma), 1.0))) + 1, 1, 6))
 
 
-def _pyramid(image: np.ndarray, levels: int) -> list[np.ndarray]:
-    bands, cur = [], np.asarray(image, np.float32)
-    for _ in range(levels):
-        down = cv2.pyrDown(cur)
-        up = cv2.pyrUp(down, dstsize=(cur.shape[1], cur.shape[0]))
-        bands.append(cur - up)
-        cur = down
-    return bands + [cur]
-
-
-def _collapse(bands: list[np.ndarray]) -> np.ndarray:
-    cur = bands[-1]
-    for band in reversed(bands[:-1]):
-        cur = cv2.pyrUp(cur, dstsize=(band.shape[1], band.shape[0])) + band
-    return cur
-
-
-def band_amplitudes(image: np.ndarray, levels: int) -> list[np.ndarray]:
-    """Local amplitude of each Laplacian band of the image's luminance: ``|band|`` smoothed over about
-    four of the band's own wavelengths."""
-    grey = np.asarray(image, np.float32) @ _LUMA if np.ndim(image) == 3 else np.asarray(image, np.float32)
-    return [cv2.GaussianBlur(np.abs(b), (0, 0), 2.0, borderType=cv2.BORDER_REFLECT)
-            for b in _pyramid(grey, levels)[:-1]]
-
-
 def _retexture(image: np.ndarray, amp_a: list[np.ndarray], amp_b: list[np.ndarray], weight: float,
                max_gain: float = 3.0) -> np.ndarray:
-    bands = _pyramid(image, len(amp_a))
+    bands = laplacian_pyramid(image, len(amp_a))
     for k, (a, b) in enumerate(zip(amp_a, amp_b)):
         floor = max(1e-4, 0.05 * float(np.median(a) + np.median(b)))  # flat areas: no wild ratios
         ratio = (b + floor) / (a + floor)
         gain = np.clip(ratio ** weight, 1.0 / max_gain, max_gain).astype(np.float32)
         bands[k] = bands[k] * (gain[..., None] if bands[k].ndim == 3 else gain)
-    return _collapse(bands)
+    return collapse_pyramid(bands)
 
 
 REGIONS = ("face", "image")
