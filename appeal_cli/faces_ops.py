@@ -15,6 +15,19 @@ from appeal_cli.options import out_options
 
 F = Callable[..., Any]
 
+def templates_help(same: str = "All images of one call") -> str:
+    """The help text every ``appeal faces`` command ends with: templates in, files out."""
+    return f"""\b
+Templates: each image's .tem beside it (WebMorph/Psychomorph, e.g. the 189-point FRL
+template; pupils = points 0 and 1); an image without one gets dlib's 68 detected
+landmarks. {same} must use the same template type.
+
+\b
+Writes DIR/<name>.png + <name>.tem per output, DIR/manifest.csv (file, tem, operation,
+inputs, parameters, ...: one row per output; 'appeal stimuli audit DIR' reads it) and
+DIR/contact_sheet.png."""
+
+
 def _manifest_files(manifest: Path) -> list[Path]:
     import pandas as pd
 
@@ -27,7 +40,7 @@ def _manifest_files(manifest: Path) -> list[Path]:
     return [manifest.parent / str(f) for f in table["file"]]
 
 
-def _image_files(sources: Sequence[Path]) -> list[Path]:
+def image_files(sources: Sequence[Path]) -> list[Path]:
     from stimulus_engine.morphpca.io import IMAGE_SUFFIXES
 
     files: list[Path] = []
@@ -126,21 +139,12 @@ def align(images: tuple[Path, ...], size: str | None, eyes: str | None, fill: st
     IMAGES are image files or folders of them (a folder an earlier 'appeal faces' call
     wrote: the files of its manifest.csv). The similarity transform puts both pupils
     exactly on the targets; templates move with the images.
-    \b
-    Templates: each image's .tem beside it (WebMorph/Psychomorph, e.g. the 189-point FRL
-    template; pupils = points 0 and 1); an image without one gets dlib's 68 detected
-    landmarks. All images of one call must use the same template type.
-
-    \b
-    Writes DIR/<name>.png + <name>.tem per output, DIR/manifest.csv (file, tem, operation,
-    inputs, parameters, ...: one row per output; 'appeal stimuli audit DIR' reads it) and
-    DIR/contact_sheet.png.
     """
     from appeal.outputs import output_run
     from stimulus_engine.faces2d.align import load_faces
     from stimulus_engine.faces2d.outputs import FaceOutput, write_outputs
 
-    files = _image_files(images)
+    files = image_files(images)
     faces_ = load_faces(files)
     with output_run(out, force=force, resume=resume, inputs=files) as run:
         imgs, pts, params = _aligned(faces_, size, eyes, fill)
@@ -176,22 +180,13 @@ def average(images: tuple[Path, ...], do_align: bool, size: str | None, eyes: st
     (thin-plate spline) before the colours are averaged, so features stay single and sharp.
     Without --align the images must all have one size. Prints the ghosting index (0 =
     features as crisp as the inputs', ~0.5 doubled) beside a plain pixel average's.
-    \b
-    Templates: each image's .tem beside it (WebMorph/Psychomorph, e.g. the 189-point FRL
-    template; pupils = points 0 and 1); an image without one gets dlib's 68 detected
-    landmarks. All images of one call must use the same template type.
-
-    \b
-    Writes DIR/<name>.png + <name>.tem per output, DIR/manifest.csv (file, tem, operation,
-    inputs, parameters, ...: one row per output; 'appeal stimuli audit DIR' reads it) and
-    DIR/contact_sheet.png.
     """
     from appeal.outputs import output_run
     from stimulus_engine.faces2d.align import load_faces
     from stimulus_engine.faces2d.composite import average_faces, composite_ghosting, pixel_average
     from stimulus_engine.faces2d.outputs import FaceOutput, write_outputs
 
-    files = _image_files(images)
+    files = image_files(images)
     faces_ = load_faces(files)
     imgs, pts, params = _prepared(faces_, do_align, size, eyes, fill, "averaging")
     with output_run(out, force=force, resume=resume, inputs=files) as run:
@@ -228,15 +223,6 @@ def continuum(face_a: Path, face_b: Path, steps: int, do_align: bool, size: str 
     Step i has weight t = i/(steps-1) of B: the template is (1-t) A + t B, both images are
     warped onto it and cross-dissolved (1-t, t). Without --align both images must have
     one size.
-    \b
-    Templates: each image's .tem beside it (WebMorph/Psychomorph, e.g. the 189-point FRL
-    template; pupils = points 0 and 1); an image without one gets dlib's 68 detected
-    landmarks. All images of one call must use the same template type.
-
-    \b
-    Writes DIR/<name>.png + <name>.tem per output, DIR/manifest.csv (file, tem, operation,
-    inputs, parameters, ...: one row per output; 'appeal stimuli audit DIR' reads it) and
-    DIR/contact_sheet.png.
     """
     from appeal.outputs import output_run
     from stimulus_engine.faces2d.align import load_faces
@@ -244,7 +230,7 @@ def continuum(face_a: Path, face_b: Path, steps: int, do_align: bool, size: str 
     from stimulus_engine.faces2d.continuum import continuum_weights
     from stimulus_engine.faces2d.outputs import FaceOutput, write_outputs
 
-    files = _image_files([face_a, face_b])
+    files = image_files([face_a, face_b])
     faces_ = load_faces(files)
     imgs, pts, params = _prepared(faces_, do_align, size, eyes, fill, "a continuum")
     with output_run(out, force=force, resume=resume, inputs=files) as run:
@@ -279,15 +265,6 @@ def mask(images: tuple[Path, ...], kind: str, feather: float, fill: str, out: Pa
 
     Face points: the face outline and hairline of a 189-point FRL template (no ears, hair
     or neck); all 68 dlib points otherwise. Templates are copied unchanged.
-    \b
-    Templates: each image's .tem beside it (WebMorph/Psychomorph, e.g. the 189-point FRL
-    template; pupils = points 0 and 1); an image without one gets dlib's 68 detected
-    landmarks. All images of one call must use the same template type.
-
-    \b
-    Writes DIR/<name>.png + <name>.tem per output, DIR/manifest.csv (file, tem, operation,
-    inputs, parameters, ...: one row per output; 'appeal stimuli audit DIR' reads it) and
-    DIR/contact_sheet.png.
     """
     from appeal.outputs import output_run
     from stimulus_engine.faces2d.align import load_faces
@@ -295,7 +272,7 @@ def mask(images: tuple[Path, ...], kind: str, feather: float, fill: str, out: Pa
     from stimulus_engine.faces2d.outputs import FaceOutput, parse_colour, write_outputs
 
     colour = None if fill.strip().lower() == "transparent" else parse_colour(fill)
-    files = _image_files(images)
+    files = image_files(images)
     faces_ = load_faces(files)
     with output_run(out, force=force, resume=resume, inputs=files) as run:
         outs = []
@@ -307,3 +284,6 @@ def mask(images: tuple[Path, ...], kind: str, feather: float, fill: str, out: Pa
         run.extra["images"] = len(outs)
         click.echo(f"masked {len(outs)} images ({kind}, feather {feather:g} px) -> {run.out}")
 
+
+for _cmd in (align, average, continuum, mask):
+    _cmd.help = (_cmd.help or "").rstrip() + "\n\n" + templates_help()

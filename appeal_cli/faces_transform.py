@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
 
 import click
@@ -10,35 +9,8 @@ import click
 from appeal.errors import AppealInputError
 
 from appeal_cli.groups import CONTEXT, faces
+from appeal_cli.faces_ops import image_files, templates_help
 from appeal_cli.options import out_options
-
-_TEMPLATES_HELP = """\b
-Templates: each image's .tem beside it (WebMorph/Psychomorph, e.g. the 189-point FRL
-template; pupils = points 0 and 1); an image without one gets dlib's 68 detected
-landmarks. Faces and prototypes must use the same template type.
-
-\b
-Writes DIR/<name>.png + <name>.tem per output, DIR/manifest.csv (file, tem, operation,
-inputs, parameters, ...: one row per output; 'appeal stimuli audit DIR' reads it) and
-DIR/contact_sheet.png."""
-
-
-def _image_files(sources: Sequence[Path]) -> list[Path]:
-    from stimulus_engine.morphpca.io import IMAGE_SUFFIXES
-
-    files: list[Path] = []
-    for s in sources:
-        if s.is_dir():
-            found = sorted(p for p in s.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
-            if not found:
-                raise AppealInputError(f"{s}: no images in this folder (expected .jpg or .png files)")
-            files.extend(found)
-        elif not s.is_file():
-            raise AppealInputError(f"{s}: image file not found")
-        else:
-            files.append(s)
-    return files
-
 
 def _numbers(text: str, what: str) -> list[float]:
     try:
@@ -58,7 +30,7 @@ def _prototype(source: Path, like, what: str):
 
     detect = like.source != "tem"
     if source.is_dir():
-        files = _image_files([source])
+        files = image_files([source])
         faces_ = load_faces(files, detect=detect)
         same_size(faces_, f"a composite for {what}")
         image, points = average_faces([f.image for f in faces_], [f.points for f in faces_])
@@ -112,7 +84,7 @@ def transform(images: tuple[Path, ...], proto_a: Path, proto_b: Path, shape: flo
     from stimulus_engine.faces2d.transform import transform as move
 
     levels = _numbers(strength, "--strength")
-    files = _image_files(images)
+    files = image_files(images)
     faces_ = load_faces(files)
     a_img, a_pts, a_files = _prototype(proto_a, faces_[0], "prototype --from")
     b_img, b_pts, b_files = _prototype(proto_b, faces_[0], "prototype --to")
@@ -164,7 +136,7 @@ def caricature(images: tuple[Path, ...], average_src: Path, ks: str, colour: boo
     from stimulus_engine.faces2d.outputs import FaceOutput, write_outputs
 
     levels = _numbers(ks, "--k")
-    files = _image_files(images)
+    files = image_files(images)
     faces_ = load_faces(files)
     avg_img, avg_pts, avg_files = _prototype(average_src, faces_[0], "the average")
     with output_run(out, force=force, resume=resume, inputs=[*files, *avg_files]) as run:
@@ -209,7 +181,7 @@ def symmetrise(images: tuple[Path, ...], modes: tuple[str, ...], out: Path, forc
     from stimulus_engine.faces2d.symmetry import asymmetry, mirror_map
     from stimulus_engine.faces2d.symmetry import symmetrise as make_symmetric
 
-    files = _image_files(images)
+    files = image_files(images)
     faces_ = load_faces(files)
     try:
         mirror = mirror_map(len(faces_[0].points))
@@ -232,4 +204,4 @@ def symmetrise(images: tuple[Path, ...], modes: tuple[str, ...], out: Path, forc
 
 
 for _cmd in (transform, caricature, symmetrise):
-    _cmd.help = (_cmd.help or "").rstrip() + "\n\n" + _TEMPLATES_HELP
+    _cmd.help = (_cmd.help or "").rstrip() + "\n\n" + templates_help("Faces and prototypes")
