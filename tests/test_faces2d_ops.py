@@ -8,6 +8,7 @@ import pytest
 
 from appeal.errors import AppealInputError
 from appeal_cli import main
+from cli_errors import one_line_error
 from stimulus_engine.faces2d.align import align_face, default_eyes, eye_points, load_faces
 from stimulus_engine.faces2d.composite import average_faces, composite_ghosting, pixel_average
 from stimulus_engine.faces2d.continuum import continuum
@@ -111,16 +112,6 @@ def test_mask_is_0_outside_1_inside_with_a_soft_edge(aligned20, kind):
     assert np.allclose(on_grey[0, 0], 0.5) and np.allclose(on_grey[cy, cx], imgs[0][cy, cx])
 
 
-def _one_line_error(capsys, args, *needles):
-    code = main(args)
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("appeal: writing to")]
-    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in lines[0], lines[0]
-    return lines[0]
-
-
 def test_cli_writes_images_templates_manifest_and_sheet(london, tmp_path, capsys):
     from PIL import Image
 
@@ -168,31 +159,31 @@ def test_cli_one_line_errors_name_the_file(london, tmp_path, capsys):
     t = read_template(nf / "001_03.tem")
     write_template(odd / "001_03.tem", t)
     write_template(odd / "002_03.tem", Template(t.points[:100], t.tail))
-    _one_line_error(capsys, ["faces", "average", str(odd / "001_03.jpg"), str(odd / "002_03.jpg"),
+    one_line_error(capsys, ["faces", "average", str(odd / "001_03.jpg"), str(odd / "002_03.jpg"),
                              "--out", str(tmp_path / "o1")], "002_03.jpg", "100 points", "189 points")
     # a malformed template
     (odd / "002_03.tem").write_text("189\n1 2\nnot numbers\n")
-    _one_line_error(capsys, ["faces", "align", str(odd / "002_03.jpg"), "--out", str(tmp_path / "o2")],
+    one_line_error(capsys, ["faces", "align", str(odd / "002_03.jpg"), "--out", str(tmp_path / "o2")],
                     "002_03.tem")
     # images of different sizes where a step needs one size
     small = tmp_path / "small"
     assert main(["faces", "align", str(b), "--size", "300x400", "--out", str(small)]) == 0
-    _one_line_error(capsys, ["faces", "average", str(a), str(small / "002_03.png"), "--out", str(tmp_path / "o3")],
+    one_line_error(capsys, ["faces", "average", str(a), str(small / "002_03.png"), "--out", str(tmp_path / "o3")],
                     "002_03.png", "300x400", "1350x1350")
-    _one_line_error(capsys, ["faces", "continuum", str(a), str(small / "002_03.png"), "--out", str(tmp_path / "o4")],
+    one_line_error(capsys, ["faces", "continuum", str(a), str(small / "002_03.png"), "--out", str(tmp_path / "o4")],
                     "002_03.png")
     # a face the detector cannot find (no .tem beside it: detection)
     blank = tmp_path / "blank.png"
     from stimulus_engine.render.contact_sheet import save_png
 
     save_png(np.full((200, 200, 3), 128, np.uint8), blank)
-    _one_line_error(capsys, ["faces", "mask", str(blank), "--out", str(tmp_path / "o5")], "blank.png", "no face")
+    one_line_error(capsys, ["faces", "mask", str(blank), "--out", str(tmp_path / "o5")], "blank.png", "no face")
     # a photo with a .tem mixed with one without (detected 68 points)
     notem = tmp_path / "notem.jpg"
     notem.write_bytes(b.read_bytes())
-    _one_line_error(capsys, ["faces", "align", str(a), str(notem), "--out", str(tmp_path / "o6")],
+    one_line_error(capsys, ["faces", "align", str(a), str(notem), "--out", str(tmp_path / "o6")],
                     "notem.jpg", "template mismatch", "68")
-    _one_line_error(capsys, ["faces", "align", str(a), "--size", "big", "--out", str(tmp_path / "o7")], "--size")
-    _one_line_error(capsys, ["faces", "mask", str(a), "--fill", "mauve", "--out", str(tmp_path / "o8")], "mauve")
+    one_line_error(capsys, ["faces", "align", str(a), "--size", "big", "--out", str(tmp_path / "o7")], "--size")
+    one_line_error(capsys, ["faces", "mask", str(a), "--fill", "mauve", "--out", str(tmp_path / "o8")], "mauve")
     with pytest.raises(AppealInputError, match="missing.jpg: image file not found"):
         load_faces([a, tmp_path / "missing.jpg"])

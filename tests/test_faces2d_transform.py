@@ -11,6 +11,7 @@ import pytest
 
 from appeal.errors import AppealInputError
 from appeal_cli import main
+from cli_errors import one_line_error
 from stimulus_engine.faces2d.align import align_face, eye_points, read_face
 from stimulus_engine.faces2d.caricature import caricature, caricature_points
 from stimulus_engine.faces2d.composite import average_faces, composite_ghosting
@@ -223,16 +224,6 @@ def test_symmetrise_works_with_dlib_68_points(faces):
 
 # ------------------------------------------------------------------ CLI
 
-def _one_line_error(capsys, args, *needles):
-    code = main(args)
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("appeal: writing to")]
-    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in lines[0], lines[0]
-    return lines[0]
-
-
 def _save(folder, name, img, pts, tail=""):
     from stimulus_engine.faces2d.outputs import to_uint8
     from stimulus_engine.render.contact_sheet import save_png
@@ -290,28 +281,28 @@ def test_cli_one_line_errors_name_the_file(faces, prototypes, tmp_path, capsys):
     face = _save(src, "face", *small[0])
     fem = _save(src, "female", fi, fp)
     odd = _save(src, "odd", mi, mp[:100])  # another point count
-    _one_line_error(capsys, ["faces", "transform", str(face), "--from", str(fem), "--to", str(odd),
+    one_line_error(capsys, ["faces", "transform", str(face), "--from", str(fem), "--to", str(odd),
                              "--out", str(tmp_path / "o1")], "odd.png", "100 points", "189")
-    _one_line_error(capsys, ["faces", "caricature", str(face), "--average", str(odd), "--out", str(tmp_path / "o2")],
+    one_line_error(capsys, ["faces", "caricature", str(face), "--average", str(odd), "--out", str(tmp_path / "o2")],
                     "odd.png", "100 points")
     # a prototype without its .tem (the faces have templates: no detection for it)
     notem = src / "notem.png"
     notem.write_bytes(fem.read_bytes())
-    _one_line_error(capsys, ["faces", "transform", str(face), "--from", str(notem), "--to", str(fem),
+    one_line_error(capsys, ["faces", "transform", str(face), "--from", str(notem), "--to", str(fem),
                              "--out", str(tmp_path / "o3")], "notem.png", "notem.tem")
     # a folder prototype whose images differ in size (a composite needs one size)
     mixed = tmp_path / "mixed"
     _save(mixed, "a", *small[1])
     _save(mixed, "b", cv2.resize(small[2][0], (200, 200)), small[2][1] * 2 / 3)
-    _one_line_error(capsys, ["faces", "transform", str(face), "--from", str(mixed), "--to", str(fem),
+    one_line_error(capsys, ["faces", "transform", str(face), "--from", str(mixed), "--to", str(fem),
                              "--out", str(tmp_path / "o4")], "b.png", "200x200", "300x300")
     # symmetrise: a template type without left-right partners
     twelve = _save(tmp_path / "twelve", "face", small[0][0], small[0][1][:12])
-    _one_line_error(capsys, ["faces", "symmetrise", str(twelve), "--out", str(tmp_path / "o5")],
+    one_line_error(capsys, ["faces", "symmetrise", str(twelve), "--out", str(tmp_path / "o5")],
                     "face.tem", "12-point")
-    _one_line_error(capsys, ["faces", "caricature", str(face), "--average", str(fem), "--k", "lots",
+    one_line_error(capsys, ["faces", "caricature", str(face), "--average", str(fem), "--k", "lots",
                              "--out", str(tmp_path / "o6")], "--k", "lots")
-    _one_line_error(capsys, ["faces", "transform", str(tmp_path / "missing.png"), "--from", str(fem), "--to",
+    one_line_error(capsys, ["faces", "transform", str(tmp_path / "missing.png"), "--from", str(fem), "--to",
                              str(fem), "--out", str(tmp_path / "o7")], "missing.png")
     with pytest.raises(AppealInputError, match="prototype A: template has 100 points"):
         transform(small[0][0], small[0][1], mi, mp[:100], mi, mp)
