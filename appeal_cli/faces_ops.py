@@ -41,10 +41,14 @@ def _manifest_files(manifest: Path) -> list[Path]:
 
 
 def image_files(sources: Sequence[Path]) -> list[Path]:
+    """The image files the arguments name: files, folders (an earlier call's folder: its manifest's
+    files), ``data:`` references (groups such as ``data:london-frl-all/neutral_front`` included)
+    and glob patterns."""
+    from appeal.datasets import expand_inputs
     from stimulus_engine.morphpca.io import IMAGE_SUFFIXES
 
     files: list[Path] = []
-    for s in sources:
+    for s in expand_inputs(sources):
         if s.is_dir() and (s / "manifest.csv").is_file():  # an earlier call's outputs: its manifest's files
             files.extend(_manifest_files(s / "manifest.csv"))
         elif s.is_dir():

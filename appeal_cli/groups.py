@@ -50,7 +50,7 @@ def stimuli() -> None:
 
 @cli.group(context_settings=CONTEXT, epilog="""\b
 Examples:
-  appeal faces align "$(appeal data path london-frl)"/neutral_front/*.jpg --out aligned
+  appeal faces align "data:london-frl-all/neutral_front/*.jpg" --out aligned   # the 87 London faces
   appeal faces average aligned --out composite          # a composite of every aligned face
   appeal faces continuum female.png male.png --steps 7 --out f2m
   appeal faces transform face.jpg --from female.png --to male.png --shape 0.5 --out masc""")

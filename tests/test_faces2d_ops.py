@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -187,3 +189,14 @@ def test_cli_one_line_errors_name_the_file(london, tmp_path, capsys):
     one_line_error(capsys, ["faces", "mask", str(a), "--fill", "mauve", "--out", str(tmp_path / "o8")], "mauve")
     with pytest.raises(AppealInputError, match="missing.jpg: image file not found"):
         load_faces([a, tmp_path / "missing.jpg"])
+
+
+def test_images_named_by_a_dataset_reference_and_a_pattern(tmp_path):
+    """`data:` references and globs, as in `appeal faces align "data:london-frl/neutral_front/00[12]_03.jpg"`."""
+    from appeal_cli.faces_ops import image_files
+
+    files = image_files([Path("data:london-frl/neutral_front/00[12]_03.jpg")])
+    assert [f.name for f in files] == ["001_03.jpg", "002_03.jpg"]
+    assert main(["faces", "align", "data:london-frl/neutral_front/00[12]_03.jpg", "--size", "150x200",
+                 "--out", str(tmp_path / "a")]) == 0
+    assert (tmp_path / "a" / "001_03.tem").is_file()
