@@ -253,12 +253,12 @@ def single_trial_models(trials: pd.DataFrame, factors: list[str], cfg: ErpConfig
                  "the rm-ANOVA of amplitudes.csv is not adjusted).", ""]
     for (comp, cluster), part in trials.groupby(["component", "cluster"], sort=False):
         src = f"single_trials.csv: {comp} {cluster}"
-        try:
-            means = None
-            if audit is not None:
-                from analysis.stats.covariates import centre_covariates, join_audit
+        means = None
+        if audit is not None:  # a stimulus missing from the audit is the user's error: it stops the run
+            from analysis.stats.covariates import centre_covariates, join_audit
 
-                part, means = centre_covariates(join_audit(part, audit, measures, "stimulus", src)[0], measures)
+            part, means = centre_covariates(join_audit(part, audit, measures, "stimulus", src)[0], measures)
+        try:  # a covariate these trials cannot separate from the factors: this model is not fitted
             sec = lmm_section(part, "mean_uV", f"{comp} {cluster} (µV)", factors, ["subject"] + (["stimulus"] if has_stim else []),
                               out / f"{comp}_{cluster}", random=cfg.mixed.random, ddf=cfg.mixed.ddf,
                               levels=cfg.levels or None, source=src, covariates=measures, covariate_means=means)
