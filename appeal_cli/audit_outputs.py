@@ -52,15 +52,15 @@ def write_audit(job, out: Path, *, thresholds: Mapping[str, float] | None = None
     from appeal.atomic import atomic_write_text
     from analysis.confounds import design_tests, level_means
     from analysis.confounds.report import plot_flags, write_report
-    from stimulus_engine.audit.workflow import FACTOR_COLUMNS, audit_factors, paired_factors, plot_audit, run_audit
+    from stimulus_engine.audit.workflow import (audit_factors, declared_factors, paired_factors, plot_audit,
+                                                 run_audit)
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     table = run_audit(job)
     atomic_write_text(out / "audit.csv", table.to_csv(index=False))
     factors = audit_factors(table)
-    declared = [f for f in (job.factors or FACTOR_COLUMNS) if f in table.columns and table[f].nunique() >= 2]
-    paired = paired_factors(table, declared)
+    paired = paired_factors(table, declared_factors(table))
     figures = [plot_audit(table, out / "audit.png", factors)]
     tables = [out / "audit.csv"]
     if factors != ["file"]:

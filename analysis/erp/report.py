@@ -243,10 +243,10 @@ def single_trial_models(trials: pd.DataFrame, factors: list[str], cfg: ErpConfig
 
     has_stim = "stimulus" in trials.columns and trials["stimulus"].notna().any()
     text = ["### Linear mixed models of the single-trial window means", ""]
+    from analysis.stats.covariates import centre_covariates, join_audit, read_audit
+
     measures, audit = [], None
     if cfg.covariates is not None:
-        from analysis.stats.covariates import read_audit
-
         measures, audit = list(cfg.covariates.measures), read_audit(cfg.covariates.audit, cfg.covariates.measures)
         text += [f"Covariates: stimulus audit measures {', '.join(measures)} from `{cfg.covariates.audit}`, joined by "
                  "each trial's stimulus and centred at their grand mean per component × cluster (fixed main effects; "
@@ -255,8 +255,6 @@ def single_trial_models(trials: pd.DataFrame, factors: list[str], cfg: ErpConfig
         src = f"single_trials.csv: {comp} {cluster}"
         means = None
         if audit is not None:  # a stimulus missing from the audit is the user's error: it stops the run
-            from analysis.stats.covariates import centre_covariates, join_audit
-
             part, means = centre_covariates(join_audit(part, audit, measures, "stimulus", src)[0], measures)
         try:  # a covariate these trials cannot separate from the factors: this model is not fitted
             sec = lmm_section(part, "mean_uV", f"{comp} {cluster} (µV)", factors, ["subject"] + (["stimulus"] if has_stim else []),

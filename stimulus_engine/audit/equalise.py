@@ -297,12 +297,17 @@ def rotational_average(lstar: np.ndarray) -> np.ndarray:
 def spectrum_agreement(images: Sequence[np.ndarray]) -> float:
     """Largest relative deviation of an image's rotational average (of the L* of its 8-bit RGB)
     from the set's mean: :math:`\\max_{i,k} |R_i(k)/\\bar R(k) - 1|`."""
-    return _agreement([lightness(im) for im in images])
+    return _spread(_ring_averages([lightness(im) for im in images]))
 
 
-def _agreement(lstars: Sequence[np.ndarray]) -> float:
-    r = np.array([rotational_average(l) for l in lstars])
-    return float(np.max(np.abs(r / r.mean(axis=0) - 1)))
+def _ring_averages(lstars: Sequence[np.ndarray]) -> np.ndarray:
+    """:func:`rotational_average` of each image, ``(n, kmax)``."""
+    return np.array([rotational_average(l) for l in lstars])
+
+
+def _spread(averages: np.ndarray) -> float:
+    """:math:`\\max_{i,k} |R_i(k)/\\bar R(k) - 1|` of rotational averages ``(n, kmax)``."""
+    return float(np.max(np.abs(averages / averages.mean(axis=0) - 1)))
 
 
 def _spec_match(lstars: list[np.ndarray]) -> list[np.ndarray]:
@@ -360,7 +365,8 @@ def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *,
     restores = [lambda l, m=m, bg=bg: np.where(m, np.clip(l, 0, 100), bg) for m, bg in zip(masks, outside)]
     current = [r(l) for r, l in zip(restores, _spec_match(originals))]
     rings, kmax = _rings(originals[0].shape)
-    power, now = 1.0, _agreement(current)
+    averages = _ring_averages(current)
+    power, now = 1.0, _spread(averages)
     best: tuple[float, list[np.ndarray]] | None = None
     passes = max(1, max_iterations)
     for i in range(passes + 1):
@@ -371,15 +377,16 @@ def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *,
                 best = (agreement, out)
             if agreement <= tolerance or i == passes:
                 break
-        target = np.mean([rotational_average(l) for l in current], axis=0)
+        target = averages.mean(axis=0)
         while True:  # the largest power (up to 16) that lowers the disagreement; sfMatch's 1 at least
             trial = [r(_ring_step(l, target, rings, kmax, power)) for l, r in zip(current, restores)]
-            score = _agreement(trial)
+            trial_averages = _ring_averages(trial)
+            score = _spread(trial_averages)
             if score < now or power <= 1.0:
                 break
             power = max(1.0, power / 2)
         improved = score < now
-        current, now = trial, score
+        current, averages, now = trial, trial_averages, score
         power = min(16.0, power * 2) if improved else power
     return best[1]
 

@@ -25,7 +25,8 @@ from stimulus_engine.audit import masks as M
 from stimulus_engine.audit import measures as X
 
 __all__ = ["IMAGE_SUFFIXES", "FACTOR_COLUMNS", "MAIN_MEASURES", "AuditItem", "AuditJob", "read_audit_inputs", "read_rgb",
-           "measure_image", "run_audit", "audit_manifest", "paired_factors", "audit_factors", "plot_audit"]
+           "measure_image", "run_audit", "audit_manifest", "paired_factors", "declared_factors", "audit_factors",
+           "plot_audit"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 #: A grid manifest's factor columns (those present are kept and plotted).
@@ -225,12 +226,17 @@ def paired_factors(table: pd.DataFrame, factors: list[str]) -> dict[str, str]:
     return out
 
 
-def audit_factors(table: pd.DataFrame) -> list[str]:
-    """The factors to plot and test: the grid's factor columns with two levels or more
-    (``table.attrs['factors']``, else :data:`FACTOR_COLUMNS` present), less those that only repeat
-    an earlier one (:func:`paired_factors`); none gives ``['file']`` (one level per image)."""
+def declared_factors(table: pd.DataFrame) -> list[str]:
+    """The grid's factor columns with two levels or more (``table.attrs['factors']``, else
+    :data:`FACTOR_COLUMNS` present)."""
     declared = table.attrs.get("factors") or [c for c in FACTOR_COLUMNS if c in table.columns]
-    factors = [f for f in declared if f in table.columns and table[f].nunique(dropna=True) >= 2]
+    return [f for f in declared if f in table.columns and table[f].nunique(dropna=True) >= 2]
+
+
+def audit_factors(table: pd.DataFrame) -> list[str]:
+    """The factors to plot and test: :func:`declared_factors` less those that only repeat an
+    earlier one (:func:`paired_factors`); none gives ``['file']`` (one level per image)."""
+    factors = declared_factors(table)
     paired = paired_factors(table, factors)
     return [f for f in factors if f not in paired] or ["file"]
 
