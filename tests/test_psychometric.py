@@ -11,7 +11,7 @@ import pytest
 
 from analysis.psychometric import (PsiProcedure, SimulatedObserver, UpDownStaircase, constant_stimuli, fit_bayes,
                                    fit_ml, fit_table, psi, psi_inverse, sigmoid)
-from analysis.psychometric.adaptive import run_procedure
+from appeal.psychophysics.procedures import run_procedure
 from analysis.psychometric.fit import log_likelihood
 from appeal.errors import AppealInputError
 

@@ -1,19 +1,18 @@
-"""Psychometric functions, fits, simulated observers and adaptive procedures (issue 34's maths).
+"""Psychometric fits (issue 34): maximum-likelihood and psignifit-style Bayesian fits, a tidy table.
 
-Pure functions and small classes; nothing here touches files, the CLI or the PsychoPy runtime.
+The functions, simulated observers and adaptive procedures live in the core
+(:mod:`appeal.psychophysics`), because the runtime that runs a procedure uses them too; they are
+re-exported here for the analyst.
 
-* :mod:`~analysis.psychometric.functions` – logistic, cumulative Gaussian and Weibull families in
-  psignifit 4's threshold/width parameterisation.
 * :mod:`~analysis.psychometric.fit` – maximum-likelihood and psignifit-style Bayesian fits, a tidy
   table.
-* :mod:`~analysis.psychometric.observers` – simulated observers, the method of constant stimuli.
-* :mod:`~analysis.psychometric.adaptive` – the psi method and a transformed up–down staircase.
+* :mod:`~analysis.psychometric.priors` – psignifit 4's default priors.
 """
 
-from analysis.psychometric.adaptive import PsiProcedure, UpDownStaircase, run_procedure
 from analysis.psychometric.fit import FitResult, fit_bayes, fit_ml, fit_table
-from analysis.psychometric.functions import FAMILIES, psi, psi_inverse, sigmoid
-from analysis.psychometric.observers import SimulatedObserver, constant_stimuli
+from appeal.psychophysics import (FAMILIES, ConstantStimuli, PsiProcedure, SimulatedObserver, UpDownStaircase,
+                                  constant_stimuli, psi, psi_inverse, run_procedure, sigmoid)
 
 __all__ = ["FAMILIES", "psi", "psi_inverse", "sigmoid", "FitResult", "fit_ml", "fit_bayes", "fit_table",
-           "SimulatedObserver", "constant_stimuli", "PsiProcedure", "UpDownStaircase", "run_procedure"]
+           "SimulatedObserver", "constant_stimuli", "PsiProcedure", "UpDownStaircase", "ConstantStimuli",
+           "run_procedure"]

@@ -19,7 +19,8 @@ import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, special
 
-from analysis.psychometric.functions import check_family, psi, psi_inverse
+from appeal.psychophysics.functions import check_family, psi, psi_inverse
+from appeal.psychophysics.intervals import credible_interval
 from analysis.psychometric.priors import default_bounds, default_priors
 from appeal.errors import AppealInputError
 
@@ -156,7 +157,7 @@ def fit_ml(data: ArrayLike | pd.DataFrame, family: str = "logistic", nafc: int |
     nafc : int or None
         Alternatives of a forced-choice task (guess rate ``1/nafc``), or ``None`` for yes/no.
     pc, alpha : float
-        Threshold and width definitions (see :mod:`analysis.psychometric.functions`).
+        Threshold and width definitions (see :mod:`appeal.psychophysics.functions`).
     max_lapse : float
         Upper bound of the lapse (and guess) rate.
 
@@ -236,24 +237,6 @@ def _weights(grid: Mapping[str, NDArray]) -> NDArray:
         shape[i] = -1
         w = w * d.reshape(shape)
     return w
-
-
-def credible_interval(values: NDArray, mass: NDArray, level: float = 0.95) -> tuple[float, float]:
-    """Equal-tailed credible interval from a marginal posterior mass on a grid.
-
-    Each grid point's mass is spread evenly over its cell (from the midpoint to its left
-    neighbour to the midpoint to its right one; the end cells reach half a spacing beyond the
-    grid, clipped to the grid's ends), and the cumulative mass is interpolated linearly.
-    """
-    values, mass = np.asarray(values, float), np.asarray(mass, float)
-    if len(values) == 1:
-        return float(values[0]), float(values[0])
-    mid = (values[1:] + values[:-1]) / 2
-    edges = np.r_[values[0], mid, values[-1]]
-    cdf = np.r_[0.0, np.cumsum(mass)] / mass.sum()
-    a = (1 - level) / 2
-    lo, hi = np.interp(a, cdf, edges), np.interp(1 - a, cdf, edges)
-    return float(lo), float(hi)
 
 
 def fit_bayes(data: ArrayLike | pd.DataFrame, family: str = "logistic", nafc: int | None = 2, pc: float = 0.5,

@@ -3,9 +3,10 @@
 :class:`PsiProcedure` is the psi method (Kontsevich & Tyler 1999, *Vision Research* 39, 2729–2737;
 QUEST+ in its one-stimulus-dimension form): a posterior over a (threshold, width, lapse) grid,
 each next level the one that minimises the expected entropy of the posterior after the response.
-:class:`UpDownStaircase` is a transformed 1-up-N-down staircase (Levitt 1971) for comparison.
-Both stop by trial count (and the psi procedure also by the width of the threshold's credible
-interval), and both serialise to a plain dict (:meth:`to_dict` / :meth:`from_dict`) that replays
+:class:`UpDownStaircase` is a transformed 1-up-N-down staircase (Levitt 1971) for comparison, and
+:class:`ConstantStimuli` the method of constant stimuli (every level equally often, in a seeded
+random order). All stop by trial count (and the psi procedure also by the width of the threshold's credible
+interval), and all serialise to a plain dict (:meth:`to_dict` / :meth:`from_dict`) that replays
 the responses, so that a resumed session continues the same procedure.
 """
 
@@ -17,12 +18,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from analysis.psychometric.fit import credible_interval
-from analysis.psychometric.functions import check_family, psi
-from analysis.psychometric.observers import SimulatedObserver
+from appeal.psychophysics.intervals import credible_interval
+from appeal.psychophysics.functions import check_family, psi
+from appeal.psychophysics.observers import SimulatedObserver
 from appeal.errors import AppealInputError
 
-__all__ = ["level_index", "PsiProcedure", "UpDownStaircase", "run_procedure"]
+__all__ = ["level_index", "PsiProcedure", "UpDownStaircase", "ConstantStimuli", "procedure_from_dict",
+           "run_procedure"]
 
 
 def level_index(levels: NDArray, level: float) -> int:
@@ -74,7 +76,7 @@ class PsiProcedure:
         Minimise the expected entropy of the joint posterior (Kontsevich & Tyler) or of the
         threshold's marginal only (Prins' psi-marginal).
     pc, alpha : float
-        Threshold and width definitions, as in :mod:`analysis.psychometric.functions`.
+        Threshold and width definitions, as in :mod:`appeal.psychophysics.functions`.
 
     Raises
     ------
@@ -293,7 +295,83 @@ class UpDownStaircase:
         return s
 
 
-def run_procedure(procedure: PsiProcedure | UpDownStaircase, observer: SimulatedObserver,
+class ConstantStimuli:
+    """The method of constant stimuli: every level ``trials_per_level`` times, in a seeded random order.
+
+    Parameters
+    ----------
+    levels : array_like
+        Increasing levels.
+    trials_per_level : int
+        Presentations of each level (the stopping rule: it ends after ``len(levels) * trials_per_level``).
+    seed : int
+        Seed of the order.
+    """
+
+    kind = "constant"
+
+    def __init__(self, levels: ArrayLike, trials_per_level: int, seed: int = 0) -> None:
+        if trials_per_level < 1:
+            raise AppealInputError(f"the method of constant stimuli needs trials_per_level >= 1 (got {trials_per_level})")
+        self.levels = _levels(levels)
+        self.trials_per_level, self.seed = int(trials_per_level), int(seed)
+        order = np.repeat(np.arange(len(self.levels)), self.trials_per_level)
+        self._order = np.random.default_rng(self.seed).permutation(order)
+        self.history: list[tuple[float, bool]] = []
+
+    def next_level(self) -> float:
+        """The level of the next trial (the last one again once the plan is done)."""
+        return float(self.levels[self._order[min(self.n_trials, len(self._order) - 1)]])
+
+    def update(self, level: float, correct: bool) -> None:
+        """Add the response to the trial at ``level``."""
+        x = self.levels[level_index(self.levels, level)]
+        self.history.append((float(x), bool(correct)))
+
+    @property
+    def n_trials(self) -> int:
+        """Trials so far."""
+        return len(self.history)
+
+    @property
+    def finished(self) -> bool:
+        """Whether every planned trial has been answered."""
+        return self.n_trials >= len(self._order)
+
+    def estimate(self) -> dict[str, float]:
+        """Proportion correct so far and the trial count (the fit comes after the session)."""
+        pc = float(np.mean([c for _, c in self.history])) if self.history else float("nan")
+        return {"proportion_correct": pc, "n_trials": self.n_trials}
+
+    def to_dict(self) -> dict[str, Any]:
+        """The plan's settings and responses as plain data."""
+        return {"kind": self.kind, "levels": self.levels.tolist(), "trials_per_level": self.trials_per_level,
+                "seed": self.seed, "history": [[x, c] for x, c in self.history]}
+
+    @classmethod
+    def from_dict(cls, state: Mapping[str, Any]) -> ConstantStimuli:
+        """Rebuild the plan from :meth:`to_dict`'s output, replaying its responses."""
+        if state.get("kind") != cls.kind:
+            raise AppealInputError(f"procedure state of kind '{state.get('kind')}' is not a '{cls.kind}' state")
+        c = cls(state["levels"], state["trials_per_level"], state.get("seed", 0))
+        for x, ok in state.get("history", []):
+            c.update(x, bool(ok))
+        return c
+
+
+Procedure = PsiProcedure | UpDownStaircase | ConstantStimuli
+_KINDS: dict[str, type] = {c.kind: c for c in (PsiProcedure, UpDownStaircase, ConstantStimuli)}
+
+
+def procedure_from_dict(state: Mapping[str, Any]) -> Procedure:
+    """Any procedure from its :meth:`to_dict` state (the ``kind`` field says which)."""
+    kind = state.get("kind")
+    if kind not in _KINDS:
+        raise AppealInputError(f"unknown procedure state kind '{kind}' (expected one of: {', '.join(_KINDS)})")
+    return _KINDS[kind].from_dict(state)
+
+
+def run_procedure(procedure: Procedure, observer: SimulatedObserver,
                   max_trials: int = 100000) -> Sequence[tuple[float, bool]]:
     """Run ``procedure`` with a simulated ``observer`` until it stops; return its (level, correct) history."""
     while not procedure.finished and procedure.n_trials < max_trials:

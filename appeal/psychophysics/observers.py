@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from analysis.psychometric.functions import check_family, psi
+from appeal.psychophysics.functions import check_family, psi
 
 __all__ = ["SimulatedObserver", "constant_stimuli"]
 
