@@ -11,6 +11,11 @@ spaced evenly is not a look spaced evenly: the thesis's blur25 -> blur50 -> bila
 steps differ by 0.018, 0.010, 0.011 and 0.100 on james and 0.003, 0.002, 0.003 and 0.045 on
 Lee Perry-Smith.
 
+**Even by value.** A continuum with ``spacing: even`` (a dense one for psychophysics, up to 101
+levels) is not measured: :func:`spaced_by_value` writes its levels out evenly by value (or
+amount), and :func:`needs_measuring` tells the grid workflow whether anything is left to render
+probes for (:func:`stimulus_engine.grid.prepare.measured_grid`).
+
 **The report.** :func:`continuum_table` measures a rendered grid along its continuum, per
 character: each shape level (first material, neutral) and each material level (realistic
 shape) against the realistic level and the next one, by image distance and by identity
@@ -32,8 +37,8 @@ import pandas as pd
 
 from stimulus_engine.grid.schema import GridFile, MaterialContinuum, MaterialSpec, ShapeContinuum
 
-__all__ = ["CANDIDATES", "common_levels", "continuum_table", "even_amounts", "even_materials", "even_shapes", "pins",
-           "plot_continuum", "write_continuum"]
+__all__ = ["CANDIDATES", "common_levels", "continuum_table", "even_amounts", "even_materials", "even_shapes",
+           "needs_measuring", "pins", "plot_continuum", "spaced_by_value", "write_continuum"]
 
 logger = logging.getLogger(__name__)
 
@@ -217,6 +222,8 @@ def even_materials(grid: GridFile, cache: Path, render: Callable[[GridFile], lis
     cont = grid.materials
     if not isinstance(cont, MaterialContinuum):
         return grid
+    if cont.spacing == "even":  # spaced by amount: nothing rendered
+        return grid.model_copy(update={"materials": cont.specs()})
     mask = _mask(grid)
     amounts = {c.name: cont.measured[c.name] for c in grid.characters if c.name in cont.measured}
     todo = grid.model_copy(update={"characters": [c for c in grid.characters if c.name not in amounts]})
@@ -263,6 +270,8 @@ def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile], list[n
     cont = grid.shapes
     if not isinstance(cont, ShapeContinuum):
         return grid
+    if cont.spacing == "even":  # spaced by value: nothing rendered
+        return grid.model_copy(update={"shapes": cont.values()})
     values = list(cont.measured) if cont.measured is not None else None
     if values is None:
         mask = _mask(grid)
@@ -282,8 +291,38 @@ def even_shapes(grid: GridFile, cache: Path, render: Callable[[GridFile], list[n
 
 def measured(grid: GridFile, cache: Path, render: Callable[[GridFile], list[np.ndarray]]) -> GridFile:
     """``grid`` with its material and shape continua measured out (:func:`even_materials`, then
-    :func:`even_shapes`, which renders the shapes in the measured materials)."""
+    :func:`even_shapes`, which renders the shapes in the measured materials); continua with
+    ``spacing: even`` are written out by value (:func:`spaced_by_value`), nothing rendered."""
     return even_shapes(even_materials(grid, cache, render), cache, render)
+
+
+def spaced_by_value(grid: GridFile) -> GridFile:
+    """``grid`` with its ``spacing: even`` continua written out as listed levels (shape values, or
+    ``painted`` materials at evenly spaced amounts); measured continua are left as they are.
+    Nothing is rendered or read.
+
+    Examples
+    --------
+    >>> from stimulus_engine.grid.schema import CharacterSpec
+    >>> g = GridFile(kind="grid", name="g", characters=[CharacterSpec(name="a", procedural={})],
+    ...              shapes={"levels": 41, "spacing": "even"}, materials=["original"], expressions=["neutral"])
+    >>> v = spaced_by_value(g).shapes
+    >>> len(v), v[:3], v[-1]
+    (41, [0.0, 0.025, 0.05], 1.0)
+    """
+    update: dict[str, object] = {}
+    if isinstance(grid.materials, MaterialContinuum) and grid.materials.spacing == "even":
+        update["materials"] = grid.materials.specs()
+    if isinstance(grid.shapes, ShapeContinuum) and grid.shapes.spacing == "even":
+        update["shapes"] = grid.shapes.values()
+    return grid.model_copy(update=update) if update else grid
+
+
+def needs_measuring(grid: GridFile) -> bool:
+    """Whether ``grid`` has a continuum spaced by measurement (``spacing: measured``, the
+    default) still to be written out: only then are probe images rendered."""
+    return any(isinstance(c, (MaterialContinuum, ShapeContinuum)) and c.spacing == "measured"
+               for c in (grid.materials, grid.shapes))
 
 
 def pins(spec: GridFile, grid: GridFile) -> dict[str, dict]:
@@ -301,14 +340,14 @@ def pins(spec: GridFile, grid: GridFile) -> dict[str, dict]:
     """
     out: dict[str, dict] = {}
     cont = spec.materials
-    if isinstance(cont, MaterialContinuum):
+    if isinstance(cont, MaterialContinuum) and cont.spacing == "measured":  # an even one is spaced by amount
         todo = [c.name for c in spec.characters if c.name not in cont.measured]
         if todo:
             specs = grid.material_specs()
             measured = {**cont.measured, **{c: sorted(round(m.amount_for(c), 4) for m in specs) for c in todo}}
             out["materials"] = {**cont.model_dump(exclude_defaults=True), "measured": measured}
     shapes = spec.shapes
-    if isinstance(shapes, ShapeContinuum) and shapes.measured is None:
+    if isinstance(shapes, ShapeContinuum) and shapes.spacing == "measured" and shapes.measured is None:
         out["shapes"] = {**shapes.model_dump(exclude_defaults=True),
                          "measured": sorted(round(float(v), 4) for v in grid.shape_levels())}
     return out

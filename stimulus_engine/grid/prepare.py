@@ -397,11 +397,12 @@ def measured_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Pat
     """``grid`` with its material and shape continua measured out
     (:func:`stimulus_engine.grid.continuum.measured`: the probes prepared in ``out/.cache`` or
     ``cache``, with the grid's ``characters`` loaded once, and rendered here); a grid of listed
-    levels as it is."""
-    from stimulus_engine.grid.continuum import measured
-    from stimulus_engine.grid.schema import MaterialContinuum, ShapeContinuum
+    levels as it is; continua with ``spacing: even`` written out by value, nothing rendered
+    (:func:`stimulus_engine.grid.continuum.spaced_by_value`)."""
+    from stimulus_engine.grid.continuum import measured, needs_measuring, spaced_by_value
 
-    if not isinstance(grid.materials, MaterialContinuum) and not isinstance(grid.shapes, ShapeContinuum):
+    grid = spaced_by_value(grid)
+    if not needs_measuring(grid):
         return grid
     cache = Path(cache) if cache is not None else Path(out) / ".cache"
     chars = _characters(grid, cache, source, characters)

@@ -9,7 +9,8 @@ Example (``protocols/grids/exp1a_shape_material.yaml``)::
       - name: ict000
         ict: data:ict-facekit               # a registered dataset: appeal data fetch ict-facekit
         identity: identity000
-    shapes: [0.0, 0.5, 1.0]                 # stylisation levels (0 realistic ... 1 cartoon)
+    shapes: [0.0, 0.5, 1.0]                 # stylisation levels (0 realistic ... 1 cartoon),
+                                            # or {levels: 5} / {levels: 41, spacing: even} (below)
     materials: [original, blur50, flat]     # albedo styles, or {name, style, from_character},
                                             # or {levels: 5}: evenly spaced, measured (below)
     expressions: [neutral, anger, happiness, sadness, surprise]
@@ -24,7 +25,14 @@ every character (:class:`ShapeContinuum`). ``materials: {levels: N}`` asks for N
 removal, then colour flattening; :mod:`stimulus_engine.stylisation.materials`) from the original
 to painted regions, spaced so that consecutive levels differ equally in the rendered image
 (:mod:`stimulus_engine.grid.continuum`); they are named ``original``, ``paint1`` ...
-``paint{N-1}``.
+``paint{N-1}``. Measuring renders every level, so a measured continuum has at most 12.
+
+A dense continuum for psychophysics, addressed by value: ``shapes: {from: 0, to: 1, levels: 41,
+spacing: even}`` (``from``/``to`` within 0..1, default 0 and 1; up to 101 levels) spaces the levels
+evenly by value, rounded to 4 decimals (0, 0.025, ... 1: files ``shape0.025``), and nothing is
+measured; ``materials: {levels: 41, spacing: even}`` likewise spaces the painted family's amounts,
+so that ``pair_materials_with_shapes: true`` pairs 41 shapes with 41 materials
+(``protocols/grids/realism_continuum.yaml``). ``measured`` pins are refused with ``spacing: even``.
 
 Relative paths resolve against the grid file's folder; ``data:NAME[/file]`` names a registered
 dataset (:mod:`appeal.datasets`).
@@ -35,12 +43,12 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, ValidationInfo, field_validator, model_validator
+from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
 __all__ = ["AnimationSpec", "CharacterSpec", "GridFile", "MaterialContinuum", "MaterialSpec", "MeshSpec", "ShapeContinuum",
-           "PhotoSpec", "RenderSettings", "frame_at", "shape_label"]
+           "PhotoSpec", "RenderSettings", "even_values", "frame_at", "shape_label"]
 
 _STYLES = ("original", "blur25", "blur50", "bilateral", "flat", "painted")
 _LIGHTING = ("direct_hard", "direct_soft", "gi_soft", "flat")
@@ -212,13 +220,74 @@ def _check_measured(at: list[float], levels: int, prefix: str) -> None:
                          f"got {at}")
 
 
-class MaterialContinuum(StudyModel):
+#: The most levels of a continuum spaced by measurement (each level's images are rendered to
+#: measure it) and of one spaced evenly by value (nothing rendered to place them).
+MAX_MEASURED_LEVELS, MAX_EVEN_LEVELS = 12, 101
+
+
+def even_values(start: float, stop: float, levels: int) -> list[float]:
+    """``levels`` values evenly spaced from ``start`` to ``stop``, rounded to 4 decimals.
+
+    Examples
+    --------
+    >>> even_values(0, 1, 5), even_values(0.2, 0.4, 3)
+    ([0.0, 0.25, 0.5, 0.75, 1.0], [0.2, 0.3, 0.4])
+    """
+    return [round(start + (stop - start) * k / (levels - 1), 4) for k in range(levels)]
+
+
+class _Continuum(StudyModel):
+    """What shape and material continua share: ``levels``, ``spacing`` and, spaced ``even``, the
+    ends ``from`` and ``to``. Validated field by field (``spacing`` first, so that the others can
+    look at it), each problem one line naming its field."""
+
+    model_config = ConfigDict(**StudyModel.model_config, populate_by_name=True)
+
+    spacing: Literal["measured", "even"] = Field(
+        "measured", description="'measured': levels spaced by measured image steps (at most 12, rendered to "
+                                "measure them); 'even': evenly spaced by value from 'from' to 'to' (up to 101, "
+                                "nothing measured)")
+    from_: float = Field(0.0, alias="from", description="with spacing: even, the first level's value (0..1)")
+    to: float = Field(1.0, description="with spacing: even, the last level's value (0..1, above from)")
+    levels: int = Field(ge=2, le=MAX_EVEN_LEVELS)
+
+    @field_validator("from_", "to")
+    @classmethod
+    def _end(cls, v: float, info: ValidationInfo) -> float:
+        if not 0.0 <= v <= 1.0:
+            raise ValueError(f"expected a value within 0..1 (got {v:g})")
+        if info.data.get("spacing") == "measured" and v != (0.0 if info.field_name == "from_" else 1.0):
+            raise ValueError(f"expected {0 if info.field_name == 'from_' else 1} with spacing: measured, whose "
+                             "continuum runs from 0 to 1 (spacing: even places levels on a part of it)")
+        if info.field_name == "to" and "from_" in info.data and v <= info.data["from_"]:
+            raise ValueError(f"expected a value above from, {info.data['from_']:g}")
+        return v
+
+    @field_validator("levels")
+    @classmethod
+    def _levels(cls, v: int, info: ValidationInfo) -> int:
+        if info.data.get("spacing") == "measured" and v > MAX_MEASURED_LEVELS:
+            raise ValueError(f"expected at most {MAX_MEASURED_LEVELS} with spacing: measured, which renders every "
+                             f"level to measure it (spacing: even allows up to {MAX_EVEN_LEVELS})")
+        if "from_" in info.data and "to" in info.data:
+            values = even_values(info.data["from_"], info.data["to"], v)
+            if len(set(values)) != v:
+                raise ValueError(f"expected levels that differ at 4 decimals: {v} levels from {info.data['from_']:g} "
+                                 f"to {info.data['to']:g} step by less than 0.0001")
+        return v
+
+    def _even(self) -> list[float]:
+        """The levels evenly spaced by value, from ``from`` to ``to``."""
+        return even_values(self.from_, self.to, self.levels)
+
+
+class MaterialContinuum(_Continuum):
     """``materials: {levels: N}``: N levels of the ``painted`` family from the original to painted
     regions, evenly spaced by the rendered image's distance (:mod:`stimulus_engine.grid.continuum`);
     ``order: painted_first`` lists them the other way round (to pair with shapes listed from
-    the cartoon, as the ERP grid does)."""
+    the cartoon, as the ERP grid does). ``spacing: even`` places them evenly by amount from
+    ``from`` to ``to`` instead (default 0 and 1; up to 101 levels; nothing measured)."""
 
-    levels: int = Field(ge=2, le=12)
     family: Literal["painted"] = "painted"
     order: Literal["original_first", "painted_first"] = "original_first"
     #: The amounts measured for a character (``levels`` of them, from the original, as a run
@@ -229,27 +298,29 @@ class MaterialContinuum(StudyModel):
     @field_validator("measured")
     @classmethod
     def _measured_levels(cls, v: dict[str, list[float]], info: ValidationInfo) -> dict[str, list[float]]:
+        if v and info.data.get("spacing") == "even":
+            raise ValueError("expected no measured levels with spacing: even (its levels are spaced by amount, "
+                             "nothing measured; drop measured, or spacing: even)")
         for name, at in v.items():
             _check_measured(at, info.data.get("levels", len(at)), f"{name}: ")
         return v
 
     def specs(self) -> list[MaterialSpec]:
-        """The levels as materials, spaced evenly by amount until measured."""
-        n = self.levels - 1
-        out = [MaterialSpec(name="original" if k == 0 else f"paint{k}", style="painted", amount=k / n)
-               for k in range(self.levels)]
+        """The levels as materials (``original`` at amount 0, then ``paint1`` ...), spaced evenly by
+        amount (from ``from`` to ``to``; a measured continuum's until measured)."""
+        out = [MaterialSpec(name="original" if k == 0 and a == 0 else f"paint{k}", style="painted", amount=a)
+               for k, a in enumerate(self._even())]
         return out if self.order == "original_first" else out[::-1]
 
 
-
-class ShapeContinuum(StudyModel):
+class ShapeContinuum(_Continuum):
     """``shapes: {levels: N}``: N shape levels from the realistic (0) to the most stylised (1),
     spaced so that neighbouring levels differ equally in the rendered image (with a paired
     material, in both together), the same values for every character
     (:func:`stimulus_engine.grid.continuum.even_shapes`); ``order: cartoon_first`` lists them from
-    the cartoon."""
+    the cartoon. ``spacing: even`` places them evenly by value from ``from`` to ``to`` instead
+    (default 0 and 1; up to 101 levels, rounded to 4 decimals; nothing measured)."""
 
-    levels: int = Field(ge=2, le=12)
     order: Literal["realistic_first", "cartoon_first"] = "realistic_first"
     #: The values measured (``levels`` of them, from the realistic end, as a run reports them):
     #: given, they are not measured again (see :class:`MaterialContinuum`).
@@ -258,13 +329,17 @@ class ShapeContinuum(StudyModel):
     @field_validator("measured")
     @classmethod
     def _measured_levels(cls, v: list[float] | None, info: ValidationInfo) -> list[float] | None:
+        if v is not None and info.data.get("spacing") == "even":
+            raise ValueError("expected no measured levels with spacing: even (its levels are spaced by value, "
+                             "nothing measured; drop measured, or spacing: even)")
         if v is not None:
             _check_measured(v, info.data.get("levels", len(v)), "")
         return v
 
     def values(self) -> list[float]:
-        """The levels, spaced evenly by value until measured, in the grid's order."""
-        v = [round(k / (self.levels - 1), 4) for k in range(self.levels)]
+        """The levels, spaced evenly by value (from ``from`` to ``to``; a measured continuum's until
+        measured), in the grid's order."""
+        v = self._even()
         return v if self.order == "realistic_first" else v[::-1]
 
 
