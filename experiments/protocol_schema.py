@@ -21,7 +21,7 @@ from appeal.triggers import trigger_table
 __all__ = [
     "Protocol", "StimulusSource", "Selection", "ScreenSpec", "TimingSpec", "OrderSpec", "BreakSpec",
     "LikertSpec", "ClassificationSpec", "ChoiceSpec", "ExtraTrialsSpec", "TriggerSpec",
-    "DemographicItem",
+    "DemographicItem", "PsychophysicsSpec", "ProcedureSpec", "PAIR_CHOICES",
 ]
 
 Name = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)]
@@ -294,6 +294,98 @@ class DemographicItem(StudyModel):
         return [*self.choices, *([self.prefer_not_to_say] if self.prefer_not_to_say is not None else [])]
 
 
+#: The choice values a psychophysics protocol's one classification must offer, by task and layout.
+PAIR_CHOICES: dict[tuple[str, str], tuple[str, str]] = {
+    ("2afc", "side_by_side"): ("left", "right"), ("2afc", "sequence"): ("first", "second"),
+    ("same_different", "side_by_side"): ("same", "different"), ("same_different", "sequence"): ("same", "different"),
+}
+
+
+class ProcedureSpec(StudyModel):
+    """How each track of a psychophysics protocol picks its levels and when it stops.
+
+    ``psi`` (Bayesian adaptive, Kontsevich & Tyler 1999) stops after ``max_trials`` or once the
+    threshold's credible interval is at most ``max_ci_width`` wide; ``staircase`` (transformed
+    ``up``-up-``down``-down) after ``max_trials`` or ``max_reversals``; ``constant`` (method of
+    constant stimuli) after ``trials_per_level`` answers at every level.
+    """
+
+    method: Literal["psi", "staircase", "constant"] = "psi"
+    max_trials: int | None = Field(None, ge=1, le=5000, description="stop a track after this many trials")
+    max_ci_width: float | None = Field(None, gt=0, description="psi: stop once the threshold's 95 % interval is this "
+                                                               "narrow (in continuum units)")
+    min_trials: int = Field(0, ge=0, description="psi: trials before max_ci_width may stop a track")
+    family: Literal["logistic", "norm", "weibull"] = Field("logistic", description="psi: the function it assumes")
+    guess: float | None = Field(None, ge=0, lt=1, description="psi: guess rate (default 0.5 for 2afc, 0 for "
+                                                              "same_different's 'different' answers)")
+    down: int = Field(2, ge=1, le=5, description="staircase: consecutive correct answers before a harder level")
+    up: int = Field(1, ge=1, le=5, description="staircase: consecutive errors before an easier level")
+    step: int = Field(1, ge=1, description="staircase: step in levels of the continuum")
+    max_reversals: int | None = Field(None, ge=1, description="staircase: stop after this many reversals")
+    trials_per_level: int | None = Field(None, ge=1, le=500, description="constant: answers per level")
+
+    @model_validator(mode="after")
+    def _stops(self) -> ProcedureSpec:
+        rules = {"psi": ("max_trials", "max_ci_width"), "staircase": ("max_trials", "max_reversals"),
+                 "constant": ("trials_per_level",)}[self.method]
+        if all(getattr(self, r) is None for r in rules):
+            raise ValueError(f"method '{self.method}' needs a stopping rule: {' or '.join(rules)} (got none)")
+        own = {"psi": {"max_ci_width", "min_trials", "family", "guess"}, "staircase": {"down", "up", "step",
+                                                                                        "max_reversals"},
+               "constant": {"trials_per_level"}}
+        foreign = sorted(self.model_fields_set - {"method", "max_trials"} - own[self.method])
+        if foreign:
+            raise ValueError(f"{', '.join(foreign)}: not used by method '{self.method}'")
+        if self.method == "constant" and self.max_trials is not None:
+            raise ValueError("method 'constant' stops after trials_per_level at every level (max_trials is not used)")
+        return self
+
+
+class PsychophysicsSpec(StudyModel):
+    """A psychophysical procedure along a continuum factor (2AFC or same–different pairs).
+
+    Every trial shows a reference face (the continuum's ``reference`` level) and a comparison
+    face of the same item (the ``items`` factors' levels drawn per trial) at a level the
+    track's procedure picks, in a random, balanced order (left/right or first/second); the one
+    classification of ``responses`` is the answer. One track per level combination of
+    ``conditions`` (times ``interleave``), tracks interleaved at random until all have stopped.
+    """
+
+    task: Literal["2afc", "same_different"] = "2afc"
+    presentation: Literal["side_by_side", "sequence"] = "side_by_side"
+    continuum: Name = Field(description="the numeric factor the levels lie on (e.g. shape: 0 realistic .. 1 cartoon)")
+    reference: float = Field(description="the level every comparison is judged against (e.g. 0.0, the realistic end)")
+    levels: list[float] = Field(default_factory=list, description="the comparison levels the procedure may show "
+                                                                  "(values of the continuum); default: all but the "
+                                                                  "reference")
+    conditions: list[Name] = Field(default_factory=list, description="one track per level combination of these")
+    with_continuum: list[Name] = Field(default_factory=list, description="factors whose level changes with the "
+                                                                         "continuum's (e.g. a paired material)")
+    items: list[Name] | None = Field(None, description="factors drawn per trial, shared by both faces (default: "
+                                                       "every other factor)")
+    interleave: int = Field(1, ge=1, le=8, description="tracks per condition")
+    procedure: ProcedureSpec
+    isi_s: Seconds = Field(0.5, description="sequence: blank between the two faces")
+    same_proportion: float = Field(0.5, gt=0, lt=1, description="same_different: share of 'same' pairs")
+    practice_trials: int = Field(0, ge=0, le=50, description="easy pairs before the tracks start (not scored)")
+
+    @model_validator(mode="after")
+    def _check(self) -> PsychophysicsSpec:
+        named = [self.continuum, *self.conditions, *self.with_continuum, *(self.items or [])]
+        dup = sorted({n for n in named if named.count(n) > 1})
+        if dup:
+            raise ValueError(f"{', '.join(dup)}: a factor may be the continuum, a condition, with_continuum or an item, "
+                             "not two of them")
+        if len(set(self.levels)) != len(self.levels) or self.reference in self.levels:
+            raise ValueError("levels: expected distinct comparison levels without the reference "
+                             f"{self.reference:g} (got {self.levels})")
+        return self
+
+    def choice_values(self) -> tuple[str, str]:
+        """The two answers its classification must offer (e.g. left/right)."""
+        return PAIR_CHOICES[(self.task, self.presentation)]
+
+
 class Instructions(StudyModel):
     """Instruction pages shown before the first trial (Markdown-ish text, any language)."""
 
@@ -322,6 +414,8 @@ class Protocol(StudyModel):
     responses: list[Response] = Field(default_factory=list, description="empty = passive viewing")
     triggers: TriggerSpec | None = None
     demographics: list[DemographicItem] = Field(default_factory=list)
+    psychophysics: PsychophysicsSpec | None = Field(
+        None, description="run a psychophysical procedure along a continuum (2AFC or same-different pairs)")
 
     @model_validator(mode="after")
     def _cross(self) -> Protocol:
@@ -354,9 +448,37 @@ class Protocol(StudyModel):
         if self.triggers is not None:
             for i, entry in enumerate(self.triggers.codes):
                 check(f"triggers.codes[{i}]", [k for k in entry if k != "code"])
+        if self.psychophysics is not None:
+            problems += self._psychophysics_problems(self.psychophysics)
+            psy = self.psychophysics
+            check("psychophysics", [psy.continuum, *psy.conditions, *psy.with_continuum, *(psy.items or [])])
         if problems:
             raise ValueError("; ".join(problems))
         return self
+
+    def _psychophysics_problems(self, psy: PsychophysicsSpec) -> list[str]:
+        """What a psychophysics protocol cannot have: one classification answering the pair, no more."""
+        want = psy.choice_values()
+        resp = self.responses
+        if len(resp) != 1 or not isinstance(resp[0], ClassificationSpec):
+            return [f"psychophysics: expected exactly one classification response answering the pair with the choice "
+                    f"values {' and '.join(want)} (got {len(resp)} response(s))"]
+        spec = resp[0]
+        problems = []
+        values = sorted(level_key(c.value) for c in spec.choices)
+        if values != sorted(want):
+            problems.append(f"responses.{spec.name}.choices: psychophysics ({psy.task}, {psy.presentation}) expects "
+                            f"the values {' and '.join(want)} (got {', '.join(values)})")
+        if spec.factor is not None or spec.intensity is not None:
+            problems.append(f"responses.{spec.name}: a pair's answer is scored by the procedure (expected no 'factor' "
+                            "and no 'intensity')")
+        for part in ("anchors", "practice", "end_of_session", "triggers"):
+            if getattr(self, part) is not None:
+                problems.append(f"{part}: not used with psychophysics (practice: psychophysics.practice_trials)")
+        if self.timing.on_dropped_frames == "repeat":
+            problems.append("timing.on_dropped_frames: repeat: a procedure's next level depends on each answer "
+                            "(expected log or flag)")
+        return problems
 
     @property
     def response_names(self) -> list[str]:

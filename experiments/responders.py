@@ -57,6 +57,14 @@ class ModelResponder:
         shown = show(spec.name, None if draw is None else (lambda: draw(value if answered else None)), frames)
         return (value, shown.frames / self.presenter.hz) if answered else (None, None)
 
+    def discriminate(self, spec: ClassificationSpec, psy: dict[str, Any], factors: dict[str, str], show: ShowFn,
+                     draw: Callable[[str | None], None] | None) -> tuple[str | None, float | None]:
+        """A pair trial's answer from the model's psychometric function (:meth:`SimulatedParticipant.discriminate`)."""
+        value = self.p.discriminate(spec, psy, factors)
+        frames, answered = self._timed()
+        shown = show(spec.name, None if draw is None else (lambda: draw(value if answered else None)), frames)
+        return (value, shown.frames / self.presenter.hz) if answered else (None, None)
+
     def wait_continue(self, kind: str, show: ShowFn, draw: Callable[[], None] | None, min_frames: int = 1) -> None:
         show(kind, draw, max(min_frames, 1))
 
@@ -125,6 +133,11 @@ class HumanResponder:
 
         show(spec.name, lambda: draw(None), self.deadline_frames, until=until, on_onset=clock.reset)
         return got.get("v"), got.get("rt")
+
+    def discriminate(self, spec: ClassificationSpec, psy: dict[str, Any], factors: dict[str, str], show: ShowFn,
+                     draw: Callable[[str | None], None]) -> tuple[str | None, float | None]:
+        """A pair trial's answer: the classification's keys or buttons (e.g. left/right arrows)."""
+        return self.classify(spec, factors, show, draw)
 
     def wait_continue(self, kind: str, show: ShowFn, draw: Callable[[], None], min_frames: int = 1) -> None:
         self.event.clearEvents()

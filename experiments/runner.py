@@ -19,6 +19,7 @@ from experiments.clips import CLIP_COLUMNS, ClipPlan, FramePrefetcher
 from experiments.datafile import TsvWriter
 from experiments.display import DROP_THRESHOLD, ClipTiming, PhaseTiming, Presenter
 from experiments.protocol_schema import ClassificationSpec, LikertSpec, Protocol
+from experiments.psychophysics import PSYCHOPHYSICS_COLUMNS
 from experiments.screens import markdown_to_text, save_back_buffer
 from experiments.triggers import TriggerSender
 from experiments.trials import Trial, insert_repeat
@@ -60,6 +61,10 @@ def beh_columns(protocol: Protocol, clips: bool = False) -> list[str]:
                 cols.append(f"correct_{r.name}")
             if r.intensity is not None:
                 cols += [f"response_{r.intensity.name}", f"rt_{r.intensity.name}"]
+    if protocol.psychophysics is not None:
+        cols += PSYCHOPHYSICS_COLUMNS
+        if protocol.psychophysics.presentation == "sequence":
+            cols.append("second_onset_s")
     cols += ["trigger", "trigger_s", "trigger_flip_ms"]
     return cols
 
@@ -118,12 +123,7 @@ class SessionRunner:
     def show(self, kind: str, draw: Callable[[], None] | None, n_frames: int, *,
              until: Callable[[int], bool] | None = None, on_onset: Callable[[], None] | None = None) -> PhaseTiming:
         """Show one screen; log its flips; save its first frame if it is the first of its kind."""
-        shot = None
-        if self.screenshot_dir is not None and kind not in self.shots and self.screens is not None and draw is not None:
-            path = self.screenshot_dir / f"{kind}.png"
-
-            def shot() -> None:
-                self.shots[kind] = save_back_buffer(self.screens.win, path)
+        shot = self._shot(kind) if draw is not None else None
         timing = self.p.show(draw if self.screens is not None else None, n_frames, on_onset=on_onset, until=until,
                              screenshot=shot)
         for i, t in enumerate(timing.flips):
@@ -190,7 +190,10 @@ class SessionRunner:
                 row[f"response_{spec.name}"], row[f"rt_{spec.name}"] = v, rt
                 continue
             draw = None if sc is None else (lambda c, s=spec: sc.draw_classification(s, with_stimulus=visible, chosen=c))
-            v, rt = self.responder.classify(spec, trial.factors, self.show, draw)
+            if trial.pair is not None:
+                v, rt = self.responder.discriminate(spec, trial.extra["psy"], trial.factors, self.show, draw)
+            else:
+                v, rt = self.responder.classify(spec, trial.factors, self.show, draw)
             row[f"response_{spec.name}"], row[f"rt_{spec.name}"] = v, rt
             if spec.factor is not None:
                 truth = trial.factors.get(spec.factor)
@@ -214,6 +217,8 @@ class SessionRunner:
             lead_in = True
         if trial.clip is not None:
             row["clip_preload_ms"] = self._preload_clip(trial.clip)
+        elif trial.pair is not None and sc is not None:
+            sc.load_pair(trial.pair.paths)
         elif sc is not None:
             sc.load(trial.path)
         fix_after = self.protocol.timing.fixation_position == "after"
@@ -238,7 +243,9 @@ class SessionRunner:
                 sc.title.draw()
 
         kind = "stimulus" if trial.phase == "main" else trial.phase
-        if trial.clip is not None:
+        if trial.pair is not None:
+            stim = self._show_pair(kind, trial, row, on_onset)
+        elif trial.clip is not None:
             stim: PhaseTiming = self.show_clip(kind, trial.clip, title, on_onset)
             if sc is not None:
                 sc.end_clip()
@@ -281,6 +288,24 @@ class SessionRunner:
             row["clip_dropped_frames"] = self.p.dropped_since(stim.intervals_from)
         return row
 
+    def _show_pair(self, kind: str, trial: Trial, row: dict[str, Any],
+                   on_onset: Callable[[], None] | None) -> PhaseTiming:
+        """A pair trial's faces: side by side, or the first, a blank (``isi_s``) and the second.
+
+        Returns the first face's timing (the trial's onset); a sequence's second onset goes in
+        ``row["second_onset_s"]``.
+        """
+        sc, pair = self.screens, trial.pair
+        if pair.layout == "side_by_side":
+            return self.show(kind, None if sc is None else sc.draw_pair, trial.stimulus_frames, on_onset=on_onset)
+        first = self.show(kind, None if sc is None else (lambda: sc.draw_pair(0)), trial.stimulus_frames,
+                          on_onset=on_onset)
+        isi = self.show("isi", None, pair.isi_frames).flips if pair.isi_frames else []
+        second = self.show(f"{kind}_second", None if sc is None else (lambda: sc.draw_pair(1)), trial.stimulus_frames)
+        row["second_onset_s"] = second.onset_s
+        return PhaseTiming(first.onset_frame, first.onset_s, first.frames + pair.isi_frames + second.frames,
+                           [*first.flips, *isi, *second.flips])
+
     def _preload_clip(self, plan: ClipPlan) -> float | None:
         """Make the clip's textures before the trial's first screen; the time it took (ms)."""
         if self.screens is None:
@@ -298,10 +323,13 @@ class SessionRunner:
         if timing.on_dropped_frames == "repeat" and row["dropped_flag"]:
             insert_repeat(trials, index, timing.max_repeats)
 
-    def run(self, trials: list[Trial], start: int = 0, *, progress: Callable[[Any], Any] = iter) -> int:
+    def run(self, trials: list[Trial], start: int = 0, *, progress: Callable[[Any], Any] = iter,
+            after_trial: Callable[[list[Trial], int, dict[str, Any]], None] | None = None) -> int:
         """Present ``trials[start:]``, writing each row durably; returns the number completed.
 
-        ``trials`` grows when a trial is repeated (``timing.on_dropped_frames: repeat``).
+        ``trials`` grows when a trial is repeated (``timing.on_dropped_frames: repeat``), and
+        ``after_trial(trials, index, row)`` (a psychophysics session's procedures) may complete
+        the row and append the next trial before the row is written.
         """
         pr = self.protocol
         if start == 0:
@@ -318,6 +346,8 @@ class SessionRunner:
                 row = self.run_trial(trials[i], lead_in=lead_in)
                 lead_in = False
                 self._handle_drops(trials, i, row)
+                if after_trial is not None:
+                    after_trial(trials, i, row)
                 self.writer.write(row)
                 self._flush_flips()
                 done += 1

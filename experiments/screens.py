@@ -68,6 +68,9 @@ class Screens:
         self._likert: dict[str, tuple[Any, Any, Any, Any]] = {}
         self._choices: dict[str, list[tuple[Any, Any, ChoiceSpec]]] = {}
         self.clip: ClipTextures | None = None
+        self._pair: list[Any] = []
+        self._pair_aspects: list[float] = []
+        self._pair_paths: tuple[str, ...] = ()
         self._warm_up()
 
     def _warm_up(self) -> None:
@@ -110,6 +113,45 @@ class Screens:
         self._image.size = (h * self._aspect, h)
         self._image.pos = (0, y)
         self._image.draw()
+
+    # ------------------------------------------------------------------ pairs
+    def load_pair(self, paths: Sequence[str]) -> None:
+        """Load the two images of a pair trial (in presentation order: left, right or first, second)."""
+        if tuple(paths) == self._pair_paths:
+            return
+        from PIL import Image
+
+        while len(self._pair) < len(paths):
+            self._pair.append(self.visual.ImageStim(self.win, image=paths[len(self._pair)], units="height",
+                                                    interpolate=True))
+        self._pair_aspects = []
+        for stim, path in zip(self._pair, paths):
+            with Image.open(path) as im:
+                w, h = im.size
+            stim.image = path
+            self._pair_aspects.append(w / h)
+            clamp_to_edge(stim)
+        self._pair_paths = tuple(paths)
+
+    def draw_pair(self, which: int | None = None) -> None:
+        """Draw both faces side by side (``which`` None) or one of them centred.
+
+        Side by side, each face is as tall as ``screen.stimulus_height`` allows with both
+        and a gap of 4 % of the screen height fitting the window's width.
+        """
+        h = self.protocol.screen.stimulus_height
+        if which is not None:
+            stim = self._pair[which]
+            stim.size, stim.pos = (h * self._pair_aspects[which], h), (0, 0)
+            stim.draw()
+            return
+        half_width = self.win.size[0] / self.win.size[1] / 2
+        gap = 0.04
+        h = min(h, (2 * half_width - 3 * gap) / (2 * max(self._pair_aspects)))
+        for sign, stim, aspect in zip((-1, 1), self._pair[:2], self._pair_aspects):
+            w = h * aspect
+            stim.size, stim.pos = (w, h), (sign * (gap / 2 + w / 2), 0)
+            stim.draw()
 
     # ------------------------------------------------------------------ clips
     def load_clip(self, images: Sequence[Any]) -> ClipTextures:

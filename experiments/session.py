@@ -28,7 +28,8 @@ from experiments.runner import SessionRunner, beh_columns, flip_columns
 from experiments.simulate import SimulatedParticipant, load_participant_model
 from experiments.stimuli import session_stimuli
 from experiments.triggers import TriggerSender, open_backend
-from experiments.trials import Trial, build_trials, insert_repeat
+from experiments.psychophysics import PSYCHOPHYSICS_DESCRIPTIONS, PsychophysicsPlan
+from experiments.trials import Trial, build_trials, insert_repeat, pair_trial_maker
 
 __all__ = ["SessionResult", "run_session", "default_seed", "session_paths", "load_protocol", "column_descriptions",
            "check_resume"]
@@ -149,9 +150,14 @@ def _refresh_before_window(previous: dict[str, Any], refresh_hz: float | None, p
     return None if measured else 60.0
 
 
-def check_resume(rows: list[dict[str, str]], trials: list[Trial], beh: Path, protocol: Protocol) -> None:
+def check_resume(rows: list[dict[str, str]], trials: list[Trial], beh: Path, protocol: Protocol,
+                 plan: PsychophysicsPlan | None = None, refresh_hz: float = 60.0) -> None:
     """Check the rows on disk against the trial list, replaying the repeats they asked for
-    (``timing.on_dropped_frames: repeat`` inserted a trial for each row flagged 1)."""
+    (``timing.on_dropped_frames: repeat`` inserted a trial for each row flagged 1) and, in a
+    psychophysics session, the answers that moved its procedures (the list grows as they did)."""
+    if plan is not None:
+        plan.replay(rows, trials, pair_trial_maker(protocol, refresh_hz), 0, str(beh))
+        return
     repeat = protocol.timing.on_dropped_frames == "repeat"
     for i, row in enumerate(rows):
         if i >= len(trials):
@@ -265,6 +271,8 @@ def run_session(
     known_hz = _refresh_before_window(previous, refresh_hz, protocol, measured=mode == "live" and window)
     if known_hz is not None:  # bad inputs (e.g. a clip's fps that does not divide it) fail before the folder exists
         build_trials(protocol, main, seed=seed, refresh_hz=known_hz, source=str(protocol_file), full_set=full)
+    elif protocol.psychophysics is not None:  # its levels and images are checked before the folder exists
+        PsychophysicsPlan(protocol, main, seed=seed, source=str(protocol_file))
     with output_run(out, force=force, resume=resume, seed=seed, inputs=[protocol_file, full.source], argv=argv) as run:
         out = run.out
         paths = session_paths(out, participant, session, protocol.task)
@@ -297,10 +305,13 @@ def run_session(
                 hz = shown
         else:
             hz = 60.0
-        trials = build_trials(protocol, main, seed=seed, refresh_hz=hz, source=str(protocol_file), full_set=full)
+        plan = (PsychophysicsPlan(protocol, main, seed=seed, source=str(protocol_file))
+                if protocol.psychophysics is not None else None)
+        trials = build_trials(protocol, main, seed=seed, refresh_hz=hz, source=str(protocol_file), full_set=full,
+                              plan=plan)
         columns = beh_columns(protocol, clips=full.has_clips)
         done_rows = read_completed(paths["beh"], columns) if resume else []
-        check_resume(done_rows, trials, paths["beh"], protocol)
+        check_resume(done_rows, trials, paths["beh"], protocol, plan, hz)
         start = len(done_rows)
         sidecar = {
             "TaskName": protocol.task, "Protocol": str(protocol_file.resolve()), "ProtocolName": protocol.name,
@@ -327,7 +338,7 @@ def run_session(
             with _terminate_as_exit(), _sidecar_on_failure(sidecar, paths):
                 status, completed, shots = _present(protocol, trials, start, columns, paths, win, hz, mode, pace,
                                                      model, seed, participant, session, answers, screenshot_dir, full,
-                                                     part=len(sidecar["Resumed"]) + 1)
+                                                     part=len(sidecar["Resumed"]) + 1, plan=plan)
         sidecar.update(Status=status, CompletedTrials=completed, NumberOfTrials=len(trials), Ended=now_iso())
         write_sidecar(paths["sidecar"], sidecar)
         run.extra.update(status_session=status, completed_trials=completed, n_trials=len(trials))
@@ -377,7 +388,7 @@ def _terminate_as_exit() -> Iterator[None]:
 def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[str], paths: dict[str, Path],
              win: Any, hz: float, mode: str, pace: bool, model: Any, seed: int, participant: str, session: int,
              answers: dict[str, Any] | None, screenshot_dir: str | Path | None, full: Any,
-             part: int = 1) -> tuple[str, int, dict]:
+             part: int = 1, plan: PsychophysicsPlan | None = None) -> tuple[str, int, dict]:
     from experiments.responders import HumanResponder, ModelResponder, SessionAborted
 
     display = win if win is not None else NoWindow()
@@ -409,9 +420,13 @@ def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[
                             "part": part},
                            screenshot_dir=Path(screenshot_dir) if screenshot_dir is not None else None)
     status, completed = "crashed", start
+    after_trial, total = None, len(trials) - start
+    if plan is not None:
+        after_trial = _procedure_step(plan, pair_trial_maker(protocol, hz))
+        total = None if plan.max_trials is None else plan.max_trials - start
     try:
-        completed = runner.run(trials, start, progress=lambda it: progress(
-            it, total=len(trials) - start, desc=f"sub-{participant} {protocol.name}"))
+        completed = runner.run(trials, start, after_trial=after_trial, progress=lambda it: progress(
+            it, total=total, desc=f"sub-{participant} {protocol.name}"))
         status = "complete"
     except SessionAborted:
         completed = len(read_completed(paths["beh"]))
@@ -425,6 +440,19 @@ def _present(protocol: Protocol, trials: list[Trial], start: int, columns: list[
         if win is not None:
             win.close()
     return status, completed, dict(runner.shots)
+
+
+def _procedure_step(plan: PsychophysicsPlan, make: Any) -> Any:
+    """The runner's ``after_trial`` of a psychophysics session: score the answer, update the
+    track's procedure (its state and estimate go in the row) and append the next trial."""
+    answer = f"response_{plan.response.name}"
+
+    def after_trial(trials: list[Trial], i: int, row: dict[str, Any]) -> None:
+        row.update(plan.score(trials[i].extra["psy"], row.get(answer)))
+        nxt = plan.next_trial(len(trials) + 1, make)
+        if nxt is not None:
+            trials.append(nxt)
+    return after_trial
 
 
 def column_descriptions(protocol: Protocol, columns: list[str]) -> dict[str, dict[str, str]]:
@@ -449,6 +477,8 @@ def column_descriptions(protocol: Protocol, columns: list[str]) -> dict[str, dic
     }
     for f in protocol.stimuli.factors:
         desc[f] = f"factor '{f}' level"
+    if protocol.psychophysics is not None:
+        desc.update(PSYCHOPHYSICS_DESCRIPTIONS, second_onset_s="onset flip time of the second face (sequence)")
     for name in protocol.response_names:
         desc[f"response_{name}"] = f"answer on '{name}'"
         desc[f"rt_{name}"] = f"response time on '{name}' (s from screen onset)"

@@ -17,6 +17,11 @@ an inverted U) or a YAML file::
       expression:
         p_correct: 0.85                          # where no confusion row is given
         confusion: {neutral: {neutral: 0.6, surprise: 0.3, sad: 0.1}}
+    psychometric:                  # pair trials (psychophysics): P(correct) along the difference
+      threshold: 0.3               # psignifit's threshold (75 % correct in 2AFC without lapses)
+      width: 0.4                   # 5 % -> 95 % of the sigmoid
+      lapse: 0.02
+      by: {expression: {happiness: {threshold: 0.25}}}   # per-level changes
 """
 
 from __future__ import annotations
@@ -30,8 +35,9 @@ from pydantic import Field
 
 from appeal.errors import AppealInputError
 from appeal.levels import level_key
+from appeal.psychophysics.functions import psi
 from appeal.studyfile import StudyModel, load_study_file
-from experiments.protocol_schema import ChoiceSpec, LikertSpec
+from experiments.protocol_schema import ChoiceSpec, ClassificationSpec, LikertSpec
 
 __all__ = ["ParticipantModel", "SimulatedParticipant", "load_participant_model", "DEFAULT_MODEL"]
 
@@ -60,6 +66,30 @@ class RtModel(StudyModel):
     min_s: float = Field(0.2, ge=0)
 
 
+class ObserverChange(StudyModel):
+    """A change of the psychometric function for one level of a factor."""
+
+    threshold: float | None = Field(None, gt=0)
+    width: float | None = Field(None, gt=0)
+
+
+class PsychometricModel(StudyModel):
+    """How pair trials are answered: P(correct) at a difference is a psychometric function.
+
+    2AFC: ``guess + (1 - guess - lapse) * S(difference)`` with the task's guess rate 0.5;
+    same–different: P("different") with ``false_alarm`` as its floor ('same' pairs: the floor).
+    ``threshold`` and ``width`` are psignifit's (:mod:`appeal.psychophysics.functions`).
+    """
+
+    threshold: float = Field(0.3, gt=0)
+    width: float = Field(0.4, gt=0)
+    lapse: float = Field(0.02, ge=0, lt=0.5)
+    family: Literal["logistic", "norm", "weibull"] = "logistic"
+    false_alarm: float = Field(0.1, ge=0, lt=1)
+    participant_sd: float = Field(0.0, ge=0, description="SD of a participant's threshold around 'threshold'")
+    by: dict[str, dict[str, ObserverChange]] = Field(default_factory=dict)
+
+
 class ParticipantModel(StudyModel):
     """A simulated participant (``--simulate FILE.yaml``)."""
 
@@ -68,6 +98,7 @@ class ParticipantModel(StudyModel):
     rt: RtModel = Field(default_factory=RtModel)
     ratings: dict[str, ScaleModel] = Field(default_factory=dict)
     classification: dict[str, ClassModel] = Field(default_factory=dict)
+    psychometric: PsychometricModel = Field(default_factory=PsychometricModel)
 
 
 _APPEAL_LIKE = {"shape": (0.2, -0.9), "material": (-0.4, -0.5), "stylisation": (-0.2, -1.0)}
@@ -84,6 +115,11 @@ DEFAULT_MODEL = ParticipantModel(
     classification={"expression": ClassModel(confusion={
         "neutral": {"neutral": 0.6, "surprise": 0.2, "sad": 0.2},
     })},
+    # realism discrimination (2AFC, realistic vs a stylised level): happy faces' stylisation
+    # noticed sooner, angry ones' later (a plausible pattern for the demo and tests, not a finding)
+    psychometric=PsychometricModel(threshold=0.3, width=0.4, lapse=0.02, participant_sd=0.04, by={
+        "expression": {"happiness": ObserverChange(threshold=0.22), "anger": ObserverChange(threshold=0.38)},
+        "emotion": {"happiness": ObserverChange(threshold=0.22), "anger": ObserverChange(threshold=0.38)}}),
 )
 
 
@@ -115,6 +151,7 @@ class SimulatedParticipant:
         self.levels = {f: [str(v) for v in vs] for f, vs in levels.items()}
         self.rng = np.random.default_rng(seed)
         self.offset = float(self.rng.normal(0.0, model.participant_sd))
+        self.threshold_offset = float(np.random.default_rng([seed, 31]).normal(0.0, model.psychometric.participant_sd))
 
     def _x(self, factor: str, level: str) -> float:
         levels = self.levels.get(factor, [])
@@ -157,6 +194,35 @@ class SimulatedParticipant:
         if p.sum() <= 0:
             p = np.ones(len(values))
         return values[int(self.rng.choice(len(values), p=p / p.sum()))]
+
+    def observer(self, factors: Mapping[str, str]) -> tuple[float, float]:
+        """The (threshold, width) of this participant's psychometric function for ``factors``."""
+        pm = self.model.psychometric
+        threshold, width = pm.threshold, pm.width
+        for factor, changes in pm.by.items():
+            change = changes.get(factors.get(factor, ""))
+            if change is not None:
+                threshold = change.threshold if change.threshold is not None else threshold
+                width = change.width if change.width is not None else width
+        return max(threshold + self.threshold_offset, 1e-6), width
+
+    def discriminate(self, spec: ClassificationSpec, psy: Mapping[str, Any], factors: Mapping[str, str]) -> str:
+        """The answer to a pair trial (``psy``: its difference, pair type and the reference's position).
+
+        2AFC: the reference's position with the psychometric function's probability, else the
+        other one; same–different: 'different' with P("different" | difference).
+        """
+        pm = self.model.psychometric
+        threshold, width = self.observer(factors)
+        d = float(psy["difference"])
+        values = [level_key(c.value) for c in spec.choices]
+        if "same" in values:
+            p = pm.false_alarm if psy["pair_type"] == "same" else float(
+                psi(d, threshold, width, pm.false_alarm, pm.lapse, pm.family))
+            return "different" if self.rng.random() < p else "same"
+        p = float(psi(d, threshold, width, 0.5, pm.lapse, pm.family))
+        other = next(v for v in values if v != psy["reference_side"])
+        return psy["reference_side"] if self.rng.random() < p else other
 
     def rt(self) -> float:
         """A log-normal response time in seconds."""

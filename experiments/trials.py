@@ -7,7 +7,7 @@ frames, breaks, anchors/practice/end-of-session items and trigger codes.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
@@ -19,11 +19,12 @@ from appeal.levels import level_key
 from appeal.triggers import trigger_table
 from experiments.clips import ClipPlan, flips_per_frame, plan_clip, rate_problem
 from experiments.ordering import constrained_order
-from experiments.protocol_schema import ExtraTrialsSpec, Protocol
+from experiments.protocol_schema import ExtraTrialsSpec, Protocol, TimingSpec
+from experiments.psychophysics import PairPlan, PsychophysicsPlan
 from experiments.stimuli import StimulusSet, select_stimuli
 
-__all__ = ["Trial", "seconds_to_frames", "fixation_frame_range", "build_trials", "protocol_trigger_codes", "trials_frame",
-           "insert_repeat"]
+__all__ = ["Trial", "seconds_to_frames", "fixation_frame_range", "fixation_sampler", "build_trials",
+           "protocol_trigger_codes", "trials_frame", "insert_repeat", "pair_trial_maker"]
 
 
 @dataclass
@@ -47,12 +48,16 @@ class Trial:
     extra: dict[str, Any] = field(default_factory=dict)
     clip: ClipPlan | None = None
     repeat_of: int | None = None
+    pair: PairPlan | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        """A flat dict (factors as columns; a clip's plan as ``clip_frames``, ``clip_fps``, ...)."""
+        """A flat dict (factors as columns; a clip's plan as ``clip_frames``, ``clip_fps``, ...; a pair
+        trial's psychophysics fields, :data:`experiments.psychophysics.PSYCHOPHYSICS_COLUMNS`)."""
         d = asdict(self)
         d.pop("extra")
         d.pop("clip")
+        d.pop("pair")
+        d.update(self.extra.get("psy", {}))
         factors = d.pop("factors")
         if self.clip is not None:
             d.update(clip_frames=self.clip.n_frames, clip_fps=self.clip.fps,
@@ -78,6 +83,42 @@ def fixation_frame_range(lo_s: float, hi_s: float, refresh_hz: float) -> tuple[i
     if hi < lo:
         raise AppealInputError(f"timing.fixation_s: [{lo_s}, {hi_s}] s holds no whole frame at {refresh_hz:g} Hz")
     return max(lo, 1), max(hi, 1)
+
+
+def fixation_sampler(timing: TimingSpec, refresh_hz: float,
+                     rng: np.random.Generator) -> Callable[[], int | None]:
+    """A function drawing each trial's fixation in whole frames (None: no fixation)."""
+    fix_range = None
+    if isinstance(timing.fixation_s, tuple):
+        fix_range = fixation_frame_range(*timing.fixation_s, refresh_hz)
+    elif timing.fixation_s is not None and timing.fixation_s > 0:
+        n = seconds_to_frames(timing.fixation_s, refresh_hz)
+        fix_range = (n, n)
+
+    def fixation() -> int | None:
+        return None if fix_range is None else int(rng.integers(fix_range[0], fix_range[1] + 1))
+    return fixation
+
+
+def pair_trial_maker(protocol: Protocol, refresh_hz: float) -> Callable[..., Trial]:
+    """The function a :class:`~experiments.psychophysics.PsychophysicsPlan` makes its trials with:
+    frames from the protocol's timing, the fixation from the trial's own generator, a break
+    before every ``breaks.every``-th trial."""
+    timing = protocol.timing
+    frames = seconds_to_frames(timing.stimulus_s, refresh_hz)
+    iti = int(round(timing.iti_s * refresh_hz))
+    isi = seconds_to_frames(protocol.psychophysics.isi_s, refresh_hz) if protocol.psychophysics.isi_s > 0 else 0
+    layout = protocol.psychophysics.presentation
+
+    def make(*, number: int, phase: str, block: str, repetition: int, row: Mapping[str, Any], pair: tuple[str, str],
+             psy: dict[str, Any], rng: np.random.Generator) -> Trial:
+        every = protocol.breaks.every if protocol.breaks is not None else 0
+        return Trial(trial=number, phase=phase, block=block, repetition=repetition, stimulus=row["stimulus"],
+                     path=row["path"], factors={f: row[f] for f in protocol.stimuli.factors}, stimulus_frames=frames,
+                     fixation_frames=fixation_sampler(timing, refresh_hz, rng)(), iti_frames=iti,
+                     break_before=bool(every) and number > 1 and (number - 1) % every == 0,
+                     extra={"psy": psy}, pair=PairPlan(pair, layout, isi))
+    return make
 
 
 def protocol_trigger_codes(protocol: Protocol) -> list[tuple[int, dict[str, str]]]:
@@ -140,7 +181,8 @@ def _extra(spec: ExtraTrialsSpec | None, phase: str, stimuli: StimulusSet, proto
 
 
 def build_trials(protocol: Protocol, stimuli: StimulusSet, *, seed: int, refresh_hz: float,
-                 source: str = "protocol", full_set: StimulusSet | None = None) -> list[Trial]:
+                 source: str = "protocol", full_set: StimulusSet | None = None,
+                 plan: PsychophysicsPlan | None = None) -> list[Trial]:
     """The whole session as a list of :class:`Trial` (anchors, practice, main, end items).
 
     Parameters
@@ -157,12 +199,19 @@ def build_trials(protocol: Protocol, stimuli: StimulusSet, *, seed: int, refresh
         The protocol file, named in errors.
     full_set : StimulusSet, optional
         The unfiltered set anchors/practice/end items select from (default ``stimuli``).
+    plan : PsychophysicsPlan, optional
+        A psychophysics protocol's tracks (default: made here): the list holds their first
+        trial, and grows by one after each answer (:meth:`PsychophysicsPlan.next_trial`).
 
     Returns
     -------
     list of Trial
         Numbered from 1 in presentation order.
     """
+    if protocol.psychophysics is not None:
+        plan = plan or PsychophysicsPlan(protocol, stimuli, seed=seed, source=source)
+        first = plan.next_trial(1, pair_trial_maker(protocol, refresh_hz))
+        return [first] if first is not None else []
     ss = np.random.SeedSequence(seed)
     rng_order, rng_fix, rng_extra = (np.random.default_rng(s) for s in ss.spawn(3))
     full_set = full_set or stimuli
@@ -202,16 +251,7 @@ def build_trials(protocol: Protocol, stimuli: StimulusSet, *, seed: int, refresh
         plan = _with_repetitions(ordered(stim_ids * spec.repetitions, []), "1")
 
     timing = protocol.timing
-    fix_range = None
-    if isinstance(timing.fixation_s, tuple):
-        fix_range = fixation_frame_range(*timing.fixation_s, refresh_hz)
-    elif timing.fixation_s is not None and timing.fixation_s > 0:
-        n = seconds_to_frames(timing.fixation_s, refresh_hz)
-        fix_range = (n, n)
-
-    def fixation() -> int | None:
-        return None if fix_range is None else int(rng_fix.integers(fix_range[0], fix_range[1] + 1))
-
+    fixation = fixation_sampler(timing, refresh_hz, rng_fix)
     stim_frames = seconds_to_frames(timing.stimulus_s, refresh_hz)
     iti = int(round(timing.iti_s * refresh_hz))
     trials: list[Trial] = []

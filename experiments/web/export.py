@@ -94,6 +94,9 @@ def web_refusal(protocol: Protocol) -> str | None:
     if protocol.triggers is not None:
         return ("triggers: a browser sends no EEG trigger codes; export a copy of the protocol without "
                 "'triggers' for an online rating study")
+    if protocol.psychophysics is not None:
+        return ("psychophysics: each next pair depends on the answers so far, and a browser study's trial lists are "
+                "fixed when it is exported; run it in the lab with `appeal run`")
     if protocol.timing.on_dropped_frames == "repeat":
         return ("timing.on_dropped_frames: repeat: the browser study's trial lists are fixed when it is exported; "
                 "export with 'flag' (dropped_flag marks the trials to leave out)")
