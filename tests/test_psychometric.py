@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from analysis.psychometric import (PsiProcedure, SimulatedObserver, UpDownStaircase, constant_stimuli, fit_bayes,
@@ -218,3 +219,21 @@ def test_one_line_errors():
         UpDownStaircase(LEVELS)
     with pytest.raises(AppealInputError, match="not one of logistic, norm, weibull"):
         psi(0.5, 0.5, 0.3, family="probit")
+
+
+def test_planning_trials_for_precision_psi_and_constant_stimuli():
+    """Planning: how many trials each procedure needs until the threshold's interval is 0.2 wide."""
+    from analysis.psychometric.planning import precision_summary, trials_for_precision
+
+    obs = SimulatedObserver(threshold=0.3, width=0.4, lapse=0.02)
+    levels = [round(0.05 * k, 2) for k in range(1, 21)]
+    table = pd.concat([trials_for_precision(m, obs, levels, target_width=0.2, n_sessions=4, seed=2)
+                       for m in ("psi", "constant")])
+    assert table["reached"].all() and (table["ci_width"] <= 0.2).all()
+    summary = precision_summary(table).set_index("method")
+    assert summary.loc["psi", "median_trials"] * 2 <= summary.loc["constant", "median_trials"]
+    assert (table.loc[table["method"] == "constant", "n_trials"] % 20 == 0).all()  # whole passes over the levels
+    again = trials_for_precision("psi", obs, levels, target_width=0.2, n_sessions=4, seed=2)
+    assert again["n_trials"].tolist() == table.loc[table["method"] == "psi", "n_trials"].tolist()  # seeded
+    with pytest.raises(AppealInputError, match="method: expected 'psi' or 'constant'"):
+        trials_for_precision("quest", obs, levels, target_width=0.2)

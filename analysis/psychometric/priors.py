@@ -6,6 +6,7 @@ package where it is installed.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -17,8 +18,10 @@ __all__ = ["width_rescale", "threshold_prior", "width_prior", "beta_prior", "def
 Prior = Callable[[NDArray], NDArray]
 
 
+@functools.lru_cache(maxsize=64)
 def width_rescale(alpha: float) -> float:
-    """Factor turning a width at ``alpha`` into a 5 %–95 % width (1 for ``alpha = 0.05``)."""
+    """Factor turning a width at ``alpha`` into a 5 %–95 % width (1 for ``alpha = 0.05``; cached:
+    the MAP search of a fit evaluates the width prior tens of thousands of times)."""
     z = stats.norm.ppf
     return float((z(0.95) - z(0.05)) / (z(1 - alpha) - z(alpha)))
 
@@ -51,8 +54,11 @@ def width_prior(x: NDArray, wmin: float, wmax: float, alpha: float = 0.05) -> ND
 
 
 def beta_prior(x: NDArray, b: float = 10.0) -> NDArray:
-    """Beta(1, b) density (lapse, guess and overdispersion priors)."""
-    return stats.beta.pdf(np.asarray(x, float), 1, b)
+    """Beta(1, b) density (lapse, guess and overdispersion priors): ``b (1 - x)^(b - 1)`` on [0, 1]
+    (closed form; scipy's ``beta.pdf`` costs ~50 µs a call in the MAP search)."""
+    x = np.asarray(x, float)
+    inside = (x >= 0) & (x <= 1)
+    return np.where(inside, b * np.power(np.clip(1 - x, 0, 1), b - 1), 0.0)
 
 
 def default_priors(stimulus_range: tuple[float, float], width_min: float, alpha: float = 0.05,
