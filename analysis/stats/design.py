@@ -109,8 +109,10 @@ class Design:
 
 
 # --------------------------------------------------------------------------- reading
-def read_table(path: str | Path) -> pd.DataFrame:
+def read_table(path: str | Path, text_columns: Sequence[str] = ()) -> pd.DataFrame:
     """Read one long-format table (CSV, TSV or Parquet; chosen by the file suffix).
+
+    ``text_columns`` are read as text (a BIDS participant label ``01`` stays ``01``).
 
     Raises
     ------
@@ -122,10 +124,11 @@ def read_table(path: str | Path) -> pd.DataFrame:
         raise AppealInputError(f"{path}: file not found")
     suffix = "".join(path.suffixes[-2:]).lower() if path.suffix.lower() == ".gz" else path.suffix.lower()
     try:
+        dtype = {c: str for c in text_columns}
         if suffix in (".csv", ".csv.gz"):
-            df = pd.read_csv(path)
+            df = pd.read_csv(path, dtype=dtype)
         elif suffix in (".tsv", ".tsv.gz", ".txt"):
-            df = pd.read_csv(path, sep="\t")
+            df = pd.read_csv(path, sep="\t", dtype=dtype)
         elif suffix in (".parquet", ".pq"):
             df = pd.read_parquet(path)
         else:
@@ -164,7 +167,7 @@ def read_ratings(paths: str | Path | Sequence[str | Path], subject: str = "parti
             raise AppealInputError("data: no files given")
     frames = []
     for f in files:
-        df = read_table(f)
+        df = read_table(f, text_columns=[subject])
         if subject not in df.columns:
             m = _SUB_ENTITY.search(Path(f).name) or _SUB_ENTITY.search(str(f))
             if not m:
