@@ -60,7 +60,7 @@ def faces() -> None:
 
 @cli.group(context_settings=CONTEXT)
 def analyze() -> None:
-    """Analyse recorded data: rating statistics and ERP pipelines."""
+    """Analyse recorded data: rating statistics, psychometric fits and ERP pipelines."""
 
 
 @cli.group(name="export", context_settings=CONTEXT, epilog="""\b

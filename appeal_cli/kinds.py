@@ -15,6 +15,7 @@ KINDS: dict[str, str] = {
     "grid": "stimulus_engine.grid.schema:GridFile",
     "protocol": "experiments.protocol_schema:Protocol",
     "ratings": "analysis.ratings_schema:RatingsAnalysis",
+    "psychometric": "analysis.psychometric.schema:PsychometricAnalysis",
     "erp": "analysis.erp_schema:ErpConfig",
 }
 

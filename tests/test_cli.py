@@ -53,7 +53,7 @@ def test_bad_input_exit_2_without_traceback(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "Traceback" not in err
     lines = err.strip().splitlines()
-    assert lines[0] == f"{bad}: kind: unknown kind 'nonsense' (expected one of: grid, protocol, ratings, erp)"
+    assert lines[0] == f"{bad}: kind: unknown kind 'nonsense' (expected one of: grid, protocol, ratings, psychometric, erp)"
     assert lines[1] == f"{tmp_path / 'missing.yaml'}: file not found"
 
 

@@ -7,12 +7,18 @@ re-exported here for the analyst.
 * :mod:`~analysis.psychometric.fit` – maximum-likelihood and psignifit-style Bayesian fits, a tidy
   table.
 * :mod:`~analysis.psychometric.priors` – psignifit 4's default priors.
+* :mod:`~analysis.psychometric.schema` – the ``kind: psychometric`` analysis file.
+* :mod:`~analysis.psychometric.study` – ``appeal analyze psychometric``: fits per participant and
+  condition, pooled fits, the comparison of thresholds, figures (:mod:`~analysis.psychometric.figures`)
+  and the report.
 """
 
 from analysis.psychometric.fit import FitResult, fit_bayes, fit_ml, fit_table
+from analysis.psychometric.schema import PsychometricAnalysis
+from analysis.psychometric.study import PsychometricResult, analyze_psychometric_study, read_trials
 from appeal.psychophysics import (FAMILIES, ConstantStimuli, PsiProcedure, SimulatedObserver, UpDownStaircase,
                                   constant_stimuli, psi, psi_inverse, run_procedure, sigmoid)
 
 __all__ = ["FAMILIES", "psi", "psi_inverse", "sigmoid", "FitResult", "fit_ml", "fit_bayes", "fit_table",
            "SimulatedObserver", "constant_stimuli", "PsiProcedure", "UpDownStaircase", "ConstantStimuli",
-           "run_procedure"]
+           "run_procedure", "PsychometricAnalysis", "PsychometricResult", "analyze_psychometric_study", "read_trials"]
