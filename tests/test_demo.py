@@ -62,15 +62,15 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
 
     out = tmp_path / "demo"
     res = subprocess.run([sys.executable, "-m", "appeal_cli", "-q", "demo", "--out", str(out)],
-                         capture_output=True, text=True, check=False, timeout=1200)
+                         capture_output=True, text=True, check=False, timeout=1800)
     assert res.returncode == 0, res.stderr[-2000:]
     prov = json.loads((out / "provenance.json").read_text())
     assert prov["failed_stages"] == []
     page = (out / "index.html").read_text()
     assert "This stage failed" not in page
     names = [s.name for s in discover_stages()]
-    assert {"environment", "grid", "correspond", "part_morph", "avatar", "faces2d", "experiment", "ratings",
-            "erp"} <= set(names)
+    assert {"environment", "grid", "correspond", "part_morph", "avatar", "faces2d", "experiment", "psychophysics",
+            "ratings", "erp"} <= set(names)
     links = set(re.findall(r"(?:src|href)='([^'#]+)'", page))
     assert len(links) > 20
     missing = [link for link in links if not (out / link).exists()]
@@ -94,6 +94,10 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     assert {"faces2d/composites/contact_sheet.png", "faces2d/transform/contact_sheet.png"} <= links
     comp = pd.read_csv(out / "faces2d" / "composites" / "manifest.csv")
     assert comp.loc[comp["file"] == "all_neutral.png", "ghosting"].item() < 0.4
+    # psychophysics: 2AFC over a rendered continuum, a psychometric function per observer and expression
+    assert {"psychophysics/analysis/figures/sub-01_psychometric.png", "psychophysics/analysis/index.html"} <= links
+    pooled = pd.read_csv(out / "psychophysics" / "analysis" / "pooled.csv").set_index("expression")
+    assert pooled.loc["happiness", "x_at_pc"] < pooled.loc["anger", "x_at_pc"]  # the simulated observers' order
 
 
 def test_report_page_fits_a_laptop_screen(tmp_path):
