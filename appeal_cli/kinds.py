@@ -23,7 +23,7 @@ KINDS: dict[str, str] = {
 #: kind -> "module:function" listing problems with the inputs a valid file needs to run (files
 #: made by an earlier stage, so not part of the schema): ``function(model, path) -> [lines]``.
 INPUT_CHECKS: dict[str, str] = {
-    "protocol": "experiments.stimuli:protocol_input_problems",
+    "protocol": "experiments.session:session_input_problems",
     "erp": "analysis.erp.config:recording_problems",
 }
 

@@ -26,13 +26,13 @@ from experiments.display import DROP_THRESHOLD, NoWindow, Presenter
 from experiments.protocol_schema import Protocol
 from experiments.runner import SessionRunner, beh_columns, flip_columns
 from experiments.simulate import SimulatedParticipant, load_participant_model
-from experiments.stimuli import session_stimuli
+from experiments.stimuli import protocol_input_problems, session_stimuli
 from experiments.triggers import TriggerSender, open_backend
 from experiments.psychophysics import PSYCHOPHYSICS_DESCRIPTIONS, PsychophysicsPlan
 from experiments.trials import Trial, build_trials, insert_repeat, pair_trial_maker
 
 __all__ = ["SessionResult", "run_session", "default_seed", "session_paths", "load_protocol", "column_descriptions",
-           "check_resume"]
+           "check_resume", "session_input_problems"]
 
 #: Refresh rates outside this range mean the display has no vsync (e.g. a virtual screen).
 PLAUSIBLE_HZ = (20.0, 250.0)
@@ -148,6 +148,21 @@ def _refresh_before_window(previous: dict[str, Any], refresh_hz: float | None, p
     if given is not None:
         return float(given)
     return None if measured else 60.0
+
+
+def session_input_problems(protocol: Protocol, source: str | Path) -> list[str]:
+    """Problems with what a protocol needs to run (``appeal validate``): its stimuli
+    (:func:`experiments.stimuli.protocol_input_problems`) and, for psychophysics, its levels
+    and pairs against the stimulus table (:class:`PsychophysicsPlan`)."""
+    problems = protocol_input_problems(protocol, source)
+    if problems or protocol.psychophysics is None:
+        return problems
+    try:
+        _, main = session_stimuli(protocol, source)
+        PsychophysicsPlan(protocol, main, seed=0, source=str(source))
+    except AppealInputError as exc:
+        return exc.lines
+    return []
 
 
 def check_resume(rows: list[dict[str, str]], trials: list[Trial], beh: Path, protocol: Protocol,

@@ -226,3 +226,13 @@ def test_web_export_refuses_psychophysics(stim, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "psychophysics: each next pair depends on the answers so far" in err[0]
     assert not (tmp_path / "site").exists()
+
+
+def test_validate_checks_the_levels_against_the_stimuli(stim, capsys):
+    """``appeal validate`` finds what a session would refuse, before anyone sits down."""
+    good = write(stim, "valid")
+    assert main(["validate", str(good)]) == 0
+    bad = write(stim, "badref", psy={"reference": 0.05})
+    assert main(["validate", str(bad)]) != 0
+    out = capsys.readouterr()
+    assert "psychophysics.reference: 0.05 is not one of the continuum's 11 levels" in out.err + out.out
