@@ -236,3 +236,22 @@ def test_validate_checks_the_levels_against_the_stimuli(stim, capsys):
     assert main(["validate", str(bad)]) != 0
     out = capsys.readouterr()
     assert "psychophysics.reference: 0.05 is not one of the continuum's 11 levels" in out.err + out.out
+
+
+def test_a_morph_between_two_photographs_is_a_continuum_too(shared_data, tmp_path):
+    """A 2-D morph (``appeal faces continuum``: its manifest's ``weight`` 0..1) addressed by value: 2AFC
+    between photograph A and the morph towards photograph B, by constant stimuli."""
+    folder = shared_data / "faces2d" / "london-frl" / "neutral_front"
+    a, b = sorted(folder.glob("*.jpg"))[:2]
+    morphs = tmp_path / "morph"
+    assert main(["faces", "continuum", str(a), str(b), "--steps", "6", "--size", "300x300",
+                 "--out", str(morphs)]) == 0
+    data = copy.deepcopy(PROTOCOL)
+    data["stimuli"] = {"manifest": str(morphs / "manifest.csv"), "factors": ["weight"]}
+    data["psychophysics"] = {"continuum": "weight", "reference": 0.0,
+                             "procedure": {"method": "constant", "trials_per_level": 2}}
+    proto = tmp_path / "morph.yaml"
+    proto.write_text(yaml.safe_dump(data))
+    beh = session(proto, tmp_path / "o")
+    assert sorted(beh["level"].unique()) == [0.2, 0.4, 0.6, 0.8, 1.0] and len(beh) == 10
+    assert (beh["reference_stimulus"] == pd.read_csv(morphs / "manifest.csv")["file"].iloc[0]).all()
