@@ -49,6 +49,17 @@ def _levels(levels: ArrayLike) -> NDArray:
     return lv
 
 
+def _rebuild(cls: type, state: Mapping[str, Any], settings: Sequence[str]) -> Any:
+    """A procedure of class ``cls`` from its :meth:`to_dict` state: its ``levels`` and ``settings``,
+    then every response of its history replayed."""
+    if state.get("kind") != cls.kind:
+        raise AppealInputError(f"procedure state of kind '{state.get('kind')}' is not a '{cls.kind}' state")
+    proc = cls(state["levels"], **{k: state[k] for k in settings})
+    for x, correct in state.get("history", []):
+        proc.update(x, bool(correct))
+    return proc
+
+
 class PsiProcedure:
     """The psi method over a discrete set of levels.
 
@@ -193,14 +204,8 @@ class PsiProcedure:
     @classmethod
     def from_dict(cls, state: Mapping[str, Any]) -> PsiProcedure:
         """Rebuild a procedure from :meth:`to_dict`'s output, replaying its responses."""
-        if state.get("kind") != cls.kind:
-            raise AppealInputError(f"procedure state of kind '{state.get('kind')}' is not a '{cls.kind}' state")
-        kw = {k: state[k] for k in ("thresholds", "widths", "lapses", "guess", "family", "max_trials",
-                                    "max_ci_width", "min_trials", "ci_level", "entropy", "pc", "alpha")}
-        proc = cls(state["levels"], **kw)
-        for x, c in state.get("history", []):
-            proc.update(x, bool(c))
-        return proc
+        return _rebuild(cls, state, ("thresholds", "widths", "lapses", "guess", "family", "max_trials",
+                                     "max_ci_width", "min_trials", "ci_level", "entropy", "pc", "alpha"))
 
 
 class UpDownStaircase:
@@ -286,13 +291,7 @@ class UpDownStaircase:
     @classmethod
     def from_dict(cls, state: Mapping[str, Any]) -> UpDownStaircase:
         """Rebuild a staircase from :meth:`to_dict`'s output, replaying its responses."""
-        if state.get("kind") != cls.kind:
-            raise AppealInputError(f"procedure state of kind '{state.get('kind')}' is not a '{cls.kind}' state")
-        s = cls(state["levels"], **{k: state[k] for k in ("down", "up", "step", "start", "max_trials",
-                                                           "max_reversals")})
-        for x, c in state.get("history", []):
-            s.update(x, bool(c))
-        return s
+        return _rebuild(cls, state, ("down", "up", "step", "start", "max_trials", "max_reversals"))
 
 
 class ConstantStimuli:
@@ -351,12 +350,7 @@ class ConstantStimuli:
     @classmethod
     def from_dict(cls, state: Mapping[str, Any]) -> ConstantStimuli:
         """Rebuild the plan from :meth:`to_dict`'s output, replaying its responses."""
-        if state.get("kind") != cls.kind:
-            raise AppealInputError(f"procedure state of kind '{state.get('kind')}' is not a '{cls.kind}' state")
-        c = cls(state["levels"], state["trials_per_level"], state.get("seed", 0))
-        for x, ok in state.get("history", []):
-            c.update(x, bool(ok))
-        return c
+        return _rebuild(cls, state, ("trials_per_level", "seed"))
 
 
 Procedure = PsiProcedure | UpDownStaircase | ConstantStimuli
