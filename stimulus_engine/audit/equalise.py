@@ -330,9 +330,65 @@ def _ring_step(lstar: np.ndarray, target: np.ndarray, rings: np.ndarray, kmax: i
     return np.real(np.fft.ifft2(spectrum * gain[np.minimum(rings, kmax + 1)]))
 
 
+def _ring_counts(rings: np.ndarray, kmax: int) -> np.ndarray:
+    """Coefficients per ring ``1 .. kmax``."""
+    k = rings.ravel()
+    return np.bincount(k[(k >= 1) & (k <= kmax)], minlength=kmax + 1)[1:]
+
+
+def _per_coefficient(values: np.ndarray, rings: np.ndarray, kmax: int, outside: float) -> np.ndarray:
+    """Ring values ``1 .. kmax`` spread onto the coefficients (DC and the corners get ``outside``)."""
+    full = np.full(kmax + 2, outside)
+    full[1:kmax + 1] = values
+    return full[np.minimum(rings, kmax + 1)]
+
+
+def _polish_spectrum(lstar: np.ndarray, mask: np.ndarray, target: np.ndarray, rings: np.ndarray, kmax: int,
+                     tolerance: float, max_iterations: int) -> np.ndarray:
+    """Move the L* inside ``mask`` until the rotational average is ``target`` (relative ``tolerance``).
+
+    Minimises :math:`\sum_k \log^2(R_k / T_k)` over the pixels inside the mask (the background
+    stays as it is) with L-BFGS, the gradient from the FFT
+    (:math:`\partial|F_u|/\partial L = \mathrm{Re}\,\mathcal{F}(\bar F_u/|F_u|)`), in a
+    preconditioned parameterisation: the change is :math:`M \cdot \mathcal{F}^{-1}(S \mathcal{F}(z))`
+    with :math:`S` the target's ring amplitudes, so that a step moves every ring in proportion to
+    its amplitude (without it the low rings, whose amplitudes are hundreds of times the high ones',
+    barely moved: 300 L-BFGS iterations left London photographs 1.9 % apart; with it 60 iterations
+    brought them within 0.3 % of the target). Runs in rounds of 20 iterations until the ring
+    averages lie within ``tolerance`` of the target (or ``max_iterations``); L* is clipped to 0..100.
+    """
+    from scipy import optimize
+
+    counts = _ring_counts(rings, kmax)
+    shaping = _per_coefficient(target / target.mean(), rings, kmax, 1.0)
+    m = mask.astype(float)
+
+    def shaped(z: np.ndarray) -> np.ndarray:
+        return np.real(np.fft.ifft2(np.fft.fft2(z) * shaping))
+
+    def loss_grad(z: np.ndarray) -> tuple[float, np.ndarray]:
+        f = np.fft.fft2(lstar + m * shaped(z.reshape(lstar.shape)))
+        amp = np.abs(f)
+        r = np.log(_ring_means(amp, rings, kmax) / target)
+        # scaled by 1e4: L-BFGS's default tolerances stop a loss of this size at once
+        d_amp = _per_coefficient(2e4 * r / (target * np.exp(r)) / counts, rings, kmax, 0.0)
+        grad = np.real(np.fft.fft2(d_amp * np.conj(f) / np.where(amp > 0, amp, 1.0)))
+        return 1e4 * float(np.sum(r ** 2)), shaped(m * grad).ravel()
+
+    z, out, done = np.zeros(lstar.size), lstar, 0
+    while done < max_iterations:
+        res = optimize.minimize(loss_grad, z, jac=True, method="L-BFGS-B",
+                                options={"maxiter": min(20, max_iterations - done), "gtol": 1e-14, "ftol": 1e-15})
+        z, done = res.x, done + max(int(res.nit), 1)
+        out = np.clip(lstar + m * shaped(z.reshape(lstar.shape)), 0, 100)
+        if np.max(np.abs(_ring_means(np.abs(np.fft.fft2(out)), rings, kmax) / target - 1)) <= tolerance:
+            break
+    return out
+
+
 def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *, grey: bool = False,
                    background: float | None = DEFAULT_BACKGROUND, max_iterations: int = 30,
-                   tolerance: float = SPECTRUM_TOLERANCE) -> list[np.ndarray]:
+                   tolerance: float = SPECTRUM_TOLERANCE, polish_iterations: int = 200) -> list[np.ndarray]:
     """Give every image the set's average Fourier amplitude spectrum, keeping its phase (SHINE specMatch).
 
     The spectrum is that of the whole image's L* (as SHINE's specMatch): first
@@ -348,8 +404,11 @@ def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *,
     masks; when the unrounded results agree within half the tolerance they are encoded to 8 bit
     and the loop stops if the 8-bit results agree within ``tolerance``
     (:func:`spectrum_agreement`), else goes on (at most ``max_iterations`` passes; then the
-    closest encoded pass is returned). The full 2-D amplitude spectra agree only approximately;
-    their rotational averages are what is matched.
+    closest encoded pass is returned). Where the passes end above ``tolerance`` (photographs:
+    3.5 % after 30 passes), each face is then moved to the set's mean rotational average by a
+    preconditioned gradient search over its masked pixels (:func:`_polish_spectrum`; 8 London
+    photographs: 0.75 %). The full 2-D amplitude spectra agree only approximately; their
+    rotational averages are what is matched.
 
     Parameters and returns as :func:`match_luminance` (no ``target``), and
 
@@ -357,6 +416,12 @@ def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *,
         Passes at most.
     tolerance : float
         Relative agreement of the rotational averages to stop at (default 1 %).
+    polish_iterations : int
+        When the passes leave the set further apart than ``tolerance`` (photographs whose face
+        masks are a tenth of the picture), each image's face is moved
+        towards the set's mean rotational average by a preconditioned gradient search
+        (:func:`_polish_spectrum`, at most this many L-BFGS iterations, to a quarter of the
+        tolerance); the encoded result is kept if it agrees better.
     """
     check_set(images, masks)
     originals = [lightness(im) for im in images]
@@ -388,6 +453,15 @@ def match_spectrum(images: Sequence[np.ndarray], masks: Sequence[np.ndarray], *,
         improved = score < now
         current, averages, now = trial, trial_averages, score
         power = min(16.0, power * 2) if improved else power
+    if best[0] > tolerance and polish_iterations > 0:
+        start = [lightness(im) for im in best[1]]
+        target = _ring_averages(start).mean(axis=0)
+        polished = [_polish_spectrum(l, m, target, rings, kmax, tolerance / 4, polish_iterations)
+                    for l, m in zip(start, masks)]
+        out = [encode(l, im, m, grey=grey, background=background) for l, im, m in zip(polished, images, masks)]
+        agreement = spectrum_agreement(out)
+        if agreement < best[0]:
+            best = (agreement, out)
     return best[1]
 
 
