@@ -1,4 +1,4 @@
-"""``appeal stimuli equalise``: SHINE-style luminance, histogram or spectrum equalisation of a grid."""
+"""``appeal stimuli equalise``: SHINE-style luminance, histogram or spectrum equalisation of a grid or of photographs."""
 
 from __future__ import annotations
 
@@ -29,28 +29,37 @@ def _parse_background(value: str) -> float | None:
     return b
 
 
-def _grid_face_masks(folder: Path, images: list[np.ndarray]) -> list[np.ndarray]:
-    """Face masks of a rendered grid's images (:func:`stimulus_engine.audit.masks.rendered_face_mask`:
-    the framing's face oval from ``folder/grid.json`` minus the background)."""
-    from stimulus_engine.audit.masks import grid_render_settings, rendered_face_mask
+def _face_masks(folder: Path, images: list[np.ndarray], files: list[str]) -> tuple[list[np.ndarray], str]:
+    """Face masks and how they were made: a rendered grid's from ``folder/grid.json``
+    (:func:`stimulus_engine.audit.masks.rendered_face_mask`: the framing's face oval minus the
+    background), else photographs' from their dlib landmarks (the convex hull,
+    :func:`stimulus_engine.audit.masks.landmark_face_mask`), as ``appeal stimuli audit`` makes them."""
+    from stimulus_engine.audit.masks import find_landmarks, grid_render_settings, landmark_face_mask, rendered_face_mask
 
     render = grid_render_settings(folder)
     if render is None:
-        raise AppealInputError(f"{folder / 'grid.json'}: not found; equalising needs a face mask, which is made "
-                               "from a rendered grid's grid.json (point MANIFEST to a grid output folder's "
-                               "manifest.csv)")
+        masks = []
+        for im, f in zip(images, files):
+            try:
+                masks.append(landmark_face_mask(im.shape, find_landmarks(im, f)))
+            except AppealInputError:
+                raise AppealInputError(f"{folder / f}: no face found by dlib, and no grid.json beside the manifest: "
+                                       "equalising needs a face mask (a rendered grid's grid.json, or a photograph "
+                                       "with a face the landmark detector finds)") from None
+        return masks, "landmarks"
     size = (int(render["height"]), int(render["width"]))
     return [rendered_face_mask(im, render["width"], render["height"], render["eye_row"], render["face_fraction"],
                                tuple(render["background"])) if im.shape[:2] == size
             else np.zeros(im.shape[:2], bool)  # check_set names the size mismatch
-            for im in images]
+            for im in images], "rendered"
 
 
 @stimuli.command(context_settings=CONTEXT, epilog="""\b
 Examples:
   appeal stimuli equalise stimuli/exp2/manifest.csv --match luminance --out stimuli/exp2_lum
   appeal stimuli equalise stimuli/exp2/manifest.csv --match histogram --grey --out stimuli/exp2_hist
-  appeal stimuli equalise stimuli/erp/manifest.csv --match spectrum --background keep --out stimuli/erp_spec""")
+  appeal stimuli equalise stimuli/erp/manifest.csv --match spectrum --background keep --out stimuli/erp_spec
+  appeal stimuli equalise aligned/manifest.csv --match spectrum --grey --out aligned_spec   # photographs""")
 @click.argument("manifest", metavar="MANIFEST", type=click.Path(path_type=Path))
 @click.option("--match", "method", required=True, type=click.Choice(["luminance", "histogram", "spectrum"]),
               help="luminance: masked mean and SD of L*; histogram: exact masked L* histogram; "
@@ -60,11 +69,13 @@ Examples:
               help="Grey outside the face (0.5 = 8-bit 128), or 'keep' the original pixels.")
 @out_options()
 def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path, force: bool, resume: bool) -> None:
-    """Equalise the luminance of a rendered grid's images (SHINE: lumMatch, histMatch, specMatch).
+    """Equalise the luminance of a stimulus set's faces (SHINE: lumMatch, histMatch, specMatch).
 
     \b
-    Reads MANIFEST (a grid's manifest.csv; images relative to its folder) and the grid.json
-    beside it (the face mask: the framing oval, less the background pixels). Works on CIE L*
+    Reads MANIFEST (a manifest.csv with a 'file' column; images relative to its folder) and,
+    for a rendered grid, the grid.json beside it (the face mask: the framing oval, less the
+    background pixels); without one (photographs, e.g. appeal faces outputs) each face's mask
+    is the convex hull of its dlib landmarks. Works on CIE L*
     only, keeping a* and b* (or grey with --grey); see stimulus_engine.audit.equalise.
     Writes the equalised images under DIR with the same relative file names, DIR/manifest.csv
     (the same columns plus 'equalised' and 'ssim', the SSIM of each image's L* to its
@@ -99,16 +110,17 @@ def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path
     from stimulus_engine.audit.workflow import read_rgb
 
     images = [read_rgb(folder / f) for f in files]
-    masks = _grid_face_masks(folder, images)
+    masks, mask_kind = _face_masks(folder, images, files)
     results, ssims = run_equalise(images, masks, method, grey=grey, background=bg, names=files)
 
     label = f"{method} (grey)" if grey else method
     new = table.copy()
     new["equalised"] = label
     new["ssim"] = np.round(ssims, 4)
-    inputs = [manifest, folder / "grid.json", *(folder / f for f in files)]
+    inputs = [manifest, *([folder / "grid.json"] if mask_kind == "rendered" else []), *(folder / f for f in files)]
     with output_run(out, force=force, resume=resume, inputs=inputs) as run:
-        run.extra.update({"equalised": label, "background": "keep" if bg is None else bg, "images": len(files)})
+        run.extra.update({"equalised": label, "background": "keep" if bg is None else bg, "images": len(files),
+                          "face_masks": mask_kind})
         tmp = Path(tempfile.mkdtemp(prefix=".equalise-", dir=run.out))
         try:
             for f, im in zip(files, results):

@@ -176,13 +176,13 @@ def _grey_outside(im: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def render_set(grid: Path, n: int) -> tuple[list[str], list[np.ndarray], list[np.ndarray]]:
     """``n`` images spread over the grid's sorted file list, their face masks (as the CLI)."""
-    from appeal_cli.stimuli_equalise import _grid_face_masks
+    from appeal_cli.stimuli_equalise import _face_masks
     from stimulus_engine.audit.workflow import read_rgb
 
     files = sorted((grid / "images").glob("*.png"))
     pick = [files[i] for i in np.linspace(0, len(files) - 1, n).round().astype(int)]
     images = [read_rgb(p) for p in pick]
-    masks = _grid_face_masks(grid, images)
+    masks, _ = _face_masks(grid, images, [p.name for p in pick])
     return [p.name for p in pick], [_grey_outside(im, m) for im, m in zip(images, masks)], masks
 
 

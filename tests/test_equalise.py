@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import doctest
+import json
 from pathlib import Path
 
 import numpy as np
@@ -167,11 +168,15 @@ def test_cli_errors_are_one_line_and_write_nothing(grid_dir, tmp_path, capsys):
     shutil.copytree(grid_dir / "images", bare / "images")
     shutil.copy(grid_dir / "manifest.csv", bare / "manifest.csv")
     out = tmp_path / "eq"
+    # no grid.json and an image without a face: no face mask obtainable
+    faceless = pd.read_csv(bare / "manifest.csv")["file"][0]
+    Image.fromarray(np.full((72, 96, 3), 128, np.uint8)).save(bare / faceless)
     assert main(["stimuli", "equalise", str(bare / "manifest.csv"), "--match", "luminance", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "grid.json" in err[0] and "mask" in err[0]
+    assert len(err) == 1 and faceless in err[0] and "grid.json" in err[0] and "face mask" in err[0], err
     assert not out.exists()
     shutil.copy(grid_dir / "grid.json", bare / "grid.json")
+    shutil.copy(grid_dir / faceless, bare / faceless)
     first = pd.read_csv(bare / "manifest.csv")["file"][1]
     Image.fromarray(np.zeros((48, 64, 3), np.uint8)).save(bare / first)
     assert main(["stimuli", "equalise", str(bare / "manifest.csv"), "--match", "spectrum", "--out", str(out)]) == 2
@@ -199,3 +204,26 @@ def test_spectrum_matching_of_photographs_with_small_face_masks(shared_data):
     assert E.spectrum_agreement(out) <= 0.01
     for o, im, m in zip(out, images, masks):
         assert np.all(o[~m] == 128) and E.ssim_lightness(im, o) > 0.95
+
+
+def test_cli_equalises_photographs_inside_their_landmark_masks(shared_data, tmp_path):
+    """A folder of photographs (no grid.json): the faces' masks come from their dlib landmarks."""
+    from appeal_cli import main
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    files = sorted((shared_data / "faces2d" / "london-frl" / "neutral_front").glob("*.jpg"))[:3]
+    for f in files:
+        Image.open(f).convert("RGB").resize((400, 400), Image.LANCZOS).save(folder / f"{f.stem}.png")
+    pd.DataFrame({"file": [f"{f.stem}.png" for f in files], "face_id": [f.stem for f in files]}).to_csv(
+        folder / "manifest.csv", index=False)
+    out = tmp_path / "eq"
+    assert main(["stimuli", "equalise", str(folder / "manifest.csv"), "--match", "spectrum", "--grey",
+                 "--out", str(out)]) == 0
+    result = pd.read_csv(out / "manifest.csv")
+    # SSIM to the originals, whose backgrounds became grey: what the matching cost
+    assert result["face_id"].tolist() == [f.stem for f in files] and result["ssim"].between(0.3, 1).all()
+    images = [np.asarray(Image.open(out / f).convert("RGB")) for f in result["file"]]
+    assert E.spectrum_agreement(images) <= 0.01
+    assert all(np.mean(np.all(im == 128, axis=2)) > 0.8 for im in images)  # grey outside the faces
+    assert json.loads((out / "provenance.json").read_text())["face_masks"] == "landmarks"

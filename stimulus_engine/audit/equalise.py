@@ -345,7 +345,7 @@ def _per_coefficient(values: np.ndarray, rings: np.ndarray, kmax: int, outside: 
 
 def _polish_spectrum(lstar: np.ndarray, mask: np.ndarray, target: np.ndarray, rings: np.ndarray, kmax: int,
                      tolerance: float, max_iterations: int) -> np.ndarray:
-    """Move the L* inside ``mask`` until the rotational average is ``target`` (relative ``tolerance``).
+    r"""Move the L* inside ``mask`` until the rotational average is ``target`` (relative ``tolerance``).
 
     Minimises :math:`\sum_k \log^2(R_k / T_k)` over the pixels inside the mask (the background
     stays as it is) with L-BFGS, the gradient from the FFT
