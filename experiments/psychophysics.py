@@ -310,16 +310,25 @@ class PsychophysicsPlan:
                "procedure_state": json.dumps(track.procedure.to_dict(), separators=(",", ":"))}
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in out.items()}
 
-    def replay(self, rows: Sequence[Mapping[str, str]], trials: list[Any], make: Callable[..., Any], start: int,
+    def answered(self, trials: list[Any], index: int, answer: str | None, make: Callable[..., Any]) -> dict[str, Any]:
+        """Score ``trials[index]``'s answer (:meth:`score`) and append the next trial, if any;
+        returns the row's fields. The runner calls it after each trial, :meth:`replay` for each row."""
+        fields = self.score(trials[index].extra["psy"], answer)
+        nxt = self.next_trial(len(trials) + 1, make)
+        if nxt is not None:
+            trials.append(nxt)
+        return fields
+
+    def replay(self, rows: Sequence[Mapping[str, str]], trials: list[Any], make: Callable[..., Any],
                where: str) -> None:
         """Rebuild the procedures from the rows on disk (a resumed session), growing ``trials``.
 
-        ``trials[start]`` must be the first pair trial (the session's first main trial); each
-        row must match the trial it was planned as (stimulus and level), and the answers in
-        the rows update the procedures as they did when the rows were written.
+        ``trials`` starts with the session's first trial; each row must match the trial it was
+        planned as (stimulus and track), and the answers in the rows update the procedures as
+        they did when the rows were written.
         """
         answer_col = f"response_{self.response.name}"
-        for i, row in enumerate(rows[start:], start):
+        for i, row in enumerate(rows):
             t = trials[i]
             info = t.extra["psy"]
             if row["stimulus"] != t.stimulus or row["procedure"] != info["procedure"]:
@@ -327,7 +336,4 @@ class PsychophysicsPlan:
                                        f"match the procedure's trial ({t.stimulus}, {info['procedure']}); was the seed, "
                                        "protocol or stimulus set changed?")
             answer = row.get(answer_col)
-            self.score(info, None if answer in (None, "", "n/a") else answer)
-            nxt = self.next_trial(i + 2, make)
-            if nxt is not None:
-                trials.append(nxt)
+            self.answered(trials, i, None if answer in (None, "", "n/a") else answer, make)

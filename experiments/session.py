@@ -171,7 +171,7 @@ def check_resume(rows: list[dict[str, str]], trials: list[Trial], beh: Path, pro
     (``timing.on_dropped_frames: repeat`` inserted a trial for each row flagged 1) and, in a
     psychophysics session, the answers that moved its procedures (the list grows as they did)."""
     if plan is not None:
-        plan.replay(rows, trials, pair_trial_maker(protocol, refresh_hz), 0, str(beh))
+        plan.replay(rows, trials, pair_trial_maker(protocol, refresh_hz), str(beh))
         return
     repeat = protocol.timing.on_dropped_frames == "repeat"
     for i, row in enumerate(rows):
@@ -463,10 +463,7 @@ def _procedure_step(plan: PsychophysicsPlan, make: Any) -> Any:
     answer = f"response_{plan.response.name}"
 
     def after_trial(trials: list[Trial], i: int, row: dict[str, Any]) -> None:
-        row.update(plan.score(trials[i].extra["psy"], row.get(answer)))
-        nxt = plan.next_trial(len(trials) + 1, make)
-        if nxt is not None:
-            trials.append(nxt)
+        row.update(plan.answered(trials, i, row.get(answer), make))
     return after_trial
 
 
