@@ -2,7 +2,17 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
+
+#: Characters a message line never carries: line breaks, tabs and other control characters
+#: (a value read from a hostile file cannot break the line or send terminal escapes).
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def _one_line(text: str) -> str:
+    text = re.sub(r"[\n\r\t]", " ", text)
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", text).strip()
 
 
 class AppealInputError(Exception):
@@ -17,7 +27,7 @@ class AppealInputError(Exception):
             lines = [message]
         else:
             lines = list(message)
-        self.lines: list[str] = [line.replace("\n", " ").strip() for line in lines]
+        self.lines: list[str] = [_one_line(line) for line in lines]
         super().__init__("\n".join(self.lines))
 
 

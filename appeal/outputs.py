@@ -22,7 +22,8 @@ from appeal.errors import AppealInputError
 from appeal.logs import add_log_file, logger, remove_log_file
 from appeal.provenance import now_iso, provenance_record, write_provenance
 
-__all__ = ["OutputRun", "prepare_out_dir", "output_run", "failed_run_only", "describe_seed"]
+__all__ = ["OutputRun", "prepare_out_dir", "output_run", "failed_run_only", "describe_seed", "require_inside",
+           "remove_inside"]
 
 #: What a run that failed before writing anything leaves behind (reused without --force).
 _RUN_RECORDS = frozenset({"log.txt", "provenance.json"})
@@ -42,6 +43,53 @@ def failed_run_only(out: Path) -> bool:
     except (OSError, ValueError, AttributeError):
         return False
     return isinstance(status, str) and status.startswith("failed")
+
+
+def require_inside(root: str | Path, path: str | Path, field: str = "output") -> Path:
+    """``path`` resolved, after checking that it lies inside the folder ``root``.
+
+    Every path a command builds from data (a participant label, a file name from a manifest) is
+    checked with this before anything is written or removed there. Both are resolved, following
+    symbolic links of the parts that exist, so neither ``..`` in a label nor a symbolic link
+    planted in the output folder leads outside it.
+
+    Parameters
+    ----------
+    root : path-like
+        The output folder (``--out``); it need not exist yet.
+    path : path-like
+        The file or folder about to be written or removed.
+    field : str
+        What the path is for, named in the message.
+
+    Returns
+    -------
+    Path
+        ``path`` resolved.
+
+    Raises
+    ------
+    AppealInputError
+        When the resolved path is not ``root`` or below it.
+    """
+    top = Path(root).expanduser().resolve()
+    target = Path(path).expanduser().resolve()
+    if target != top and top not in target.parents:
+        raise AppealInputError(f"{path}: {field}: resolves to {target}, outside the output folder {top} "
+                               "(a '..' or a symbolic link?); nothing was written")
+    return target
+
+
+def remove_inside(root: str | Path, path: str | Path, field: str = "output") -> None:
+    """Remove the file or folder ``path`` (when it exists) after :func:`require_inside`; a symbolic
+    link is removed itself, never what it points to."""
+    path = Path(path)
+    if path.is_symlink():
+        require_inside(root, path.parent, field)
+        path.unlink()
+    elif path.exists():
+        require_inside(root, path, field)
+        shutil.rmtree(path) if path.is_dir() else path.unlink()
 
 
 def describe_seed(seed: int | dict[str, int] | None) -> str:

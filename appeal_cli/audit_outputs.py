@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
+from appeal.cells import write_table
 
 __all__ = ["AuditOutputs", "write_audit", "write_grid_page"]
 
@@ -49,7 +50,6 @@ def write_audit(job, out: Path, *, thresholds: Mapping[str, float] | None = None
     ``design_tests.csv`` (:func:`analysis.confounds.design_tests`), ``level_means.csv`` and
     ``flags.png``; then ``report.md`` and ``report.html``.
     """
-    from appeal.atomic import atomic_write_text
     from analysis.confounds import design_tests, level_means
     from analysis.confounds.report import plot_flags, write_report
     from stimulus_engine.audit.workflow import (audit_factors, declared_factors, paired_factors, plot_audit,
@@ -58,15 +58,15 @@ def write_audit(job, out: Path, *, thresholds: Mapping[str, float] | None = None
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     table = run_audit(job)
-    atomic_write_text(out / "audit.csv", table.to_csv(index=False))
+    write_table(table, out / "audit.csv")
     factors = audit_factors(table)
     paired = paired_factors(table, declared_factors(table))
     figures = [plot_audit(table, out / "audit.png", factors)]
     tables = [out / "audit.csv"]
     if factors != ["file"]:
         tests = design_tests(table, factors, thresholds=thresholds, item=item)
-        atomic_write_text(out / "design_tests.csv", tests.to_csv(index=False))
-        atomic_write_text(out / "level_means.csv", level_means(table, factors, tests["measure"].unique()).to_csv(index=False))
+        write_table(tests, out / "design_tests.csv")
+        write_table(level_means(table, factors, tests["measure"].unique()), out / "level_means.csv")
         figures.insert(0, plot_flags(tests, out / "flags.png"))
         tables = [out / "design_tests.csv", out / "level_means.csv", *tables]
     else:

@@ -10,6 +10,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from appeal.cells import write_table
 from appeal.errors import AppealInputError
 from appeal_cli.groups import CONTEXT, stimuli
 from appeal_cli.options import out_options
@@ -85,7 +86,6 @@ def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path
     """
     import pandas as pd
 
-    from appeal.atomic import atomic_write_text
     from appeal.outputs import output_run
     from stimulus_engine.audit.equalise import equalise as run_equalise
     from stimulus_engine.render import save_png
@@ -135,6 +135,6 @@ def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path
                 os.replace(entry, dest)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
-        atomic_write_text(run.out / "manifest.csv", new.to_csv(index=False))
+        write_table(new, run.out / "manifest.csv")
         click.echo(f"{len(files)} images equalised ({label}) -> {run.out}; manifest {run.out / 'manifest.csv'}; "
                    f"SSIM to the originals mean {np.mean(ssims):.3f}, min {np.min(ssims):.3f}")

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from appeal.cells import write_table
 from appeal_cli.groups import CONTEXT, stimuli
 from appeal_cli.options import out_options, parallel_options, refuse_existing_file
 from appeal.errors import AppealInputError
@@ -143,9 +144,8 @@ def neoteny(manifest: Path, out: Path | None, force: bool, resume: bool) -> None
         raise AppealInputError(f"{lm_path}: {exc}".splitlines()[0]) from None
     out = out or manifest.parent / "neoteny"
     with output_run(out, force=force, resume=resume, inputs=[manifest, lm_path]) as run:
-        from appeal.atomic import atomic_write_text
 
-        atomic_write_text(run.out / "neoteny.csv", table.to_csv(index=False))
+        write_table(table, run.out / "neoteny.csv")
         figs = plot_neoteny(table, run.out / "neoteny.png")
         click.echo(f"{len(table)} rows -> {run.out / 'neoteny.csv'}; plot {figs[0]}")
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from appeal.cells import write_table
 from appeal_cli.groups import CONTEXT, stimuli
 from appeal_cli.options import refuse_existing_file
 
@@ -109,7 +110,6 @@ def retarget(motion: Path, ict: Path, identity: str, marker_map: Path | None, fp
     """
     import pandas as pd
 
-    from appeal.atomic import atomic_write_text
     from stimulus_engine.characters.motion_files import read_motion
     from stimulus_engine.characters.retarget import retarget_performance
 
@@ -120,5 +120,5 @@ def retarget(motion: Path, ict: Path, identity: str, marker_map: Path | None, fp
     table = pd.DataFrame(w, columns=sorted(rig.blendshapes))
     table.insert(0, "time", [round(i / rate, 6) for i in range(len(w))])
     table.insert(0, "frame", range(len(w)))
-    atomic_write_text(out, table.to_csv(index=False, float_format="%.6f"))
+    write_table(table, out, float_format="%.6f")
     click.echo(f"{len(w)} frames at {rate:g} fps, {len(vertices)} markers -> {out}")

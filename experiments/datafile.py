@@ -17,9 +17,10 @@ from pathlib import Path
 from typing import Any
 
 from appeal.atomic import atomic_write_text
+from appeal.cells import neutralise
 from appeal.errors import AppealInputError
 
-__all__ = ["session_stem", "TsvWriter", "read_completed", "write_sidecar", "write_demographics", "NA"]
+__all__ = ["session_stem", "TsvWriter", "read_completed", "read_sidecar", "write_sidecar", "write_demographics", "NA"]
 
 #: How missing values are written (BIDS convention; pandas reads it as NaN).
 NA = "n/a"
@@ -40,9 +41,9 @@ def _fmt(value: Any) -> str:
             return NA
         return f"{value:.6f}".rstrip("0").rstrip(".") if abs(value) < 1e9 else repr(value)
     text = str(value)
-    if "\t" in text or "\n" in text:
-        text = text.replace("\t", " ").replace("\n", " ")
-    return text
+    if "\t" in text or "\n" in text or "\r" in text:
+        text = text.replace("\t", " ").replace("\n", " ").replace("\r", " ")
+    return neutralise(text)
 
 
 class TsvWriter:
@@ -165,6 +166,18 @@ def read_completed(path: str | Path, columns: Sequence[str] | None = None) -> li
             raise AppealInputError(f"{path}:{n}: expected {len(header)} tab-separated values, found {len(parts)}")
         rows.append(dict(zip(header, parts)))
     return rows
+
+
+def read_sidecar(path: str | Path) -> dict[str, Any]:
+    """A session's JSON sidecar (one-line error when it is not a JSON object)."""
+    path = Path(path)
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise AppealInputError(f"{path}: cannot read the session sidecar ({str(exc).splitlines()[0][:80]})") from None
+    if not isinstance(record, dict):
+        raise AppealInputError(f"{path}: expected a JSON object (the session sidecar), found {type(record).__name__}")
+    return record
 
 
 def write_sidecar(path: str | Path, record: Mapping[str, Any]) -> Path:

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from appeal.cells import write_table
 from appeal.report import ReportSection, write_index_html
 
 __all__ = ["session_summary", "write_session_report", "onset_asynchronies", "timing_figure", "overlapping_texts"]
@@ -189,11 +190,11 @@ def write_session_report(paths: dict[str, Path], refresh_hz: float) -> Path:
     factors = [c for c in side.get("Columns", {}) if side["Columns"][c]["Description"].startswith("factor '")]
     s = session_summary(beh, refresh_hz, factors)
     frames_csv = out / "frames_intended_vs_shown.csv"
-    s["frames"].to_csv(frames_csv, index=False)
+    write_table(s["frames"], frames_csv)
     cond_csv = out / "trials_per_condition.csv"
-    s["per_condition"].to_csv(cond_csv, index=False)
+    write_table(s["per_condition"], cond_csv)
     numbers_csv = out / "summary.csv"
-    pd.DataFrame([s["numbers"]]).T.rename(columns={0: "value"}).rename_axis("measure").to_csv(numbers_csv)
+    write_table(pd.DataFrame([s["numbers"]]).T.rename(columns={0: "value"}).rename_axis("measure"), numbers_csv, index=True)
     figs = _figure(s, out / "timing.png", f"{side.get('ProtocolName')} sub-{side.get('participant_id')} "
                    f"({side.get('TimingMode')} timing, {refresh_hz:g} Hz)")
     mode = side.get("TimingMode")

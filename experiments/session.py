@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import json
 import platform
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -16,12 +15,14 @@ from pydantic import ValidationError
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
-from appeal.outputs import output_run
+from appeal.labels import check_label, check_session
+from appeal.outputs import output_run, require_inside
 from appeal.progress import progress
 from appeal.provenance import file_sha256, now_iso, package_versions
 from appeal.studyfile import load_study_file
 from experiments.clips import CLIP_DESCRIPTIONS
-from experiments.datafile import TsvWriter, read_completed, session_stem, write_demographics, write_sidecar
+from experiments.datafile import (TsvWriter, read_completed, read_sidecar, session_stem, write_demographics,
+                                 write_sidecar)
 from experiments.display import DROP_THRESHOLD, NoWindow, Presenter
 from experiments.protocol_schema import Protocol
 from experiments.runner import SessionRunner, beh_columns, flip_columns
@@ -251,12 +252,8 @@ def run_session(
     SessionResult
         Paths, counts, status.
     """
-    import re
-
-    if not re.fullmatch(r"[A-Za-z0-9]+", str(participant)):
-        raise AppealInputError(f"--participant: expected letters and digits only (a BIDS label), got {participant!r}")
-    if session < 1:
-        raise AppealInputError(f"--session: expected a number >= 1, got {session}")
+    check_label(participant, "--participant")
+    session = check_session(session, "--session")
     if simulate is None and (realtime or not window):
         raise AppealInputError("--realtime and --no-window only apply to simulated sessions (--simulate MODEL)")
     protocol_file = Path(protocol_file)
@@ -268,13 +265,15 @@ def run_session(
     protocol_hash = file_sha256(protocol_file)
     previous: dict[str, Any] = {}
     if resume and paths["sidecar"].is_file():
-        previous = json.loads(paths["sidecar"].read_text())
+        previous = read_sidecar(paths["sidecar"])
         if previous.get("ProtocolSHA256") != protocol_hash:
             raise AppealInputError(f"{protocol_file}: changed since the session started (sha256 differs from "
                                    f"{paths['sidecar']}); resume with the original protocol")
         if seed is not None and seed != previous.get("Seed"):
             raise AppealInputError(f"--seed: the session started with seed {previous.get('Seed')}, got {seed}")
-        seed = int(previous["Seed"])
+        seed = previous.get("Seed")
+        if not isinstance(seed, int) or isinstance(seed, bool) or not isinstance(previous.get("RefreshRate", 0.0), (int, float)):
+            raise AppealInputError(f"{paths['sidecar']}: Seed/RefreshRate: expected numbers (the sidecar was edited?)")
     elif resume and out.is_dir() and any(out.iterdir()):
         raise AppealInputError(f"{out}: --resume: no session sidecar {paths['sidecar'].name} here to resume from")
     if seed is None:
@@ -291,6 +290,8 @@ def run_session(
     with output_run(out, force=force, resume=resume, seed=seed, inputs=[protocol_file, full.source], argv=argv) as run:
         out = run.out
         paths = session_paths(out, participant, session, protocol.task)
+        for what, p in paths.items():
+            require_inside(out, p, f"the session's {what} file")
         answers = None
         if model is None and protocol.demographics and not previous:
             # the dialog comes first and alone: before the PsychoPy window (and its frame-rate test)

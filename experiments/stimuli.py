@@ -10,7 +10,9 @@ from typing import Any
 
 import pandas as pd
 
+from appeal.cells import formula_like
 from appeal.errors import AppealInputError
+from appeal.labels import shown
 from appeal.levels import level_key, order_levels
 from experiments.clips import clip_frame_files, rate_problem
 from experiments.protocol_schema import Protocol, Selection, StimulusSource
@@ -135,6 +137,7 @@ def load_stimuli(source: StimulusSource, *, override: str | Path | None = None, 
     out["path"] = [str((image_root / f).resolve()) for f in out["stimulus"]]
     for f in source.factors:
         out[f] = [level_key(v) for v in df[f]]
+    _refuse_formulas(out, ["stimulus", *source.factors], table_path)
     clip = _clip_rows(df, table_path)
     stills = out["path"][~clip]
     absent = [p for p in stills if not Path(p).is_file()]
@@ -157,6 +160,18 @@ def load_stimuli(source: StimulusSource, *, override: str | Path | None = None, 
     if not len(selected):
         raise AppealInputError(f"{protocol_file}: stimuli.select: selects none of the {len(sset)} images in {table_path}")
     return selected
+
+
+def _refuse_formulas(out: pd.DataFrame, columns: list[str], table_path: Path) -> None:
+    """A one-line error for a file name or level a spreadsheet would run as a formula (the data
+    files write such text neutralised, and a resumed session could no longer match it)."""
+    for c in columns:
+        bad = out[c].map(formula_like)
+        if bad.any():
+            i = int(bad.to_numpy().argmax())
+            field = "file" if c == "stimulus" else c
+            raise AppealInputError(f"{table_path}: line {i + 2}: {field}: {shown(out[c].iloc[i])} starts like a "
+                                   "spreadsheet formula (=, +, -, @); expected a name that does not")
 
 
 #: What a clip row of a stimulus table adds to :attr:`StimulusSet.table` (None for still images).

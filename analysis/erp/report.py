@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from appeal.atomic import atomic_write_text
+from appeal.cells import write_table
 from appeal.errors import AppealInputError
 from appeal.logs import logger
 
@@ -38,7 +39,7 @@ class ErpOutputs:
 
 def _csv(df: pd.DataFrame, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, df.to_csv(index=False, float_format="%.6g"))
+    write_table(df, path, float_format="%.6g")
     return path
 
 

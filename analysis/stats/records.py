@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from appeal.atomic import atomic_write_text
+from appeal.cells import write_table
 
 __all__ = ["json_records", "write_csv"]
 
@@ -34,5 +34,5 @@ def json_records(df: pd.DataFrame) -> list[dict]:
 def write_csv(df: pd.DataFrame, path: Path) -> Path:
     """``df`` as ``path`` (CSV, no index), its folder made first; returns the path."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, df.to_csv(index=False))
+    write_table(df, path)
     return path

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from appeal.atomic import atomic_write_text
+from appeal.cells import write_table
 
 __all__ = ["ScaleModel", "simulate_ratings", "exp2_design", "write_bids"]
 
@@ -176,6 +176,6 @@ def write_bids(data: pd.DataFrame, folder: str | Path, task: str) -> list[Path]:
         label = str(pid).removeprefix("sub-")
         path = folder / f"sub-{label}" / f"ses-{ses}" / "beh" / f"sub-{label}_ses-{ses}_task-{task}_beh.tsv"
         path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(path, part.to_csv(sep="\t", index=False, na_rep="n/a"))
+        write_table(part, path, sep="\t", na_rep="n/a")
         out.append(path)
     return out

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from appeal.cells import write_table
 from appeal.demo import DemoStage
 from appeal.report import ReportSection
 
 
 def _run(out: Path, seed: int) -> ReportSection:
-    from appeal.atomic import atomic_write_text
     from appeal.studyfile import validate_data
     from appeal_cli.audit_outputs import write_audit, write_grid_page
     from stimulus_engine.audit.workflow import read_audit_inputs
@@ -61,7 +61,7 @@ def _run(out: Path, seed: int) -> ReportSection:
     clips, clip_sheets = run_grid(clip, out / "clips", n_jobs=2)
     strips = [p for p in clip_sheets if p.name.startswith("filmstrip")]
     table = neoteny_table(pd.read_csv(out / "landmarks.csv"))
-    atomic_write_text(out / "neoteny.csv", table.to_csv(index=False))
+    write_table(table, out / "neoteny.csv")
     figs = plot_neoteny(table, out / "neoteny.png")
     n = int((manifest["status"] == "rendered").sum())
     text = ("A real face first: the embedded 3D scan (menpo3d's 'james', BSD-3) drawn as itself — its own "

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from appeal.cells import write_table
 from appeal.errors import AppealInputError
 from stimulus_engine.faces2d.template import Template, write_template
 
@@ -94,9 +95,8 @@ def write_outputs(folder: str | Path, outputs: Sequence[FaceOutput], operation: 
                      "inputs": ";".join(str(p) for p in o.inputs),
                      "parameters": json.dumps(parameters, sort_keys=True), **o.columns})
     manifest = folder / "manifest.csv"
-    from appeal.atomic import atomic_write_text
 
-    atomic_write_text(manifest, pd.DataFrame(rows).to_csv(index=False))
+    write_table(pd.DataFrame(rows), manifest)
     n = len(outputs)
     cols = ncols or min(n, 6)
     sheet = contact_sheet([_sheet_thumb(o.image) for o in outputs], cols, thumb_width=200,

@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from stimulus_engine.grid.schema import GridFile, MaterialContinuum, MaterialSpec, ShapeContinuum
+from appeal.cells import write_table
 
 __all__ = ["CANDIDATES", "common_levels", "continuum_table", "even_amounts", "even_materials", "even_shapes",
            "needs_measuring", "pins", "plot_continuum", "spaced_by_value", "write_continuum"]
@@ -476,7 +477,6 @@ def plot_continuum(table: pd.DataFrame, path: Path) -> Path:
 
 def write_continuum(out: Path, table: pd.DataFrame, grid: GridFile) -> list[Path]:
     """``continuum.csv`` and ``continuum.png`` (of :func:`continuum_table`) in ``out``, each step logged."""
-    from appeal.atomic import atomic_write_text
 
     if table.empty:
         return []
@@ -485,5 +485,5 @@ def write_continuum(out: Path, table: pd.DataFrame, grid: GridFile) -> list[Path
         logger.info("%s: %s %s steps %s (largest / smallest %.2f); identity to realistic %s", grid.name, ch, factor,
                     ", ".join(f"{x:.4f}" for x in steps), steps.max() / max(steps.min(), 1e-12) if len(steps) else 1.0,
                     ", ".join(f"{x:.2f}" for x in g["identity_to_realistic"]))
-    csv = atomic_write_text(Path(out) / "continuum.csv", table.to_csv(index=False, float_format="%.5f"))
+    csv = write_table(table, Path(out) / "continuum.csv", float_format="%.5f")
     return [csv, plot_continuum(table, Path(out) / "continuum.png")]

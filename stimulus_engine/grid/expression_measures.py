@@ -382,7 +382,7 @@ def write_expression_measures(out: Path, landmarks: pd.DataFrame, grid: GridFile
     than one shape level (nothing to compare otherwise: returns ``[]``); one log line per
     character x expression with its spread across levels.
     """
-    from appeal.atomic import atomic_write_text
+    from appeal.cells import write_table
 
     if landmarks.empty or NEUTRAL not in set(landmarks["expression"]) or landmarks["expression"].nunique() < 2 \
             or landmarks["shape"].nunique() < 2:
@@ -396,6 +396,6 @@ def write_expression_measures(out: Path, landmarks: pd.DataFrame, grid: GridFile
                     ", ".join(f"{r.measure} {r.largest_relative_difference:.2f} (ratio {r.ratio:.2f})"
                               for r in judged.itertuples()) or "none judged")
     out = Path(out)
-    return [atomic_write_text(out / "expression_measures.csv", table.to_csv(index=False, float_format="%.6f")),
-            atomic_write_text(out / "expression_agreement.csv", agreement.to_csv(index=False, float_format="%.5f")),
+    return [write_table(table, out / "expression_measures.csv", float_format="%.6f"),
+            write_table(agreement, out / "expression_agreement.csv", float_format="%.5f"),
             plot_expression_measures(table, out / "expression_measures.png")]

@@ -12,6 +12,7 @@ from pathlib import Path
 import pandas as pd
 
 from appeal.atomic import atomic_write_text
+from appeal.cells import write_table
 from appeal.logs import logger
 from stimulus_engine.grid.animation import apex_view, clip_checksums, render_clip
 from stimulus_engine.grid.characters import load_character
@@ -109,8 +110,8 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     if not continuum.empty:  # each measured image's identity distance to its character's realistic level
         manifest["identity_to_realistic"] = stills["file"].map(
             continuum.drop_duplicates("file").set_index("file")["identity_to_realistic"])
-    atomic_write_text(out / "manifest.csv", manifest.to_csv(index=False))
-    atomic_write_text(out / "landmarks.csv", landmarks.to_csv(index=False))
+    write_table(manifest, out / "manifest.csv")
+    write_table(landmarks, out / "landmarks.csv")
     atomic_write_text(out / "grid.json", json.dumps(grid.model_dump(mode="json"), indent=2))
     manifest.attrs["grid"] = grid
     sheets = (write_sheets(out, stills, grid) + (write_filmstrips(out, manifest, grid) if animated else [])

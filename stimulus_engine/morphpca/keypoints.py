@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from appeal.cells import write_table
 from appeal.errors import AppealInputError
 
 __all__ = ["FRAME_COLUMNS", "read_tem", "faceframe_from_tem", "faceframe_from_68", "read_keypoints_csv",
@@ -100,7 +101,6 @@ def write_keypoints_csv(path: str | Path, images: Sequence[str | Path], frames: 
     columns) in the CSV format :func:`read_keypoints_csv` / :func:`read_landmarks_csv` read."""
     import pandas as pd
 
-    from appeal.atomic import atomic_write_text
 
     df = pd.DataFrame(np.asarray(frames).reshape(len(images), 6), columns=list(FRAME_COLUMNS))
     df.insert(0, "image", [Path(p).name for p in images])
@@ -108,7 +108,7 @@ def write_keypoints_csv(path: str | Path, images: Sequence[str | Path], frames: 
         lm = np.asarray(landmarks, float)
         cols = [c for j in range(lm.shape[1]) for c in (f"p{j}_x", f"p{j}_y")]
         df = pd.concat([df, pd.DataFrame(lm.reshape(len(images), -1), columns=cols)], axis=1)
-    return atomic_write_text(path, df.to_csv(index=False, float_format="%.3f"))
+    return write_table(df, path, float_format="%.3f")
 
 
 _DLIB: dict = {}
