@@ -32,15 +32,13 @@ def shown(value: Any, width: int = 40) -> str:
 
 
 def label_problem(value: Any) -> str | None:
-    """Why ``value`` is not a BIDS label (a phrase), or None when it is one."""
+    """Why ``value`` is not a BIDS label (a phrase starting ``expected``), or None when it is one."""
     if not isinstance(value, str):
-        return f"expected text, got {type(value).__name__}"
-    if not value:
-        return "expected letters and digits only (a BIDS label), got an empty value"
+        return f"expected text (a BIDS label), not {type(value).__name__}"
     if len(value) > MAX_LABEL:
-        return f"expected letters and digits only (a BIDS label) of at most {MAX_LABEL} characters, got {len(value)}"
+        return f"expected letters and digits only (a BIDS label) of at most {MAX_LABEL} characters"
     if not LABEL_PATTERN.fullmatch(value):
-        return f"expected letters and digits only (a BIDS label), got {shown(value)}"
+        return "expected letters and digits only (a BIDS label)"
     return None
 
 
@@ -63,7 +61,8 @@ def check_label(value: Any, field: str, where: str | None = None) -> str:
     """
     problem = label_problem(value)
     if problem is not None:
-        raise AppealInputError(f"{where}: {field}: {problem}" if where else f"{field}: {problem}")
+        msg = f"{field}: {problem}, got {shown(value)}"
+        raise AppealInputError(f"{where}: {msg}" if where else msg)
     return value
 
 

@@ -65,16 +65,27 @@ Examples:
               help="The protocol the study was exported from (columns and lists are checked against it).")
 @click.option("--out", type=click.Path(path_type=Path), default=Path("data"), show_default=True, metavar="DIR",
               help="Data folder: each session goes to DIR/sub-ID/ses-N/beh/.")
+@click.option("--stimuli", type=click.Path(path_type=Path), default=None, metavar="PATH",
+              help="The manifest/factor table the study was exported with, if not the protocol's "
+                   "(the participants' trial lists are rebuilt from it to check the rows).")
 @click.option("--force", is_flag=True, help="Replace sessions imported before.")
-def import_web_cmd(files: tuple[Path, ...], protocol: Path, out: Path, force: bool) -> None:
+def import_web_cmd(files: tuple[Path, ...], protocol: Path, out: Path, stimuli: Path | None, force: bool) -> None:
     """Import browser session files (FILES: sub-ID_ses-N_task-TASK_beh.tsv) into the BIDS layout.
 
-    Each file is checked (the protocol's columns, trials 1, 2, 3 ... in order, the list's seed)
-    and written with a JSON sidecar and a timing report (intended vs shown frames at the
-    browser's measured refresh rate), so the rating analysis reads it like a lab session.
+    \b
+    A file from a browser is untrusted until checked, and every file is checked before anything
+    is written: UTF-8 text of a size the protocol's trials explain, ending in a line end (a
+    truncated download is refused); the export's columns; every cell parsed to its type (BIDS
+    labels, numbers in range, the protocol's scale points and choices); one participant, list and
+    seed; the protocol's sha256; and every row the trial the participant's exported list has
+    there (rebuilt from the protocol and its stimuli). One bad file: one line naming the file,
+    the line and the column, and nothing is written. Each session is then written with a JSON
+    sidecar and a timing report (intended vs shown frames at the browser's measured refresh
+    rate), so the rating analysis reads it like a lab session; text a spreadsheet would run as
+    a formula is written neutralised ('=...).
     """
     from experiments.web import import_web
 
-    for s in import_web(list(files), protocol, out, force=force):
+    for s in import_web(list(files), protocol, out, force=force, stimuli=stimuli):
         state = "complete" if s.complete else "incomplete"
         click.echo(f"sub-{s.participant}: {s.trials} trials ({state}) -> {s.beh}")

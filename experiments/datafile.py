@@ -20,7 +20,7 @@ from appeal.atomic import atomic_write_text
 from appeal.cells import neutralise
 from appeal.errors import AppealInputError
 
-__all__ = ["session_stem", "TsvWriter", "read_completed", "read_sidecar", "write_sidecar", "write_demographics", "NA"]
+__all__ = ["session_stem", "format_cell", "TsvWriter", "read_completed", "read_sidecar", "write_sidecar", "write_demographics", "NA"]
 
 #: How missing values are written (BIDS convention; pandas reads it as NaN).
 NA = "n/a"
@@ -31,7 +31,9 @@ def session_stem(participant: str, session: int, task: str) -> str:
     return f"sub-{participant}_ses-{session}_task-{task}"
 
 
-def _fmt(value: Any) -> str:
+def format_cell(value: Any) -> str:
+    """A value as a session file's cell: ``n/a`` for None and NaN, ``1``/``0`` for booleans, numbers
+    to 6 decimals, text on one line with a spreadsheet formula neutralised (:mod:`appeal.cells`)."""
     if value is None:
         return NA
     if isinstance(value, bool):
@@ -99,12 +101,12 @@ class TsvWriter:
 
     def write(self, row: Mapping[str, Any]) -> None:
         """Append one row and make it durable."""
-        self._write_line("\t".join(_fmt(row.get(c)) for c in self.columns))
+        self._write_line("\t".join(format_cell(row.get(c)) for c in self.columns))
 
     def write_many(self, rows: Sequence[Mapping[str, Any]]) -> None:
         """Append several rows with one flush (and fsync)."""
         if rows:
-            self._write_line("\n".join("\t".join(_fmt(r.get(c)) for c in self.columns) for r in rows))
+            self._write_line("\n".join("\t".join(format_cell(r.get(c)) for c in self.columns) for r in rows))
 
     def close(self) -> None:
         """Wait for the last fsync and close the file."""
@@ -194,6 +196,6 @@ def write_demographics(path: str | Path, participant: str, answers: Mapping[str,
         for r in read_completed(path):
             rows[r["participant_id"]] = r
             cols += [c for c in r if c not in cols]
-    rows[participant] = {"participant_id": participant, **{k: _fmt(v) for k, v in answers.items()}}
+    rows[participant] = {"participant_id": participant, **{k: format_cell(v) for k, v in answers.items()}}
     text = "\t".join(cols) + "\n" + "".join("\t".join(r.get(c, NA) for c in cols) + "\n" for r in rows.values())
     return atomic_write_text(path, text)

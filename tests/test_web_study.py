@@ -21,26 +21,10 @@ from experiments.runner import beh_columns
 from experiments.session import load_protocol, run_session
 from experiments.web import WEB_COLUMNS, export_web, import_web
 from web_participant import StudyServer, answer_until, browser, state, wait_for_file
+from web_session_files import web_protocol
 
 
-def _protocol(tmp_path, name, *, characters=("c1",), trim=True):
-    from experiments.drawn_faces import draw_face_grid
-
-    levels = {"character": list(characters), "shape": [0, 4], "material": [0, 4],
-              "expression": ["neutral", "happiness", "anger"]}
-    manifest = draw_face_grid(tmp_path / "faces", levels, size=(160, 120))
-    proto = yaml.safe_load((protocols_dir() / f"{name}.yaml").read_text())
-    proto["stimuli"].pop("levels")
-    proto["stimuli"].pop("grid")
-    proto["stimuli"]["manifest"] = str(manifest)
-    if trim:  # the shipped timing, shortened: 0.2 s faces, jittered fixation, a break every 5 trials
-        proto["timing"].update(stimulus_s=0.2, fixation_s=[0.1, 0.2])
-        proto["breaks"]["every"] = 5
-        if "anchors" in proto:
-            proto["anchors"].update(stimulus_s=0.2, if_missing="skip")
-    path = tmp_path / f"{name}.yaml"
-    path.write_text(yaml.safe_dump(proto, allow_unicode=True))
-    return path
+_protocol = web_protocol
 
 
 def _trials_js(site):

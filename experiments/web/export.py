@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from appeal.errors import AppealInputError
+from appeal.labels import check_session
 from appeal.levels import level_key
 from appeal.outputs import output_run
 from appeal.provenance import file_sha256
@@ -55,6 +56,7 @@ WEB_DESCRIPTIONS: dict[str, str] = {
     "recruitment_pid": "participant id from the recruitment platform (URL parameter PROLIFIC_PID or workerId)",
     "study_id": "URL parameter STUDY_ID", "session_id": "URL parameter SESSION_ID",
     "started": "when the participant first opened the study (ISO 8601, the browser's clock)",
+    "protocol_sha256": "sha256 of the protocol file the study was exported from (the importer compares it)",
 }
 
 #: The browser's own columns, in order.
@@ -286,6 +288,7 @@ def export_web(protocol_file: str | Path, out: str | Path, *, participants: int 
         raise AppealInputError(f"--data-url: expected an http(s):// URL or a path on the study's server (got {data_url!r})")
     if completion_url is not None and not re.match(r"^https?://", completion_url):
         raise AppealInputError(f"--completion-url: expected an http(s):// URL (got {completion_url!r})")
+    session = check_session(session, "--session")
     slots = participant_slots(participants)
     full, main = session_stimuli(protocol, protocol_file, stimuli)
     hz = float(protocol.screen.refresh_hz or 60.0)

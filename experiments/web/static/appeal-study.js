@@ -25,15 +25,28 @@
     return h >>> 0;
   }
 
+  // The importer's limits (experiments/web/session_file.py): a BIDS label of at most 64 characters,
+  // URL parameters of at most 256 and a user agent of at most 1024, no control characters.
+  const MAX_LABEL = 64;
+  const MAX_PARAMETER = 256;
+  const MAX_TEXT = 1024;
+  function param(name) {
+    const v = query.get(name);
+    return v ? clean(v, MAX_PARAMETER) : null;
+  }
+  function clean(text, width) {
+    return String(text).replace(/[\u0000-\u001f\u007f-\u009f\u200e\u200f\u202a-\u202e\u2066-\u2069\ufeff]/g, " ").slice(0, width);
+  }
+
   function assign() {
     const given = query.get("participant") || query.get("PROLIFIC_PID") || query.get("workerId") || "";
     const label = given.replace(/[^A-Za-z0-9]/g, "");
-    if (!label) return null;
+    if (!label || label.length > MAX_LABEL) return null;
     const slot = C.participants.includes(label) ? label : C.participants[fnv1a(given) % C.participants.length];
     return {
       participant: label, slot: slot, seed: C.seeds[slot],
-      recruitment_pid: query.get("PROLIFIC_PID") || query.get("workerId") || null,
-      study_id: query.get("STUDY_ID") || null, session_id: query.get("SESSION_ID") || null,
+      recruitment_pid: param("PROLIFIC_PID") || param("workerId"),
+      study_id: param("STUDY_ID"), session_id: param("SESSION_ID"),
     };
   }
 
@@ -372,10 +385,11 @@
       participant_id: who.participant, session: C.session, part: session.state.part, trial: trial.trial,
       phase: trial.phase, block: trial.block, repetition: trial.repetition, stimulus: trial.stimulus,
       trigger: null, trigger_s: null, trigger_flip_ms: null, list: who.slot, list_trials: LISTS[who.slot].length, seed: who.seed,
-      browser: navigator.userAgent, screen_width: window.screen.width, screen_height: window.screen.height,
+      browser: clean(navigator.userAgent, MAX_TEXT), screen_width: window.screen.width, screen_height: window.screen.height,
       window_width: window.innerWidth, window_height: window.innerHeight, refresh_hz: clock.hz,
       intended_s: trial.stimulus_frames / C.nominal_hz, recruitment_pid: who.recruitment_pid,
       study_id: who.study_id, session_id: who.session_id, started: session.state.started,
+      protocol_sha256: C.protocol_sha256,
     };
     Object.keys(trial.factors).forEach(function (f) { row[f] = trial.factors[f]; });
     if (trial.break_before && C.breaks) {
@@ -516,7 +530,7 @@
     document.title = C.title;
     const who = assign();
     if (!who) {
-      fail("This link lacks a participant id (…?participant=ID, or PROLIFIC_PID from the recruitment site).");
+      fail("This link lacks a participant id (…?participant=ID of letters and digits, at most 64, or PROLIFIC_PID from the recruitment site).");
       return;
     }
     const list = LISTS[who.slot];
