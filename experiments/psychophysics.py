@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 
 from appeal.errors import AppealInputError
+from appeal.labels import shown
+from appeal.levels import level_key
 from appeal.psychophysics import ConstantStimuli, PsiProcedure, UpDownStaircase
 from appeal.psychophysics.procedures import Procedure
 from experiments.protocol_schema import ClassificationSpec, ProcedureSpec, Protocol, PsychophysicsSpec
@@ -325,15 +327,30 @@ class PsychophysicsPlan:
 
         ``trials`` starts with the session's first trial; each row must match the trial it was
         planned as (stimulus and track), and the answers in the rows update the procedures as
-        they did when the rows were written.
+        they did when the rows were written. The rows are data anyone can edit: a row past the
+        session's last trial, one that does not match its trial, or an answer that is not one of
+        the response's choice values (nor ``n/a``) is a one-line error; the ``procedure_state``
+        column is never read (the procedures are rebuilt from the answers alone), so the work is
+        one procedure update per row.
         """
         answer_col = f"response_{self.response.name}"
+        choices = {form for c in self.response.choices for form in (str(c.value), level_key(c.value))}
         for i, row in enumerate(rows):
+            trial = row.get("trial", str(i + 1))
+            plain = isinstance(trial, str) and trial.isascii() and trial.isdigit() and len(trial) < 10
+            number = trial if plain else shown(trial)
+            if i >= len(trials):
+                raise AppealInputError(f"{where}: trial {number}: {len(rows)} rows, but the procedures stopped after "
+                                       f"{len(trials)} trials; was the file edited, or the protocol changed?")
             t = trials[i]
             info = t.extra["psy"]
-            if row["stimulus"] != t.stimulus or row["procedure"] != info["procedure"]:
-                raise AppealInputError(f"{where}: trial {row['trial']} ({row['stimulus']}, {row['procedure']}) does not "
-                                       f"match the procedure's trial ({t.stimulus}, {info['procedure']}); was the seed, "
-                                       "protocol or stimulus set changed?")
+            stimulus, procedure = row.get("stimulus"), row.get("procedure")
+            if stimulus != t.stimulus or procedure != info["procedure"]:
+                raise AppealInputError(f"{where}: trial {number} ({shown(stimulus)}, {shown(procedure)}) does not "
+                                       f"match the procedure's trial ({t.stimulus}, {info['procedure']}); was the "
+                                       "seed, protocol or stimulus set changed?")
             answer = row.get(answer_col)
+            if answer not in (None, "", "n/a") and answer not in choices:
+                raise AppealInputError(f"{where}: trial {number}: {answer_col}: expected one of "
+                                       f"{', '.join(sorted(choices))} or n/a, got {shown(answer)}")
             self.answered(trials, i, None if answer in (None, "", "n/a") else answer, make)

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from analysis.psychometric.fit import FitResult
 from analysis.stats.plots import save_figure
+from appeal.figures import plain_text
 
 __all__ = ["Curve", "participant_figure", "group_figure"]
 
@@ -71,6 +72,7 @@ def _threshold_bar(ax, curve: Curve, color, offset: float = 0.0) -> None:
     ax.plot([x_thr], [y], marker="|", markersize=12, markeredgewidth=2, color=color, zorder=5)
 
 
+@plain_text
 def participant_figure(curves: Sequence[Curve], stem: str | Path, threshold_pc: float, xlabel: str,
                        title: str, continuum: tuple[float, float] | None = None) -> list[Path]:
     """One participant's data and fitted functions.
@@ -122,6 +124,7 @@ def participant_figure(curves: Sequence[Curve], stem: str | Path, threshold_pc: 
     return save_figure(fig, stem)
 
 
+@plain_text
 def group_figure(long: pd.DataFrame, summary: pd.DataFrame, subject: str, measure: str, ylabel: str,
                  stem: str | Path, title: str = "") -> list[Path]:
     """Each participant's estimate per condition (thin lines) and the mean ± CI (black).

@@ -34,7 +34,9 @@ from analysis.stats.records import json_records, write_csv
 from analysis.stats.reporting import anova_text, format_comparison, markdown_table
 from appeal.atomic import atomic_write_text
 from appeal.errors import AppealInputError
+from appeal.labels import label_problem
 from appeal.logs import logger
+from appeal.outputs import require_inside
 from appeal.progress import progress
 from appeal.report import ReportSection, write_index_html
 
@@ -152,6 +154,28 @@ def _order_conditions(data: pd.DataFrame, cfg: PsychometricAnalysis, source: str
     return data
 
 
+def participant_label(value: Any) -> str:
+    """A participant id as its BIDS label: ``sub-01`` and ``01`` are both ``01``."""
+    text = value if isinstance(value, str) else str(value)
+    return text.removeprefix("sub-")
+
+
+def _check_subjects(data: pd.DataFrame, source: str, subject: str) -> None:
+    """Every participant id of a file is a BIDS label (after an optional ``sub-``): a figure's file name
+    is built from it, so ``x/../../escaped`` must not reach one; a one-line error naming the row."""
+    col = data[subject]
+    for value, row in zip(*np.unique(col.astype(str).to_numpy(), return_index=True)):
+        raw = col.iloc[int(row)]
+        if raw is None or (isinstance(raw, float) and np.isnan(raw)):
+            problem = "expected a participant label (letters and digits), got an empty cell"
+        else:
+            problem = label_problem(participant_label(raw))
+        if problem is not None:
+            line = int(data["source_row"].iloc[int(row)])
+            raise AppealInputError(f"{source}: row {line}: column '{subject}': {problem}"
+                                   + (" (after its 'sub-')" if str(raw).startswith("sub-") else ""))
+
+
 def read_trials(cfg: PsychometricAnalysis) -> pd.DataFrame:
     """The answered main trials of every data file, checked.
 
@@ -170,6 +194,7 @@ def read_trials(cfg: PsychometricAnalysis) -> pd.DataFrame:
     for f in files:
         frame = read_ratings([f], subject=cfg.subject)
         _check_columns(frame, f, cfg)
+        _check_subjects(frame, f, cfg.subject)
         frames.append(frame)
     data = keep_rows(pd.concat(frames, ignore_index=True), cfg.rows)
     source = files[0] if len(files) == 1 else f"{files[0]} (+{len(files) - 1} more files)"
@@ -389,9 +414,10 @@ def _participant_figures(cells: Sequence[FittedCell], cfg: PsychometricAnalysis,
         curves = [Curve(cell_label({k: v for k, v in c.key.items() if k != cfg.subject}), c.data, c.fit)
                   for c in mine]
         continuum = (cfg.continuum.reference, cfg.continuum.direction) if cfg.continuum else None
-        name = sid if str(sid).startswith("sub-") else f"sub-{sid}"
-        paths.append(participant_figure(curves, out / "figures" / f"{name}_psychometric", cfg.fit.threshold_pc,
-                                        cfg.x, f"participant {sid}", continuum)[0])
+        stem = out / "figures" / f"sub-{participant_label(sid)}_psychometric"
+        require_inside(out, stem, f"participant {sid}: figure")
+        paths.append(participant_figure(curves, stem, cfg.fit.threshold_pc, cfg.x, f"participant {sid}",
+                                        continuum)[0])
     return paths
 
 

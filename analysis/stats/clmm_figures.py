@@ -9,10 +9,12 @@ import numpy as np
 import pandas as pd
 
 from analysis.stats.clmm import ClmmFit
+from appeal.figures import plain_text
 
 __all__ = ["probability_figure", "probability_plot"]
 
 
+@plain_text
 def probability_figure(probs: pd.DataFrame | ClmmFit, x: str | None = None, panel: str | None = None,
                        title: str | None = None, scale_label: str = "rating"):
     """Stacked bars of the predicted category probabilities per condition (a matplotlib figure).
@@ -73,6 +75,7 @@ def probability_figure(probs: pd.DataFrame | ClmmFit, x: str | None = None, pane
     return fig
 
 
+@plain_text
 def probability_plot(probs: pd.DataFrame | ClmmFit, stem: str | Path, x: str | None = None, panel: str | None = None,
                      title: str | None = None, scale_label: str = "rating") -> list[Path]:
     """:func:`probability_figure` saved as ``stem.png`` and ``stem.svg``; returns both paths."""

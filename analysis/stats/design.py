@@ -14,6 +14,7 @@ from __future__ import annotations
 import glob
 import itertools
 import re
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -109,34 +110,137 @@ class Design:
 
 
 # --------------------------------------------------------------------------- reading
+#: The largest table read (bytes; of a ``.gz`` file, once decompressed). A session file is a few
+#: hundred kB; a long table of a million ratings ~100 MB.
+MAX_TABLE_BYTES = 256 * 2 ** 20
+
+_TEXT_SUFFIXES = {".csv": ",", ".csv.gz": ",", ".tsv": "\t", ".tsv.gz": "\t", ".txt": "\t"}
+
+
+def _size_text(n: int) -> str:
+    return f"{n // 2 ** 20} MB" if n >= 2 ** 20 else f"{n} bytes"
+
+
+def _kind_of(path: Path) -> str | None:
+    """What ``path`` is when it is not a regular file (``a folder``, ``a pipe (FIFO)`` ...), else None."""
+    import stat
+
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return "missing"
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a pipe (FIFO)"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "a device"
+
+
+def _read_bytes(path: Path, gz: bool) -> bytes:
+    """The file's bytes (decompressed for ``gz``), at most :data:`MAX_TABLE_BYTES`; a one-line error beyond."""
+    import gzip
+    import zlib
+
+    limit = MAX_TABLE_BYTES
+    if not gz and path.stat().st_size > limit:
+        raise AppealInputError(f"{path}: the table is larger than {_size_text(limit)} (expected a data table; split "
+                               "it into per-session files)")
+    try:
+        with (gzip.open(path, "rb") if gz else open(path, "rb")) as fh:
+            data = fh.read(limit + 1)
+    except (OSError, EOFError, zlib.error) as exc:
+        why = getattr(exc, "strerror", None) or (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise AppealInputError(f"{path}: cannot read the file ({why})") from None
+    if len(data) > limit:
+        raise AppealInputError(f"{path}: the table is larger than {_size_text(limit)}"
+                               + (" once decompressed" if gz else "") + " (expected a data table; split it into "
+                               "per-session files)")
+    return data
+
+
+def _text_of(path: Path, data: bytes) -> str:
+    """The bytes of a CSV/TSV as text: one-line errors for binary data, text that is not UTF-8, an empty file."""
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        line = data.count(b"\n", 0, nul) + 1
+        raise AppealInputError(f"{path}: not a text table: a NUL byte on line {line} (a binary file, or text in "
+                               "UTF-16?); expected UTF-8 CSV/TSV text")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise AppealInputError(f"{path}: not UTF-8 text: byte {data[exc.start]:#04x} on line {line} (saved in "
+                               "another encoding? save it as UTF-8)") from None
+    if not text.strip():
+        raise AppealInputError(f"{path}: the file is empty (expected a header row and data rows)")
+    return text
+
+
+def _longer_row(text: str, sep: str) -> str:
+    """Where the first row with more fields than the header is (the message of a ragged table)."""
+    import csv
+    import io
+
+    reader = csv.reader(io.StringIO(text), delimiter=sep)
+    header = next(reader, [])
+    for row in reader:
+        if len(row) > len(header):
+            return (f"line {reader.line_num}: expected at most {len(header)} fields (the header's), "
+                    f"found {len(row)}")
+    return f"rows with more fields than the header's {len(header)}"
+
+
 def read_table(path: str | Path, text_columns: Sequence[str] = ()) -> pd.DataFrame:
     """Read one long-format table (CSV, TSV or Parquet; chosen by the file suffix).
 
-    ``text_columns`` are read as text (a BIDS participant label ``01`` stays ``01``).
+    ``text_columns`` are read as text (a BIDS participant label ``01`` stays ``01``). The file may
+    come from anyone (an online participant's session), so it is read as hostile: it must be a
+    regular file (not a folder, pipe or device) of at most :data:`MAX_TABLE_BYTES` (a ``.gz`` once
+    decompressed); a CSV/TSV must be UTF-8 text without NUL bytes, with a header and rows of at
+    most as many fields. Each problem is one line naming the file.
 
     Raises
     ------
     AppealInputError
-        When the file is missing, of an unknown type or cannot be parsed.
+        When the file is missing, not a regular file, too large, of an unknown type, not text,
+        empty or cannot be parsed.
     """
+    import io
+
     path = Path(path)
-    if not path.is_file():
+    kind = _kind_of(path)
+    if kind == "missing":
         raise AppealInputError(f"{path}: file not found")
+    if kind is not None:
+        raise AppealInputError(f"{path}: expected a data file, got {kind}")
     suffix = "".join(path.suffixes[-2:]).lower() if path.suffix.lower() == ".gz" else path.suffix.lower()
+    if suffix not in _TEXT_SUFFIXES and suffix not in (".parquet", ".pq"):
+        raise AppealInputError(f"{path}: unknown table type '{suffix}' (expected .csv, .tsv or .parquet)")
+    if suffix in _TEXT_SUFFIXES:
+        text = _text_of(path, _read_bytes(path, suffix.endswith(".gz")))
+    elif path.stat().st_size > MAX_TABLE_BYTES:
+        raise AppealInputError(f"{path}: the table is larger than {_size_text(MAX_TABLE_BYTES)} (expected a data "
+                               "table; split it into per-session files)")
     try:
-        dtype = {c: str for c in text_columns}
-        if suffix in (".csv", ".csv.gz"):
-            df = pd.read_csv(path, dtype=dtype)
-        elif suffix in (".tsv", ".tsv.gz", ".txt"):
-            df = pd.read_csv(path, sep="\t", dtype=dtype)
-        elif suffix in (".parquet", ".pq"):
-            df = pd.read_parquet(path)
+        if suffix in _TEXT_SUFFIXES:
+            sep = _TEXT_SUFFIXES[suffix]
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", pd.errors.ParserWarning)
+                # index_col=False: a first row longer than the header is not taken as index columns
+                df = pd.read_csv(io.StringIO(text), sep=sep, dtype={c: str for c in text_columns}, index_col=False)
+            if any(issubclass(w.category, pd.errors.ParserWarning) for w in caught):
+                raise AppealInputError(f"{path}: {_longer_row(text, sep)}")
         else:
-            raise AppealInputError(f"{path}: unknown table type '{suffix}' (expected .csv, .tsv or .parquet)")
+            df = pd.read_parquet(path)
     except AppealInputError:
         raise
     except Exception as exc:  # noqa: BLE001 - parser errors become one input line
-        raise AppealInputError(f"{path}: cannot read table ({str(exc).splitlines()[0]})") from None
+        msg = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise AppealInputError(f"{path}: cannot read table ({msg})") from None
     df.attrs["source"] = str(path)
     return df
 

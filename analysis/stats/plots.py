@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from appeal.figures import plain_text
+
 __all__ = ["save_figure", "interaction_plot", "bar_plot", "realism_vs_appeal_plot", "realism_vs_appeal_figure", "reference_plot"]
 
 #: Node markers of :func:`realism_vs_appeal_plot`, one per ``point`` level (cycled beyond ten).
@@ -23,6 +25,7 @@ def _plt():
     return plt
 
 
+@plain_text
 def save_figure(fig, stem: str | Path) -> list[Path]:
     """Save ``fig`` as ``stem.png`` (150 dpi) and ``stem.svg``; close it; return both paths."""
     stem = Path(stem)
@@ -34,6 +37,7 @@ def save_figure(fig, stem: str | Path) -> list[Path]:
     return paths
 
 
+@plain_text
 def interaction_plot(ci: pd.DataFrame, x: str, trace: str | None, ylabel: str, stem: str | Path,
                      title: str | None = None, ylim: tuple[float, float] | None = None,
                      x_levels: Sequence[str] | None = None, trace_levels: Sequence[str] | None = None,
@@ -77,6 +81,7 @@ def interaction_plot(ci: pd.DataFrame, x: str, trace: str | None, ylabel: str, s
     return save_figure(fig, stem)
 
 
+@plain_text
 def bar_plot(ci: pd.DataFrame, factor: str, ylabel: str, stem: str | Path, title: str | None = None,
              ylim: tuple[float, float] | None = None) -> list[Path]:
     """Bar chart of the cell means of one factor with 95% within-subject CI bars."""
@@ -95,6 +100,7 @@ def bar_plot(ci: pd.DataFrame, factor: str, ylabel: str, stem: str | Path, title
     return save_figure(fig, stem)
 
 
+@plain_text
 def realism_vs_appeal_plot(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, point: str, stem: str | Path,
                            x_label: str = "realism", y_label: str = "appeal",
                            lim: tuple[float, float] | None = (1, 7)) -> list[Path]:
@@ -105,6 +111,7 @@ def realism_vs_appeal_plot(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, po
     return save_figure(realism_vs_appeal_figure(x_ci, y_ci, line, point, x_label, y_label, lim), stem)
 
 
+@plain_text
 def realism_vs_appeal_figure(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, point: str,
                              x_label: str = "realism", y_label: str = "appeal",
                              lim: tuple[float, float] | None = (1, 7)):
@@ -160,6 +167,7 @@ def realism_vs_appeal_figure(x_ci: pd.DataFrame, y_ci: pd.DataFrame, line: str, 
     return fig
 
 
+@plain_text
 def reference_plot(table: pd.DataFrame, scale: str, stem: str | Path, ylim: tuple[float, float] | None = None) -> list[Path]:
     """The matched levels' means (95% CI over participants) with the reference as a band
     (:func:`analysis.stats.reference.reference_table`; thesis §6.4, photographs vs s/m levels)."""

@@ -17,6 +17,8 @@ import numpy as np
 import pandas as pd
 
 from appeal.cells import write_table
+from appeal.labels import check_label, check_session
+from appeal.outputs import require_inside
 
 __all__ = ["ScaleModel", "simulate_ratings", "exp2_design", "write_bids"]
 
@@ -171,10 +173,14 @@ def write_bids(data: pd.DataFrame, folder: str | Path, task: str) -> list[Path]:
         The files written.
     """
     folder = Path(folder)
+    check_label(task, "task")
     out = []
     for (pid, ses), part in data.groupby(["participant_id", "session"], sort=True):
-        label = str(pid).removeprefix("sub-")
+        # the labels name folders and files: BIDS labels only, and the path checked to stay in ``folder``
+        label = check_label(str(pid).removeprefix("sub-"), "participant_id")
+        ses = check_session(ses.item() if isinstance(ses, np.generic) else ses, "session")
         path = folder / f"sub-{label}" / f"ses-{ses}" / "beh" / f"sub-{label}_ses-{ses}_task-{task}_beh.tsv"
+        require_inside(folder, path, "write_bids")
         path.parent.mkdir(parents=True, exist_ok=True)
         write_table(part, path, sep="\t", na_rep="n/a")
         out.append(path)

@@ -5,6 +5,7 @@ of significant effects, contrasts, Cronbach's alpha between scales, figures and 
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,11 +27,16 @@ from analysis.stats.reliability import cronbach_alpha
 from analysis.stats.reporting import anova_text, format_comparison, markdown_table, sphericity_corrected
 from appeal.atomic import atomic_write_text
 from appeal.errors import AppealInputError
+from appeal.labels import shown
 from appeal.logs import logger
+from appeal.outputs import require_inside
 from appeal.progress import progress
 from appeal.report import ReportSection, write_index_html
 
 __all__ = ["scale_columns", "analyze_rating_study", "StudyResult", "json_records"]
+
+#: A scale name found in the data (``response_<name>``), as the protocol's response names.
+_SCALE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,39}")
 
 
 @dataclass
@@ -49,9 +55,14 @@ def scale_columns(data: pd.DataFrame, requested: list[str] | None, source: str) 
     Without ``requested`` every ``response_*`` column is a scale.
     """
     if requested is None:
-        found = {c.removeprefix("response_"): c for c in data.columns if str(c).startswith("response_")}
+        found = {str(c).removeprefix("response_"): c for c in data.columns if str(c).startswith("response_")}
         if not found:
             raise AppealInputError(f"{source}: scales: no response_* columns found; name the DV columns under 'scales:'")
+        bad = [c for c in found if not _SCALE_NAME.fullmatch(c)]
+        if bad:  # the name of an output folder: a column of the data must not name ../../x
+            raise AppealInputError(f"{source}: scales: column {shown('response_' + bad[0], 60)}: expected "
+                                   "response_<name> with a name of letters, digits and _ (at most 40, starting with "
+                                   "a letter: it names an output folder); name the DV columns under 'scales:'")
         return found
     out, missing = {}, []
     for name in requested:
@@ -202,6 +213,7 @@ def analyze_rating_study(cfg, out: Path, data: pd.DataFrame | None = None) -> St
     designs = {}
     for name, col in progress(list(scales.items()), desc="scales"):
         sec_dir = out / name
+        require_inside(out, sec_dir, f"scales: {name}")
         figs, tables = [], []
         try:
             design = prepare_design(data, col, cfg.subject, cfg.within, cfg.between, cfg.aggregate,

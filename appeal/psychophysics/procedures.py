@@ -8,38 +8,32 @@ each next level the one that minimises the expected entropy of the posterior aft
 random order). All stop by trial count (and the psi procedure also by the width of the threshold's credible
 interval), and all serialise to a plain dict (:meth:`to_dict` / :meth:`from_dict`) that replays
 the responses, so that a resumed session continues the same procedure.
+
+A state read back (:func:`procedure_from_json`, :func:`procedure_from_dict`, ``Cls.from_dict``)
+comes from a data file anyone can edit, so it is treated as hostile: read with :func:`json.loads`
+only (nothing in it is executed) and checked against the schema of
+:mod:`appeal.psychophysics.states` before anything is built from it.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from appeal.psychophysics.continuum import level_index
 from appeal.psychophysics.intervals import credible_interval
 from appeal.psychophysics.functions import check_family, psi
 from appeal.psychophysics.observers import SimulatedObserver
+from appeal.psychophysics.states import MAX_STATE_CHARS, SETTINGS, describe_value, state_problems
 from appeal.errors import AppealInputError
 
 __all__ = ["level_index", "PsiProcedure", "UpDownStaircase", "ConstantStimuli", "procedure_from_dict",
-           "run_procedure"]
+           "procedure_from_json", "run_procedure"]
 
-
-def level_index(levels: NDArray, level: float) -> int:
-    """Index of ``level`` among ``levels``; a one-line :class:`AppealInputError` when it is outside the
-    continuum or not one of its levels."""
-    lo, hi = float(levels[0]), float(levels[-1])
-    tol = 1e-9 * max(hi - lo, 1.0)
-    level = float(level)
-    if not np.isfinite(level) or level < lo - tol or level > hi + tol:
-        raise AppealInputError(f"level {level:g} is outside the continuum [{lo:g}, {hi:g}]")
-    i = int(np.argmin(np.abs(levels - level)))
-    if abs(levels[i] - level) > tol:
-        raise AppealInputError(f"level {level:g} is not one of the {len(levels)} levels of the continuum "
-                               f"[{lo:g}, {hi:g}]")
-    return i
 
 
 def _levels(levels: ArrayLike) -> NDArray:
@@ -49,14 +43,19 @@ def _levels(levels: ArrayLike) -> NDArray:
     return lv
 
 
-def _rebuild(cls: type, state: Mapping[str, Any], settings: Sequence[str]) -> Any:
-    """A procedure of class ``cls`` from its :meth:`to_dict` state: its ``levels`` and ``settings``,
-    then every response of its history replayed."""
-    if state.get("kind") != cls.kind:
-        raise AppealInputError(f"procedure state of kind '{state.get('kind')}' is not a '{cls.kind}' state")
-    proc = cls(state["levels"], **{k: state[k] for k in settings})
-    for x, correct in state.get("history", []):
-        proc.update(x, bool(correct))
+def _rebuild(cls: type, state: Any, where: str | None = None) -> Any:
+    """A procedure of class ``cls`` from its :meth:`to_dict` state, checked first
+    (:func:`state_problems`): its ``levels`` and settings, then every response of its history replayed."""
+    head = f"{where}: procedure_state" if where else "procedure_state"
+    problems = state_problems(state, cls.kind)
+    if problems:
+        raise AppealInputError([f"{where}: {p}" if where else p for p in problems])
+    try:
+        proc = cls(state["levels"], **{k: state[k] for k in cls.settings})
+        for x, correct in state.get("history", []):
+            proc.update(x, bool(correct))
+    except AppealInputError as exc:
+        raise AppealInputError([f"{head}: {line}" for line in exc.lines]) from None
     return proc
 
 
@@ -96,6 +95,7 @@ class PsiProcedure:
     """
 
     kind = "psi"
+    settings = SETTINGS["psi"]
 
     def __init__(self, levels: ArrayLike, thresholds: ArrayLike | None = None, widths: ArrayLike | None = None,
                  lapses: ArrayLike | None = None, guess: float = 0.5, family: str = "logistic",
@@ -202,10 +202,10 @@ class PsiProcedure:
                 "pc": self.pc, "alpha": self.alpha, "history": [[x, c] for x, c in self.history]}
 
     @classmethod
-    def from_dict(cls, state: Mapping[str, Any]) -> PsiProcedure:
-        """Rebuild a procedure from :meth:`to_dict`'s output, replaying its responses."""
-        return _rebuild(cls, state, ("thresholds", "widths", "lapses", "guess", "family", "max_trials",
-                                     "max_ci_width", "min_trials", "ci_level", "entropy", "pc", "alpha"))
+    def from_dict(cls, state: Mapping[str, Any], where: str | None = None) -> PsiProcedure:
+        """Rebuild a procedure from :meth:`to_dict`'s output (checked first: see the module), replaying its
+        responses; ``where`` (the file and row) starts each error line."""
+        return _rebuild(cls, state, where)
 
 
 class UpDownStaircase:
@@ -228,6 +228,7 @@ class UpDownStaircase:
     """
 
     kind = "updown"
+    settings = SETTINGS["updown"]
 
     def __init__(self, levels: ArrayLike, down: int = 2, up: int = 1, step: int = 1, start: float | None = None,
                  max_trials: int | None = None, max_reversals: int | None = None) -> None:
@@ -289,9 +290,9 @@ class UpDownStaircase:
                 "max_reversals": self.max_reversals, "history": [[x, c] for x, c in self.history]}
 
     @classmethod
-    def from_dict(cls, state: Mapping[str, Any]) -> UpDownStaircase:
-        """Rebuild a staircase from :meth:`to_dict`'s output, replaying its responses."""
-        return _rebuild(cls, state, ("down", "up", "step", "start", "max_trials", "max_reversals"))
+    def from_dict(cls, state: Mapping[str, Any], where: str | None = None) -> UpDownStaircase:
+        """Rebuild a staircase from :meth:`to_dict`'s output (checked first), replaying its responses."""
+        return _rebuild(cls, state, where)
 
 
 class ConstantStimuli:
@@ -308,6 +309,7 @@ class ConstantStimuli:
     """
 
     kind = "constant"
+    settings = SETTINGS["constant"]
 
     def __init__(self, levels: ArrayLike, trials_per_level: int, seed: int = 0) -> None:
         if trials_per_level < 1:
@@ -348,21 +350,92 @@ class ConstantStimuli:
                 "seed": self.seed, "history": [[x, c] for x, c in self.history]}
 
     @classmethod
-    def from_dict(cls, state: Mapping[str, Any]) -> ConstantStimuli:
-        """Rebuild the plan from :meth:`to_dict`'s output, replaying its responses."""
-        return _rebuild(cls, state, ("trials_per_level", "seed"))
+    def from_dict(cls, state: Mapping[str, Any], where: str | None = None) -> ConstantStimuli:
+        """Rebuild the plan from :meth:`to_dict`'s output (checked first), replaying its responses."""
+        return _rebuild(cls, state, where)
 
 
 Procedure = PsiProcedure | UpDownStaircase | ConstantStimuli
 _KINDS: dict[str, type] = {c.kind: c for c in (PsiProcedure, UpDownStaircase, ConstantStimuli)}
 
 
-def procedure_from_dict(state: Mapping[str, Any]) -> Procedure:
-    """Any procedure from its :meth:`to_dict` state (the ``kind`` field says which)."""
-    kind = state.get("kind")
-    if kind not in _KINDS:
-        raise AppealInputError(f"unknown procedure state kind '{kind}' (expected one of: {', '.join(_KINDS)})")
-    return _KINDS[kind].from_dict(state)
+def procedure_from_dict(state: Mapping[str, Any], where: str | None = None) -> Procedure:
+    """Any procedure from its :meth:`to_dict` state (the ``kind`` field says which), checked against
+    the module's schema before anything is built; ``where`` (the file and row) starts each error line.
+
+    Raises
+    ------
+    AppealInputError
+        One line per violation of the schema, or why the procedure cannot be built.
+    """
+    kind = state.get("kind") if isinstance(state, Mapping) else None
+    if isinstance(kind, str) and kind in _KINDS:
+        return _KINDS[kind].from_dict(state, where)
+    problems = state_problems(state)
+    raise AppealInputError([f"{where}: {p}" if where else p for p in problems])
+
+
+class _Constant(ValueError):
+    """A NaN or Infinity literal in state text."""
+
+
+def _no_constant(name: str) -> Any:
+    raise _Constant(name)
+
+
+def procedure_from_json(text: str | bytes, where: str | None = None) -> Procedure:
+    """A procedure from the JSON text of its state (a data row's ``procedure_state``).
+
+    The text is read by :func:`json.loads` only — plain data; nothing in it is executed — after its
+    size is checked (at most :data:`MAX_STATE_CHARS` characters); it must be one JSON object without
+    ``NaN``/``Infinity`` literals, nested as a state is, and is then checked and built by
+    :func:`procedure_from_dict`.
+
+    Parameters
+    ----------
+    text : str or bytes
+        The JSON text (bytes: UTF-8).
+    where : str, optional
+        The file and row it came from, put first in each error line.
+
+    Returns
+    -------
+    PsiProcedure, UpDownStaircase or ConstantStimuli
+        The procedure with its history replayed.
+
+    Raises
+    ------
+    AppealInputError
+        One line per problem (``procedure_state: ...: expected ..., got ...``).
+    """
+    head = f"{where}: procedure_state" if where else "procedure_state"
+    if isinstance(text, (bytes, bytearray)):
+        if len(text) > MAX_STATE_CHARS:
+            raise AppealInputError(f"{head}: expected at most {MAX_STATE_CHARS} characters of JSON, "
+                                   f"got {len(text)} bytes")
+        try:
+            text = bytes(text).decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise AppealInputError(f"{head}: expected UTF-8 text, got a byte {text[exc.start]:#04x} at {exc.start} "
+                                   "that is not") from None
+    if not isinstance(text, str):
+        raise AppealInputError(f"{head}: expected JSON text, got {describe_value(text)}")
+    if len(text) > MAX_STATE_CHARS:
+        raise AppealInputError(f"{head}: expected at most {MAX_STATE_CHARS} characters of JSON, got {len(text)}")
+    try:
+        state = json.loads(text, parse_constant=_no_constant)
+    except _Constant as exc:
+        raise AppealInputError(f"{head}: expected finite numbers, got {exc}") from None
+    except RecursionError:
+        raise AppealInputError(f"{head}: expected a JSON object nested as a state is (3 levels), got JSON nested "
+                               "too deep to read") from None
+    except ValueError as exc:  # json.JSONDecodeError, an integer of more than 4300 digits
+        msg = (f"{exc.msg} at line {exc.lineno} column {exc.colno}" if isinstance(exc, json.JSONDecodeError)
+               else str(exc).split(";")[0])
+        raise AppealInputError(f"{head}: expected JSON, got text that is not ({msg})") from None
+    if not isinstance(state, dict):
+        raise AppealInputError(f"{head}: expected a JSON object, got {describe_value(state)}")
+    return procedure_from_dict(state, where)
 
 
 def run_procedure(procedure: Procedure, observer: SimulatedObserver,
