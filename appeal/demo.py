@@ -63,7 +63,7 @@ def run_demo(stages: Sequence[DemoStage], out: Path, seed: int) -> tuple[Path, l
         except Exception as exc:  # noqa: BLE001 - reported on the page and in the exit code
             logger.exception("demo stage '%s' failed", stage.name)
             section = ReportSection(title=stage.title, failed=f"{type(exc).__name__}: {exc}".splitlines()[0])
-        section.text = (section.text + f"\n\n<p class='muted'>stage '{stage.name}' started {started}, ended {now_iso()}</p>").strip()
+        section.note = f"stage '{stage.name}' started {started}, ended {now_iso()}"
         sections.append(section)
     intro = ("The end-to-end demo of Appeal Lab on its embedded default assets. "
              "Each section below is one stage; every file it wrote is linked. "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,8 +30,6 @@ td,th{border:1px solid #ccc;padding:2px 6px;text-align:right;white-space:nowrap}
 
 def _scroll_tables(text: str) -> str:
     """Put every ``<table>`` of ``text`` in a box that scrolls sideways (the page keeps its width)."""
-    import re
-
     return re.sub(r"(<table\b.*?</table>)", r"<div class='table-wrap'>\1</div>", text, flags=re.S)
 
 
@@ -44,12 +43,22 @@ class ReportSection:
     tables: list[Path] = field(default_factory=list)
     links: list[Path] = field(default_factory=list)
     failed: str | None = None
+    note: str = ""
+
+
+_UNSAFE_LINK = re.compile(r"""(href|src)=(["'])\s*(?:javascript|vbscript|data):[^"']*\2""", re.I)
 
 
 def _md(text: str) -> str:
+    """Markdown as HTML, with raw HTML shown as text: a report's text holds values read from data
+    files (conditions, levels, ids), and a level ``<img src=x onerror=...>`` must not run in the
+    lab's browser; links to ``javascript:``/``data:`` URLs are dropped the same way."""
     import markdown
 
-    return _scroll_tables(markdown.markdown(text, extensions=["tables"]))
+    md = markdown.Markdown(extensions=["tables"])
+    md.preprocessors.deregister("html_block")
+    md.inlinePatterns.deregister("html")
+    return _scroll_tables(_UNSAFE_LINK.sub(r"\1=\2#\2", md.convert(text)))
 
 
 def table_html(path: Path, max_rows: int = 25) -> str:
@@ -104,6 +113,8 @@ def write_index_html(path: str | Path, title: str, sections: Sequence[ReportSect
             parts.append(f"<p class='failed'>This stage failed: {html.escape(sec.failed)}</p>")
         if sec.text:
             parts.append(_md(sec.text))
+        if sec.note:
+            parts.append(f"<p class='muted'>{html.escape(sec.note)}</p>")
         for fig in sec.figures:
             rel = _rel(Path(fig), root)
             if Path(fig).suffix.lower() in (".png", ".jpg", ".jpeg", ".svg", ".gif"):

@@ -153,7 +153,13 @@ def read_completed(path: str | Path, columns: Sequence[str] | None = None) -> li
             fh.flush()
             os.fsync(fh.fileno())
         data = data[:cut]
-    lines = data.decode("utf-8").splitlines()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise AppealInputError(f"{path}:{line}: not UTF-8 (byte 0x{data[exc.start]:02x}): expected the session file "
+                               "as the runner wrote it") from None
+    lines = text.splitlines()
     if not lines:
         return []
     header = lines[0].split("\t")

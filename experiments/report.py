@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from appeal.cells import write_table
+from appeal.figures import plain_text
 from appeal.report import ReportSection, write_index_html
 
 __all__ = ["session_summary", "write_session_report", "onset_asynchronies", "timing_figure", "overlapping_texts"]
@@ -131,6 +132,7 @@ def _readable_ticks(fig: Any, ax: Any) -> None:
         ax.xaxis.set_major_locator(MaxNLocator(nbins=nbins))
 
 
+@plain_text
 def timing_figure(summary: dict[str, Any], title: str) -> Any:
     """The session report's figure: SOA, fixation and trigger-offset histograms, labels readable.
 
@@ -171,6 +173,7 @@ def timing_figure(summary: dict[str, Any], title: str) -> Any:
     return fig
 
 
+@plain_text
 def _figure(summary: dict[str, Any], path_png: Path, title: str) -> list[Path]:
     import matplotlib.pyplot as plt
 

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.confounds.design_tests import flagged
+from appeal.figures import plain_text
 
 __all__ = ["describe_test", "findings_markdown", "plot_flags", "write_report"]
 
@@ -58,6 +59,7 @@ def findings_markdown(tests: pd.DataFrame, paired: Mapping[str, str] | None = No
     return "\n".join(lines)
 
 
+@plain_text
 def plot_flags(tests: pd.DataFrame, path: str | Path) -> Path:
     """Heat map: a row per factor, a column per measure, colour = range of level means / threshold
     (capped at 4), the ratio written in the cell, flagged cells (ratio > 1) outlined in black."""
