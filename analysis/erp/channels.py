@@ -14,6 +14,7 @@ BioSemi 128 is shipped as ``analysis/data/biosemi128_from_1005.csv`` (regenerate
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from functools import lru_cache
@@ -23,11 +24,13 @@ import numpy as np
 import pandas as pd
 
 from appeal.errors import AppealInputError
+from appeal.labels import shown
 
 __all__ = [
     "BIOSEMI128_MAP_FILE",
     "biosemi_labels",
     "biosemi_positional_map",
+    "channel_name_problem",
     "rename_channels",
     "make_montage",
     "nearest_channel_table",
@@ -37,6 +40,10 @@ __all__ = [
 
 #: The shipped 10-5 -> BioSemi 128 table (columns ``name_1005``, ``biosemi128``, ``angle_deg``).
 BIOSEMI128_MAP_FILE = Path(__file__).resolve().parent.parent / "data" / "biosemi128_from_1005.csv"
+
+#: Characters no channel name may hold: line breaks, tabs, escapes and other control characters
+#: (C1 ones included: a header's Latin-1 bytes 0x80-0x9f decode to them).
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 
 #: MNE renamed ``standard_1005`` to ``colin27_1005``; older names still work through this map.
 _RENAMED = {"standard_1005": "colin27_1005", "standard_1020": "colin27_1020"}
@@ -102,6 +109,42 @@ def biosemi_positional_map(layout: str) -> dict[str, str]:
     return dict(zip(biosemi_labels(len(names)), names))
 
 
+def channel_name_problem(names: Mapping[int, str], what: str = "channel") -> str | None:
+    """Why a recording's channel names cannot be analysed (one phrase), or None when they can.
+
+    Names end up in tables, figures and messages, and the pipeline matches them to the
+    config's without regard to case (montages, clusters), so each must be non-empty,
+    printable (no control characters: MNE keeps NUL padding, tabs and escapes in EDF labels)
+    and different from every other one ignoring case (MNE would append ``-0``, ``-1`` to
+    exact duplicates, and its BDF reader takes the first of ``status``/``Status`` as the
+    trigger channel). Other text (Latin-1 letters, ``=HYPERLINK(...)``) is a name like any
+    other: tables are written through :func:`appeal.cells.write_table`.
+
+    Parameters
+    ----------
+    names : mapping of int to str
+        Number (1-based, as messages count) -> name.
+    what : str
+        What a number counts, for the phrase (``signal`` in an EDF header).
+
+    Returns
+    -------
+    str | None
+        ``label of signal 3: expected ..., got ...`` naming the first problem.
+    """
+    seen: dict[str, int] = {}
+    for number, name in names.items():
+        if not name.strip():
+            return f"label of {what} {number}: expected a channel name, got an empty label"
+        if _CONTROL.search(name):
+            return f"label of {what} {number}: expected printable text, got {shown(name)} (control characters)"
+        first = seen.setdefault(name.lower(), number)
+        if first != number:
+            return (f"labels of {what}s {first} and {number}: expected each channel name once (names are matched "
+                    f"ignoring case), got {shown(names[first])} and {shown(name)}")
+    return None
+
+
 def rename_channels(raw, rename: Mapping[str, str] | str, path: str | Path = "") -> dict[str, str]:
     """Rename the recording's channels in place (the config's ``channels.rename``).
 
@@ -125,12 +168,12 @@ def rename_channels(raw, rename: Mapping[str, str] | str, path: str | Path = "")
     Raises
     ------
     AppealInputError
-        When a new name is already the name of another channel of the recording.
+        When a new name is already the name (ignoring case) of another channel of the recording.
     """
     mapping = biosemi_positional_map(rename) if isinstance(rename, str) else dict(rename)
     applied = {old: new for old, new in mapping.items() if old in raw.ch_names and old != new}
-    kept = set(raw.ch_names) - set(applied)
-    clash = [f"{old} -> {new}" for old, new in applied.items() if new in kept]
+    kept = {c.lower() for c in raw.ch_names if c not in applied}  # names are matched ignoring case
+    clash = [f"{old} -> {new}" for old, new in applied.items() if new.lower() in kept]
     if clash:
         raise AppealInputError(f"{path}: channels.rename: {clash[0]}: the recording already has a channel "
                                f"{clash[0].split(' -> ')[1]} (expected new names that are not in the recording)")

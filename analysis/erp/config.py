@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from appeal.errors import AppealInputError, StudyFileError
+from appeal.labels import shown
 from appeal.levels import level_value, order_levels
 from appeal.studyfile import load_study_file, load_yaml
 from appeal.triggers import trigger_table
@@ -15,7 +16,7 @@ from appeal.triggers import trigger_table
 from analysis.erp_schema import ErpConfig, ProtocolEvents
 
 __all__ = ["EventMap", "load_erp_config", "read_protocol_codes", "read_protocol_levels", "event_map",
-           "find_recordings", "recording_problems", "subject_id"]
+           "find_recordings", "recording_problems", "subject_id", "SUBJECT_ID"]
 
 #: File types the pipeline reads (MNE readers).
 RECORDING_SUFFIXES = (".bdf", ".edf", ".fif", ".vhdr", ".set", ".fif.gz")
@@ -222,9 +223,28 @@ def find_recordings(cfg: ErpConfig, source: str | Path = "config") -> list[Path]
     return files
 
 
+#: What a subject id may hold: letters, digits, spaces, ``-``, ``_`` and ``.``, starting with a letter
+#: or digit. Ids come from file names (other labs' included) and end up in tables, figures (where
+#: ``$`` would start TeX), log lines and messages; no path is built from them.
+SUBJECT_ID = re.compile(r"\w[\w .-]*")
+
+
 def subject_id(path: Path, pattern: str) -> str:
-    """Subject id from a file name: the first group of ``pattern``, else the file's stem."""
+    """Subject id from a file name: the first group of ``pattern``, else the file's stem.
+
+    Raises
+    ------
+    AppealInputError
+        When the id is empty or holds other characters than :data:`SUBJECT_ID` allows
+        (control characters, ``$``, ``/`` ...): one line naming the file.
+    """
     m = re.search(pattern, path.name)
     if m:
-        return m.group(1) if m.groups() else m.group(0)
-    return path.name.split(".")[0]
+        found = m.group(1) if m.groups() else m.group(0)
+    else:
+        found = path.name.split(".")[0]
+    if not found or not SUBJECT_ID.fullmatch(found):
+        raise AppealInputError(
+            f"{path}: subject id: expected letters, digits, spaces, '-', '_' or '.' (from subject_pattern "
+            f"{shown(pattern)}, else the file name), got {shown(found or '')}; rename the file or adjust subject_pattern")
+    return found

@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from appeal.figures import plain_text
+
 __all__ = [
     "save_figure",
     "plot_waveforms",
@@ -23,6 +25,7 @@ __all__ = [
 ]
 
 
+@plain_text
 def save_figure(fig, path_stem: Path) -> list[Path]:
     """Save ``fig`` as ``<stem>.png`` and ``<stem>.svg``; returns both paths."""
     import matplotlib.pyplot as plt
@@ -65,6 +68,7 @@ def plot_waveforms(grand: Mapping[tuple, np.ndarray], times: np.ndarray, ch_name
     return save_figure(waveforms_figure(grand, times, ch_names, channels, factors, levels, windows), path_stem)
 
 
+@plain_text
 def waveforms_figure(grand: Mapping[tuple, np.ndarray], times: np.ndarray, ch_names: Sequence[str],
                      channels: Mapping[str, str], factors: Sequence[str], levels: Mapping[str, Sequence],
                      windows: Mapping[str, Sequence[float]]):
@@ -118,6 +122,7 @@ def plot_difference_topomaps(grand: Mapping[tuple, np.ndarray], info, factors: S
     return [] if fig is None else save_figure(fig, path_stem)
 
 
+@plain_text
 def difference_topomaps_figure(grand: Mapping[tuple, np.ndarray], info, factors: Sequence[str],
                                levels: Mapping[str, Sequence], factor: str, reference,
                                windows: Mapping[str, Sequence[float]], times: np.ndarray):
@@ -165,6 +170,7 @@ def plot_window_bars(amplitudes: pd.DataFrame, component: str, factors: Sequence
     return save_figure(window_bars_figure(amplitudes, component, factors, levels, dv), path_stem)
 
 
+@plain_text
 def window_bars_figure(amplitudes: pd.DataFrame, component: str, factors: Sequence[str],
                        levels: Mapping[str, Sequence], dv: str = "mean_uV"):
     """Window means per condition (clusters averaged) with ±1 SEM over subjects (thesis Fig. 7.5, 7.7)."""
@@ -208,6 +214,7 @@ def plot_source_map(mni: np.ndarray, t: np.ndarray, threshold: float, title: str
     return save_figure(source_map_figure(mni, t, threshold, title, marks), path_stem)
 
 
+@plain_text
 def source_map_figure(mni: np.ndarray, t: np.ndarray, threshold: float, title: str,
                       marks: Mapping[str, Sequence[float]] | None = None):
     """Maximum-intensity projections (sagittal, coronal, axial) of a voxel t map in MNI space."""
@@ -241,6 +248,7 @@ def plot_sme(sme: pd.DataFrame, threshold_uV: float | None, path_stem: Path) -> 
     return save_figure(sme_figure(sme, threshold_uV), path_stem)
 
 
+@plain_text
 def sme_figure(sme: pd.DataFrame, threshold_uV: float | None = None):
     """SME of the mean amplitude per subject, one panel per component (ERP CORE's data-quality view).
 

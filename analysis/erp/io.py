@@ -1,6 +1,11 @@
 """Reading recordings (BDF, EDF, FIF, BrainVision, EEGLAB) and their trigger events.
 
-Every problem becomes a one-line :class:`~appeal.errors.AppealInputError` naming the file.
+Recordings come from devices and other labs, so they are read as untrusted input: before MNE
+opens a file it must be a regular file (never a folder, device or pipe;
+:mod:`analysis.erp.file_checks`), an EDF/BDF header must hold what the EDF spec says in every
+field MNE uses (:mod:`analysis.erp.edf_header`), and a BrainVision header may only name data and
+marker files beside it (:mod:`analysis.erp.brainvision_header`). Every problem becomes one line of
+:class:`~appeal.errors.AppealInputError` naming the file, the field and what was expected.
 """
 
 from __future__ import annotations
@@ -11,47 +16,44 @@ from pathlib import Path
 import numpy as np
 
 from appeal.errors import AppealInputError
+from appeal.labels import shown
 
-__all__ = ["check_edf_size", "read_recording", "find_trigger_events", "select_events"]
+from analysis.erp.brainvision_header import check_brainvision_files
+from analysis.erp.edf_header import TAL_LABELS, EdfHeader, check_edf_size, read_edf_header
+from analysis.erp.file_checks import check_regular_file, readable
+
+__all__ = ["EdfHeader", "TAL_LABELS", "read_edf_header", "check_regular_file", "check_edf_size",
+           "check_brainvision_files", "check_recording", "read_recording", "find_trigger_events", "select_events"]
 
 
-def check_edf_size(path: str | Path) -> None:
-    """Check that an EDF/BDF file holds as many data records as its header announces.
+def check_recording(path: str | Path) -> None:
+    """Check a recording before MNE reads it, as far as its format allows without reading the data.
+
+    Every file must be a regular file (:func:`check_regular_file`); an EDF/BDF file's header,
+    size and annotations are checked (:func:`check_edf_size`), a BrainVision header's fields
+    and the files it names (:func:`check_brainvision_files`). FIF and EEGLAB files are left to
+    MNE's readers.
 
     Raises
     ------
     AppealInputError
-        When the header is unreadable or the file is shorter than announced (truncated).
+        One line naming the file, the field and what was expected.
     """
     path = Path(path)
-    bps = 3 if path.suffix.lower() == ".bdf" else 2
-    with open(path, "rb") as f:
-        head = f.read(256)
-        if len(head) < 256:
-            raise AppealInputError(f"{path}: truncated: {len(head)} bytes, shorter than the 256-byte EDF/BDF header")
-        try:
-            header_bytes = int(head[184:192])
-            n_records = int(head[236:244])
-            n_signals = int(head[252:256])
-        except ValueError:
-            raise AppealInputError(f"{path}: not an EDF/BDF file (header fields are not numbers)") from None
-        f.seek(256 + n_signals * 216)
-        raw = f.read(n_signals * 8)
-    if len(raw) < n_signals * 8:
-        raise AppealInputError(f"{path}: truncated: the signal header of {n_signals} channels is incomplete")
-    samples = sum(int(raw[i * 8:(i + 1) * 8]) for i in range(n_signals))
-    size = path.stat().st_size
-    if n_records > 0:
-        expected = header_bytes + n_records * samples * bps
-        if size < expected:
-            whole = (size - header_bytes) // max(samples * bps, 1)
-            raise AppealInputError(
-                f"{path}: truncated: header announces {n_records} data records ({expected} bytes) "
-                f"but the file has {size} bytes ({max(whole, 0)} complete records)")
+    check_regular_file(path)
+    suffix = path.suffix.lower()
+    with readable(path):
+        if suffix in (".bdf", ".edf"):
+            check_edf_size(path)
+        elif suffix == ".vhdr":
+            check_brainvision_files(path)
 
 
 def read_recording(path: str | Path):
     """Read a recording into memory with MNE's reader for its format.
+
+    The file is checked first (:func:`check_recording`), the channel names MNE read after
+    (:func:`analysis.erp.channels.channel_name_problem`).
 
     Parameters
     ----------
@@ -66,29 +68,65 @@ def read_recording(path: str | Path):
     Raises
     ------
     AppealInputError
-        When the file is missing, truncated or unreadable.
+        When the file is missing, not a regular file, truncated, malformed or unreadable (one line).
     """
     import mne
 
+    from analysis.erp.channels import channel_name_problem
+
     path = Path(path)
-    if not path.is_file():
-        raise AppealInputError(f"{path}: recording not found")
-    if path.suffix.lower() in (".bdf", ".edf"):
-        check_edf_size(path)
+    check_recording(path)
     try:
         if path.suffix.lower() == ".bdf":
             raw = mne.io.read_raw_bdf(path, preload=True, verbose="error")
         else:
             raw = mne.io.read_raw(path, preload=True, verbose="error")
     except Exception as exc:  # noqa: BLE001 - any reader failure is a bad-input report
-        msg = f"{type(exc).__name__}: {exc}".splitlines()[0]
-        raise AppealInputError(f"{path}: cannot read the recording ({msg})") from None
+        raise AppealInputError(f"{path}: cannot read the recording ({_reader_error(exc)})") from None
+    problem = channel_name_problem(dict(enumerate(raw.ch_names, 1)))
+    if problem:
+        raise AppealInputError(f"{path}: {problem}")
     if raw.n_times < 2:
         raise AppealInputError(f"{path}: the recording holds no samples")
     return raw
 
 
-_BV = re.compile(r"(?:Stimulus/)?S\s*(\d+)$")
+def _reader_error(exc: Exception) -> str:
+    """A reader's exception as part of one message line: its type and first line, cut."""
+    text = f"{type(exc).__name__}: {exc}".splitlines()[0]
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+#: A BrainVision stimulus marker (``Stimulus/S 11``) and a bare code (EEGLAB): ASCII digits only
+#: (``str.isdigit`` takes ``²``, which ``int`` refuses) and at most 9 of them (an int64 holds them).
+_BV = re.compile(r"(?:Stimulus/)?S\s*([0-9]{1,9})", re.ASCII)
+_CODE = re.compile(r"[0-9]{1,9}")
+
+
+def _annotation_code(description) -> int | None:
+    """The trigger code an annotation's description gives, or None (any other text)."""
+    text = str(description).strip()
+    m = _BV.fullmatch(text)
+    code = m.group(1) if m else text
+    return int(code) if _CODE.fullmatch(code) else None
+
+
+def _annotation_events(raw) -> np.ndarray:
+    """Events ``(sample, 0, code)`` of the annotations that give a code and lie within the recording."""
+    ann = raw.annotations
+    codes = [_annotation_code(d) for d in ann.description]
+    keep = [i for i, c in enumerate(codes) if c is not None]
+    if not keep:
+        return np.zeros((0, 3), int)
+    samples = raw.time_as_index(np.asarray(ann.onset)[keep], use_rounding=True)
+    inside = (samples >= 0) & (samples < raw.n_times)
+    events = np.column_stack([samples + raw.first_samp, np.zeros(len(keep), int), [codes[i] for i in keep]])
+    return events[inside].astype(int)
+
+
+def _name(channel: str) -> str:
+    """A channel name in a message: as it is when plain, else :func:`appeal.labels.shown`."""
+    return channel if re.fullmatch(r"[A-Za-z0-9_.-]{1,32}", channel) else shown(channel)
 
 
 def find_trigger_events(raw, path: str | Path, stim_channel: str = "auto", mask: int = 0xFFFF) -> np.ndarray:
@@ -102,7 +140,9 @@ def find_trigger_events(raw, path: str | Path, stim_channel: str = "auto", mask:
     recording starts with is no event (``initial_event=False``). Only ``shortest_event=1``
     differs from MNE's default 2: a pulse shorter than two samples is still an event,
     where MNE would stop with an error. Without a stim channel, annotations whose
-    description is a number (EEGLAB) or a BrainVision ``Stimulus/S 11`` marker give the codes.
+    description is a number (EEGLAB) or a BrainVision ``Stimulus/S 11`` marker give the codes
+    (ASCII digits, at most 9; any other description, however odd, is no trigger), at the
+    annotation's onset when it lies within the recording.
 
     Raises
     ------
@@ -115,23 +155,17 @@ def find_trigger_events(raw, path: str | Path, stim_channel: str = "auto", mask:
     stim_names = [raw.ch_names[i] for i in mne.pick_types(raw.info, stim=True)]
     if stim_channel != "auto":
         if stim_channel not in raw.ch_names:
-            raise AppealInputError(f"{path}: stim_channel: no channel {stim_channel!r} in the recording "
-                                   f"(stim channels: {', '.join(stim_names) or 'none'})")
+            raise AppealInputError(f"{path}: stim_channel: no channel {shown(stim_channel)} in the recording "
+                                   f"(stim channels: {', '.join(map(_name, stim_names)) or 'none'})")
         stim_names = [stim_channel]
     events = np.zeros((0, 3), int)
     if stim_names:
         events = mne.find_events(raw, stim_channel=stim_names[0], shortest_event=1, mask=mask, mask_type="and",
                                  consecutive="increasing", initial_event=False, verbose="error")
     elif len(raw.annotations):
-        rows = []
-        for onset, desc in zip(raw.annotations.onset, raw.annotations.description):
-            m = _BV.match(desc.strip())
-            code = m.group(1) if m else desc.strip()
-            if code.isdigit():
-                rows.append((raw.time_as_index(onset, use_rounding=True)[0] + raw.first_samp, 0, int(code)))
-        events = np.array(rows, int).reshape(-1, 3)
+        events = _annotation_events(raw)
     if len(events) == 0:
-        where = f"stim channel {stim_names[0]}" if stim_names else "annotations"
+        where = f"stim channel {_name(stim_names[0])}" if stim_names else "annotations"
         raise AppealInputError(f"{path}: events: no trigger events found in the {where} "
                                "(expected triggers for the codes in the config's events)")
     return events

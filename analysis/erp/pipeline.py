@@ -2,13 +2,15 @@
 workflow that ``appeal analyze erp`` calls.
 
 :func:`process_subject` runs in a worker process (one recording at a time, so memory stays
-bounded by one subject); :func:`process_subjects` maps it over the recordings with
-:func:`appeal.parallel.parallel_map`, reports failing subjects and carries on with the rest;
+bounded by one subject); :func:`process_subjects` checks every recording first (untrusted input:
+:func:`refused_recordings`), maps it over the others with :func:`appeal.parallel.parallel_map`,
+reports failing subjects and carries on with the rest;
 :func:`run_erp` runs them and writes every output (:mod:`analysis.erp.report`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from pathlib import Path
 
@@ -16,7 +18,7 @@ import numpy as np
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
-from appeal.parallel import parallel_map
+from appeal.parallel import ItemFailure, parallel_map
 
 from analysis.erp.config import EventMap, event_map, find_recordings, subject_id
 from analysis.erp.report import ErpOutputs, write_erp_outputs
@@ -24,7 +26,7 @@ from analysis.erp.results import ErpResult, SubjectResult
 from analysis.erp_schema import ErpConfig
 
 __all__ = ["SubjectResult", "ErpResult", "process_subject", "process_subjects", "preprocess", "run_erp",
-           "resolve_components"]
+           "resolve_components", "refused_recordings"]
 
 
 def resolve_components(cfg: ErpConfig, ch_names: list[str], source: str = "config") -> dict:
@@ -219,21 +221,57 @@ def process_subjects(cfg: ErpConfig, *, source: str | Path = "config", n_jobs: i
         from analysis.erp.single_trials import find_beh_files
 
         beh = find_beh_files(cfg.beh, dict(zip(subjects, files)), cfg.subject_pattern, source)
+    refused = refused_recordings(files, subjects)
+    keep = [i for i in range(len(files)) if i not in refused]
     head = None
     if cfg.source.enabled:
         s = cfg.source
-        info = _head_info(cfg, files[0])
+        info = _head_info(cfg, files[keep[0]])
         head = add_forward(template_head(info, s.spacing_mm, bem=s.bem, trans=s.trans, subjects_dir=s.subjects_dir,
                                          subject=s.subject), info)
     func = functools.partial(_process_item, cfg=cfg, emap=emap, head=head, seed=seed)
-    items = [(f, s, beh.get(s)) for f, s in zip(files, subjects)]
+    items = [(files[i], subjects[i], beh.get(subjects[i])) for i in keep]
     res = parallel_map(func, items, n_jobs=n_jobs if n_jobs is not None else cfg.n_jobs, scheduler=scheduler,
-                       desc="subjects", labels=subjects)
+                       desc="subjects", labels=[subjects[i] for i in keep])
     ok = [r for r in res.successful() if r is not None]
-    logger.info("ERP pipeline: %s", res.summary())
+    logger.info("ERP pipeline: %s%s", res.summary(), f"; {len(refused)} recordings refused before" if refused else "")
+    failures = sorted([dataclasses.replace(f, index=keep[f.index]) for f in res.failures] + list(refused.values()),
+                      key=lambda f: f.index)
     if not ok:
-        raise AppealInputError([f"{f.label}: {f.error}" for f in res.failures] or [f"{source}: no subject succeeded"])
-    return ErpResult(subjects=ok, failures=res.failures, emap=emap, head=head)
+        raise AppealInputError([f"{f.label}: {f.error}" for f in failures] or [f"{source}: no subject succeeded"])
+    return ErpResult(subjects=ok, failures=failures, emap=emap, head=head)
+
+
+def refused_recordings(files: list[Path], subjects: list[str]) -> dict[int, ItemFailure]:
+    """The recordings that fail the checks made before reading (:func:`analysis.erp.io.check_recording`).
+
+    They are reported like subjects that failed (index, subject, ``AppealInputError: ...``) without
+    starting a worker. When every recording is refused this raises instead, with one line per
+    recording (the run would have nothing to do; the lines are not logged twice).
+
+    Returns
+    -------
+    dict
+        Index into ``files`` -> :class:`appeal.parallel.ItemFailure`.
+
+    Raises
+    ------
+    AppealInputError
+        When no recording passes the checks.
+    """
+    from analysis.erp.io import check_recording
+
+    refused = {}
+    for i, (path, subject) in enumerate(zip(files, subjects)):
+        try:
+            check_recording(path)
+        except AppealInputError as exc:
+            refused[i] = ItemFailure(i, subject, f"{type(exc).__name__}: {exc}")
+    if len(refused) == len(files):
+        raise AppealInputError([f"{f.label}: {f.error}" for f in refused.values()])
+    for f in refused.values():
+        logger.warning("%s failed: %s", f.label, f.error)
+    return refused
 
 
 def run_erp(cfg: ErpConfig, out: Path, *, source: str | Path = "config", seed: int = 0,

@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from appeal.errors import AppealInputError
+from appeal.labels import shown
 
 from analysis.erp.config import subject_id
 from analysis.erp.measures import cluster_waveform, window_means, window_peaks
@@ -167,10 +168,9 @@ def read_beh_trials(path: str | Path, codes: Sequence[int]) -> pd.DataFrame:
         When the file cannot be read, lacks a ``trial``, ``stimulus`` or ``trigger`` column, or
         holds a trigger that is not an integer.
     """
-    try:
-        df = pd.read_csv(path, sep="\t", dtype=str, keep_default_na=False)
-    except (OSError, ValueError) as exc:
-        raise AppealInputError(f"{path}: cannot read the behavioural file ({exc})") from None
+    from analysis.stats.design import read_table
+
+    df = read_table(path, all_text=True)  # a participant's file: checked as hostile input
     for col in ("trial", "stimulus", "trigger"):
         if col not in df.columns:
             raise AppealInputError(f"{path}: {col}: no such column (expected the runner's *_beh.tsv with trial, "
@@ -179,7 +179,7 @@ def read_beh_trials(path: str | Path, codes: Sequence[int]) -> pd.DataFrame:
     trig = pd.to_numeric(df["trigger"].where(sent), errors="coerce")
     bad = np.flatnonzero(sent.to_numpy() & trig.isna().to_numpy())
     if len(bad):
-        raise AppealInputError(f"{path}: trigger: row {bad[0] + 1} holds {df['trigger'].iloc[bad[0]]!r} "
+        raise AppealInputError(f"{path}: trigger: row {bad[0] + 1} holds {shown(df['trigger'].iloc[bad[0]])} "
                                "(expected an integer code or n/a)")
     keep = trig.isin([int(c) for c in codes]).to_numpy()
     return pd.DataFrame({"beh_trial": pd.to_numeric(df["trial"][keep], errors="coerce").astype("Int64").to_numpy(),

@@ -194,10 +194,11 @@ def _longer_row(text: str, sep: str) -> str:
     return f"rows with more fields than the header's {len(header)}"
 
 
-def read_table(path: str | Path, text_columns: Sequence[str] = ()) -> pd.DataFrame:
+def read_table(path: str | Path, text_columns: Sequence[str] = (), *, all_text: bool = False) -> pd.DataFrame:
     """Read one long-format table (CSV, TSV or Parquet; chosen by the file suffix).
 
-    ``text_columns`` are read as text (a BIDS participant label ``01`` stays ``01``). The file may
+    ``text_columns`` are read as text (a BIDS participant label ``01`` stays ``01``); ``all_text``
+    reads every cell as the text it is (``n/a`` and empty cells too). The file may
     come from anyone (an online participant's session), so it is read as hostile: it must be a
     regular file (not a folder, pipe or device) of at most :data:`MAX_TABLE_BYTES` (a ``.gz`` once
     decompressed); a CSV/TSV must be UTF-8 text without NUL bytes, with a header and rows of at
@@ -231,7 +232,9 @@ def read_table(path: str | Path, text_columns: Sequence[str] = ()) -> pd.DataFra
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", pd.errors.ParserWarning)
                 # index_col=False: a first row longer than the header is not taken as index columns
-                df = pd.read_csv(io.StringIO(text), sep=sep, dtype={c: str for c in text_columns}, index_col=False)
+                dtype = str if all_text else {c: str for c in text_columns}
+                df = pd.read_csv(io.StringIO(text), sep=sep, dtype=dtype, index_col=False,
+                                 keep_default_na=not all_text)
             if any(issubclass(w.category, pd.errors.ParserWarning) for w in caught):
                 raise AppealInputError(f"{path}: {_longer_row(text, sep)}")
         else:
