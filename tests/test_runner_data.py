@@ -367,3 +367,27 @@ def test_measured_refresh_must_be_a_display_rate():
     assert display_refresh(59.94) == 59.94 and display_refresh(143.2) == 143.2 and display_refresh(239.5) == 239.5
     assert display_refresh(223.82) is None and display_refresh(96.0) is None
     assert display_refresh(None) is None and display_refresh(1500.0) is None and display_refresh(12.0) is None
+
+
+def test_a_session_never_writes_through_a_link_out_of_its_folder(tmp_path, manifest, capsys):
+    """The lab runner's labels come from the command line and every file it writes is required inside
+    --out: a crafted participant or session is refused, and a session file or report planted as a
+    symbolic link to elsewhere is refused before anything is written there."""
+    from cli_errors import one_line_error
+
+    proto = fast_protocol(tmp_path / "p.yaml", manifest, triggers=False)
+    run = ["run", str(proto), "--simulate", "default", "--no-window"]
+    one_line_error(capsys, [*run, "--participant", "x/../../escaped", "--out", str(tmp_path / "a")],
+                   "--participant: expected letters and digits only (a BIDS label), got 'x/../../escaped'")
+    one_line_error(capsys, [*run, "--participant", "01", "--session", "0", "--out", str(tmp_path / "a")],
+                   "--session: expected a session number from 1 to 9999")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "victim.tsv").write_text("precious")
+    for name, target in (("sub-01_ses-1_task-fast_beh.tsv", elsewhere / "victim.tsv"), ("report", elsewhere)):
+        out = tmp_path / f"o-{name}"
+        out.mkdir()
+        os.symlink(target, out / name)
+        one_line_error(capsys, [*run, "--participant", "01", "--out", str(out), "--force"], "outside the output folder")
+    assert (elsewhere / "victim.tsv").read_text() == "precious" and sorted(p.name for p in elsewhere.iterdir()) == [
+        "victim.tsv"]
