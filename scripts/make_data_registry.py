@@ -99,6 +99,31 @@ DATASETS: dict[str, dict] = {
         "upstream": "https://github.com/debruine/webmorphR.stim (inst/)",
         "docs": ["README.md", "SHA256SUMS"],
     },
+    "ict-facekit-more": {
+        "folder": "meshes/ict-facekit-more",
+        "description": "ICT Face Model (light), the rest of FaceXModel/: the other 97 identity components (100 with "
+                       "ict-facekit's three) and 26 more ARKit expression shapes, same topology (gzipped); the "
+                       "toolkit's own scripts",
+        "licence": "MIT",
+        "credit": "ICT Face Model, USC Institute for Creative Technologies Vision and Graphics Lab "
+                  "(Li et al. 2020, 'Learning Formation of Physically-Based Face Attributes', CVPR)",
+        "upstream": "https://github.com/ICT-VGL/ICT-FaceKit (FaceXModel/) at da5f95a607f5e6b37755b38d3385d7f2853732e5",
+        "docs": ["README.md", "SHA256SUMS"],
+    },
+    "gdquest-sophia": {
+        "folder": "meshes/gdquest-sophia",
+        "description": "an artist-made stylised (chibi) character: sophia.glb (head, body and hair, painted decal "
+                       "eyes and mouth, embedded textures), the eye decals' texture, GDQuest's screenshot",
+        "licence": "CC-BY-4.0",
+        "credit": "Additional assets CC-By 4.0 GDQuest (https://www.gdquest.com/): Sophia, from "
+                  "gdquest-demos/godot-4-3D-Characters at commit 8034d3fede52 (later commits offer it under CC "
+                  "BY-NC-SA 4.0; this copy is the CC BY 4.0 one)",
+        "upstream": "https://github.com/gdquest-demos/godot-4-3D-Characters (src/addons/gdquest_sophia/) at "
+                    "8034d3fede52c8a58d2cbc7b8d3e8e6c79f6c8b3",
+        # the file URLs at the commit whose licence is CC BY 4.0, not at the snapshot's newest commit
+        "pinned": {"repo": "gdquest-demos/godot-4-3D-Characters", "commit": "8034d3fede52c8a58d2cbc7b8d3e8e6c79f6c8b3"},
+        "docs": ["README.md", "SHA256SUMS", "look.png", "sophia_skin.gd", "LICENSE.md"],
+    },
     "biosemi-mne": {
         "folder": "eeg/biosemi",
         "files": ["test.bdf", "test_bdf_eeglab.mat", "test_bdf_stim_channel.bdf", "multiple_annotation_chans.bdf"],
@@ -140,6 +165,17 @@ def _snapshots(mirrors: Path) -> dict[str, str]:
     return index
 
 
+def _pinned(mirrors: Path, repo_name: str, commit: str) -> dict[str, str]:
+    """git blob id -> raw URL of that file at ``commit`` of the snapshot of ``repo_name`` (empty without it)."""
+    repo = mirrors / repo_name.replace("/", "+") / "repo"
+    if not repo.exists():
+        return {}
+    tree = subprocess.run(["git", "-C", str(repo), "ls-tree", "-r", commit], capture_output=True, text=True,
+                          check=True).stdout
+    return {line.split("\t", 1)[0].split()[2]: f"https://raw.githubusercontent.com/{repo_name}/{commit}/"
+                                               f"{line.split(chr(9), 1)[1]}" for line in tree.splitlines()}
+
+
 def _decoded_source(mirrors: Path, spec: dict, sha256: str) -> dict:
     """``url`` and ``decode`` of a converted file when the snapshot's source decodes to ``sha256``."""
     from appeal.draco_glb import ObjStyle, decode_draco_glb, obj_bytes
@@ -170,6 +206,7 @@ def main(data: Path, mirrors: Path) -> None:
     out = {}
     for name, spec in DATASETS.items():
         folder = data / spec["folder"]
+        own = _pinned(mirrors, spec["pinned"]["repo"], spec["pinned"]["commit"]) if "pinned" in spec else {}
         names = spec.get("files") or sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
         files = []
         for rel in names:
@@ -177,7 +214,7 @@ def main(data: Path, mirrors: Path) -> None:
             gz = rel.endswith(".gz")
             content = gzip.decompress(raw) if gz else raw
             entry = {"path": rel, "sha256": hashlib.sha256(content).hexdigest(), "size": len(raw),
-                     "url": index.get(_blob(content))}
+                     "url": own.get(_blob(content)) or (None if own else index.get(_blob(content)))}
             if rel in spec.get("decoded", {}):
                 entry |= _decoded_source(mirrors, spec["decoded"][rel], entry["sha256"])
             if rel in spec.get("written", ()):
@@ -190,7 +227,8 @@ def main(data: Path, mirrors: Path) -> None:
             if rel in spec.get("docs", ()):
                 entry["docs"] = True
             files.append(entry)
-        out[name] = {k: v for k, v in spec.items() if k not in ("files", "docs", "decoded", "written")} | {"files": files}
+        out[name] = ({k: v for k, v in spec.items() if k not in ("files", "docs", "decoded", "written", "pinned")}
+                     | {"files": files})
         n_url = sum(f["url"] is not None or "text" in f for f in files)
         print(f"{name}: {len(files)} files, {sum(f['size'] for f in files) / 1e6:.1f} MB, {n_url} from upstream")
     OUT.write_text(json.dumps(out, indent=1) + "\n")

@@ -7,8 +7,12 @@ Public API
 ----------
 FaceRig, LANDMARK_NAMES, IBUG_LANDMARKS
     The rig every character is (module ``rig``).
-load_ict_rig
-    An ICT Face Model identity with its 33 ARKit/FACS shapes (module ``ict``).
+load_ict_rig, ict_identity_basis
+    An ICT Face Model identity with its 33 ARKit/FACS shapes, and the model's identity components
+    (module ``ict``).
+Design, correspond_design, design_head
+    An artist's stylised head brought into the rig's topology: the surface by ElastiFace, the
+    eyes, nose and mouth carried over whole (module ``design``).
 procedural_head
     A head made by code, with a painted texture (module ``procedural_head``).
 MeshCharacter, correspond_rig, front_region
@@ -47,7 +51,8 @@ from stimulus_engine.characters.markers import marker_vertices
 from stimulus_engine.characters.motion_files import read_motion
 from stimulus_engine.characters.retarget import retarget_frames, retarget_performance
 from stimulus_engine.characters.gaze import aim_eyes, lines_of_sight
-from stimulus_engine.characters.ict import load_ict_rig
+from stimulus_engine.characters.design import Design, correspond_design, design_head
+from stimulus_engine.characters.ict import ict_identity_basis, load_ict_rig
 from stimulus_engine.characters.lashes import seat_lashes
 from stimulus_engine.characters.mesh_character import MeshCharacter, correspond_rig, front_region
 from stimulus_engine.characters.procedural_head import procedural_head
@@ -60,6 +65,10 @@ from stimulus_engine.characters.scan_surface import ScanSurface, bind_scan
 from stimulus_engine.characters.skin_maps import check_map, rig_albedo, rig_detail_maps
 
 __all__ = [
+    "Design",
+    "correspond_design",
+    "design_head",
+    "ict_identity_basis",
     "EXPRESSIONS",
     "FaceRig",
     "IBUG_LANDMARKS",

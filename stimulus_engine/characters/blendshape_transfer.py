@@ -299,6 +299,18 @@ def face_length(rig: FaceRig, vertices: np.ndarray | None = None) -> float:
     return float(np.linalg.norm(lm["forehead_top"] - lm["chin"]))
 
 
+#: How much further a designed cartoon's expressions move than the rig's, in units of its face (``face_units:
+#: larger``): stylised shapes read as more intense (thesis §6.5), and an animator exaggerates a cartoon's
+#: expressions, where the range-of-motion alignment alone left a cartoon's mouth and brows 2-3 % short.
+CARTOON_EXPRESSIVENESS = 1.1
+
+
+def face_width(rig: FaceRig, vertices: np.ndarray | None = None) -> float:
+    """The face's width, between its sides in front of the ears (``face_right`` to ``face_left``)."""
+    lm = rig.landmark_points(vertices)
+    return float(np.linalg.norm(lm["face_left"] - lm["face_right"]))
+
+
 def range_of_motion(names: list[str], *, expressions: bool = False, steps: int = 1, hold: int = 0) -> np.ndarray:
     """A range-of-motion training sequence as blendshape weights, (F, K).
 
@@ -327,7 +339,7 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
                          names: list[str] | None = None, frames: np.ndarray | None = None,
                          markers: np.ndarray | None = None, n_markers: int = 120,
                          alpha: float = ALIGN_ALPHA, beta: float = ALIGN_BETA,
-                         dense_base: str = "deformation_transfer") -> dict[str, np.ndarray]:
+                         dense_base: str = "deformation_transfer", face_units: str = "length") -> dict[str, np.ndarray]:
     """``rig``'s blendshapes carried onto the neutral ``target`` (same topology) as dense deltas.
 
     Parameters
@@ -341,8 +353,8 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
         The blendshapes to transfer (default: all of the rig's, sorted).
     frames : (F, M, 3) array, optional
         ``aligned``: the target's training sequence at ``markers`` as displacements from its
-        neutral. Default: the rig's :func:`range_of_motion` scaled by the ratio of the face
-        lengths (target / rig).
+        neutral. Default: the rig's :func:`range_of_motion` scaled by the ratio of the faces'
+        sizes (target / rig; see ``face_units``).
     markers : (M,) int array, optional
         Marker vertices (default :func:`~stimulus_engine.characters.markers.marker_vertices`).
     n_markers : int
@@ -353,6 +365,12 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
         ``aligned``: the dense blendshapes the markers' gains scale (default deformation
         transfer: on one topology it keeps each triangle's deformation; ``rbf`` needs no
         triangles to agree).
+    face_units : {"length", "larger"}
+        ``aligned``: the size the default training sequence is scaled by: the face's length
+        (forehead to chin), or the larger of its length's and its width's ratios, each
+        blendshape then scaled up where its landmarks fall short of :data:`CARTOON_EXPRESSIVENESS`
+        times the rig's motion in those units (a designed cartoon, whose face is wider than long, then moves
+        at least as far in units of either).
 
     Returns
     -------
@@ -382,8 +400,32 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
         dense_g = transferred()
     s = deltas[:, markers]
     if frames is None:
-        frames = (face_length(rig, target) / face_length(rig)) * np.einsum("fk,kmc->fmc", range_of_motion(names), s)
+        ratio = face_length(rig, target) / face_length(rig)
+        if face_units == "larger":
+            ratio = max(ratio, face_width(rig, target) / face_width(rig))
+        frames = ratio * np.einsum("fk,kmc->fmc", range_of_motion(names), s)
     guess = warp_deltas(warp, rig.vertices[markers], s)  # the thesis's RBF guesses at the markers
     res = align_blendshapes(s, frames, guess, target[markers], alpha=alpha, beta=beta)
     dense = densify(dense_g, res.blendshapes, markers, target)
+    if face_units == "larger":
+        dense = _at_least_as_far(rig, target, deltas, dense)
     return dict(zip(names, dense))
+
+
+def _at_least_as_far(rig: FaceRig, target: np.ndarray, deltas: np.ndarray, dense: np.ndarray) -> np.ndarray:
+    """Each transferred blendshape scaled up, where it falls short, to move each face landmark it moves
+    most (a mouth corner, a brow, a lid: those moving at least half as far as its most-moving one) at least
+    :data:`CARTOON_EXPRESSIVENESS` times as far in units of its face's length and of its width as the
+    rig's own does in its face's."""
+    sets = [np.asarray(v) for k, v in sorted(rig.landmarks.items()) if k not in ("eye_right", "eye_left")
+            and not k.startswith("pupil_")]
+
+    def moved(d: np.ndarray) -> np.ndarray:  # (shapes, landmarks)
+        return np.stack([np.linalg.norm(d[:, idx].mean(axis=1), axis=1) for idx in sets], axis=1)
+
+    src, got = moved(deltas), moved(dense)
+    units = max(face_length(rig, target) / face_length(rig), face_width(rig, target) / face_width(rig))
+    main = src >= 0.5 * src.max(axis=1, keepdims=True)
+    ratio = np.where(main & (got > 0), CARTOON_EXPRESSIVENESS * units * src / np.maximum(got, 1e-300), 0.0)
+    gain = np.where(src.max(axis=1) > 0, ratio.max(axis=1), 1.0)
+    return dense * np.maximum(gain, 1.0)[:, None, None]

@@ -20,7 +20,7 @@ from stimulus_engine.characters.expressions import facs_recipes
 from stimulus_engine.geometry.ict_topology import ict_regions
 from stimulus_engine.characters.rig import IBUG_LANDMARKS, LANDMARK_NAMES, FaceRig
 
-__all__ = ["load_ict_rig"]
+__all__ = ["load_ict_rig", "ict_identity_basis"]
 
 #: ICT eyeball vertex ranges (README "Eyeball Details"): the first range of each eyeball (called
 #: "sclera" there) is the front cap with the corneal bulge, meant as a *transparent* wet/cornea
@@ -188,3 +188,28 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
         rigid_sets=[regions["eyeball_left"], regions["eyeball_right"]], skin=skin,
         part_textures={} if uv is None else {"eye": photographic_eye_texture(), "eye_shadow": eye_shadow_texture()},
     )
+
+
+def ict_identity_basis(*ict_dirs: str | os.PathLike) -> np.ndarray:
+    """The ICT model's identity components as deltas from its mean face, ``(K, N, 3)``.
+
+    Every ``identity*.obj(.gz)`` in the folders (the face kit's three and ``ict-facekit-more``'s
+    97: the model's 100 principal components of the light-stage scans) minus the mean
+    (``generic_neutral_mesh``, from the first folder that has it), in file-name order.
+    """
+    dirs = [_ict_dir(d) for d in ict_dirs]
+    mean_dir = next((d for d in dirs if any((d / f"generic_neutral_mesh{x}").exists() for x in (".obj.gz", ".obj"))),
+                    None)
+    if mean_dir is None:
+        raise AppealInputError(f"{dirs[0]}: generic_neutral_mesh: mesh not found (expected the ICT face kit folder)")
+    mean = _obj_vertices(_ict_file(mean_dir, "generic_neutral_mesh"))
+    files = sorted({f.name.split(".")[0]: f for d in dirs for f in d.glob("identity*.obj*")}.items())
+    if not files:
+        raise AppealInputError(f"{dirs[0]}: no identity*.obj.gz files (expected the ICT identity components)")
+    out = np.empty((len(files), *mean.shape))
+    for k, (name, f) in enumerate(files):
+        v = _obj_vertices(str(f))
+        if v.shape != mean.shape:
+            raise AppealInputError(f"{f}: {len(v)} vertices, expected {len(mean)} (the ICT topology)")
+        out[k] = v - mean
+    return out

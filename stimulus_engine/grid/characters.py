@@ -11,7 +11,7 @@ expressions are then carried over from the base rig by deformation transfer.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +83,11 @@ class Character:
         the character is a mesh).
     scan : ScanSurface or None
         With ``mesh.topology: scan``: the mesh drawn as itself, bound to ``rig``.
+    cartoon : (N, 3) array or None
+        With a grid ``design``: the character's own cartoon, the shape axis's stylised end
+        (:mod:`stimulus_engine.grid.designs`); None: the analytic operator's.
+    eyes_ahead : float
+        How far the eyes lead the morph toward ``cartoon``.
     """
 
     spec: CharacterSpec
@@ -90,6 +95,8 @@ class Character:
     rig_hash: str
     expression_rig: FaceRig
     scan: ScanSurface | None = None
+    cartoon: np.ndarray | None = field(default=None, compare=False)
+    eyes_ahead: float = 0.0
 
 
 def _with_hair(c: CharacterSpec, rig: FaceRig, rig_hash: str, over: FaceRig | None = None) -> tuple[FaceRig, str]:

@@ -31,7 +31,7 @@ from stimulus_engine.grid.cache import (
     save_rig,
     sha,
 )
-from stimulus_engine.grid.characters import Character, character_albedo, load_character
+from stimulus_engine.grid.characters import Character, character_albedo
 from stimulus_engine.grid.inputs import load_map
 from stimulus_engine.grid.plan import PlannedImage, material_sources, plan_images, plan_photos
 from stimulus_engine.grid.worker import RenderItem
@@ -205,7 +205,9 @@ def level_blendshapes(ch: Character, shape: float, shape_v: np.ndarray, method: 
     if key not in _LEVEL_RIGS:
         if len(_LEVEL_RIGS) >= 16:
             _LEVEL_RIGS.clear()
-        _LEVEL_RIGS[key] = transfer_blendshapes(ch.expression_rig, shape_v, method)
+        # a designed cartoon's face is wider than long: it moves at least as far in units of either
+        units = "larger" if ch.cartoon is not None and shape > 0 else "length"
+        _LEVEL_RIGS[key] = transfer_blendshapes(ch.expression_rig, shape_v, method, face_units=units)
     return _LEVEL_RIGS[key]
 
 
@@ -359,7 +361,9 @@ def _landmark_rows(ch: Character, im: PlannedImage, vertices: np.ndarray) -> lis
 def _characters(grid: GridFile, cache: Path, source: str,
                 loaded: dict[str, Character] | None) -> dict[str, Character]:
     """The grid's characters by name: ``loaded`` if given, else each loaded from ``cache``."""
-    return loaded or {c.name: load_character(c, cache, source) for c in grid.characters}
+    from stimulus_engine.grid.designs import grid_characters
+
+    return loaded or grid_characters(grid, cache, source)
 
 
 def _probe_images(probe: GridFile, source: str, cache: Path, chars: dict[str, Character]) -> list[np.ndarray]:
@@ -431,7 +435,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
     landmarks : DataFrame
         Long table: character, shape, stylisation, expression, landmark, x, y, z.
     """
-    from stimulus_engine.stylisation.shape import stylise
+    from stimulus_engine.grid.designs import shape_vertices
 
     cache = Path(cache) if cache is not None else out / ".cache"
     chars = _characters(grid, cache, source, characters)
@@ -457,7 +461,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
             rig_files[im.character] = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash, drawn.name)}.npz"
             save_rig(rig_files[im.character], drawn)
         if (im.character, im.shape) not in shapes:
-            shape_v = stylise(ch.rig, im.shape)
+            shape_v = shape_vertices(ch, im.shape)
             shapes[im.character, im.shape] = (shape_v, _camera_for(ch, shape_v, grid))
         shape_v, cam = shapes[im.character, im.shape]
         gkey = (im.character, im.shape, im.expression)

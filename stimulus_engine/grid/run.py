@@ -15,7 +15,7 @@ from appeal.atomic import atomic_write_text
 from appeal.cells import write_table
 from appeal.logs import logger
 from stimulus_engine.grid.animation import apex_view, clip_checksums, render_clip
-from stimulus_engine.grid.characters import load_character
+from stimulus_engine.grid.designs import grid_characters
 from stimulus_engine.grid.continuum import continuum_table, write_continuum
 from stimulus_engine.grid.expression_measures import write_expression_measures
 from stimulus_engine.grid.prepare import measured_grid, prepare_grid
@@ -72,7 +72,7 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     from appeal.parallel import parallel_map
 
     out = Path(out)
-    chars = {c.name: load_character(c, out / ".cache", source) for c in grid.characters}  # loaded once
+    chars = grid_characters(grid, out / ".cache", source)  # loaded once
     grid = measured_grid(grid, out, source=source, characters=chars)  # the continua's levels, for the sheets and the report too
     manifest, items, landmarks = prepare_grid(grid, out, source=source, characters=chars)
     previous = previous_hashes(out)

@@ -41,6 +41,7 @@ dataset (:mod:`appeal.datasets`).
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_validator
@@ -48,7 +49,7 @@ from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_v
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
 __all__ = ["AnimationSpec", "CharacterSpec", "GridFile", "MaterialContinuum", "MaterialSpec", "MeshSpec", "ShapeContinuum",
-           "PhotoSpec", "RenderSettings", "even_values", "frame_at", "shape_label"]
+           "PhotoSpec", "RenderSettings", "DesignSpec", "even_values", "frame_at", "shape_label"]
 
 _STYLES = ("original", "blur25", "blur50", "bilateral", "flat", "painted")
 _LIGHTING = ("direct_hard", "direct_soft", "gi_soft", "flat")
@@ -177,6 +178,57 @@ class CharacterSpec(StudyModel):
             raise ValueError(f"mesh.region '{self.mesh.region}': the procedural head has only the region 'front' "
                              "(ICT regions such as narrow_face need an ICT rig)")
         return self
+
+
+class DesignSpec(StudyModel):
+    """The shape axis toward a *design*: an artist's stylised head (thesis §6.4), not the analytic operator.
+
+    ``file``: the head (OBJ, glTF/GLB; its own tessellation; a GLB with body, hair and decals is
+    fine: the head is the piece the landmarks lie on). ``landmarks``: rig landmark name → point
+    on that head (a vertex index or ``[x, y, z]``), as for a mesh character, or a YAML file of
+    them (``scripts/design_landmarks.py`` writes one from painted eye and mouth decals); the eyes' four lid
+    landmarks (corners and lid apexes on the design's eye outline, painted or modelled), the
+    nose's tip and alae, the mouth's corners and the face's sides are needed. The rig's mean face
+    is corresponded onto the head with ElastiFace and its eyes, nose and mouth are carried over whole
+    to the design's (:mod:`stimulus_engine.characters.design`); each character's own cartoon then
+    carries the character's proportions at ``identity`` strength (1: all of them; 0: the design as
+    drawn; :mod:`stimulus_engine.stylisation.designed_shape`), and shape level ``s`` is the morph
+    ``s`` of the way from the character to its cartoon, the eyes leading by ``eyes_ahead``
+    (0: one linear morph). A design needs characters on an ICT rig (``ict:``).
+    """
+
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
+    file: InputFile
+    landmarks: dict[str, int | tuple[float, float, float]] | InputFile
+    identity: float = Field(1.0, ge=0.0, le=2.0)
+    identity_model: InputDir | None = Field(
+        None, description="a folder of further ICT identity components (data:ict-facekit-more: the model's 100 "
+                          "with the face kit's own three), which model each character's proportions")
+    eyes_ahead: float = Field(0.0, ge=0.0, le=3.0)
+
+    @model_validator(mode="after")
+    def _model(self) -> DesignSpec:
+        if self.identity > 0 and self.identity_model is None:
+            raise ValueError("identity_model: the ICT identity components are needed to carry each character's "
+                             "proportions onto the design (e.g. identity_model: data:ict-facekit-more), or set "
+                             "identity: 0 for the design as drawn")
+        return self
+
+    @field_validator("landmarks")
+    @classmethod
+    def _enough(cls, v: dict | Path) -> dict:
+        if isinstance(v, Path):  # a landmarks file (YAML: name: [x, y, z]), e.g. written by scripts/design_landmarks.py
+            from appeal.studyfile import load_yaml
+
+            v = load_yaml(v)
+            if not isinstance(v, dict) or not all(isinstance(k, str) and (isinstance(p, int) or (
+                    isinstance(p, list) and len(p) == 3 and all(isinstance(x, (int, float)) for x in p)))
+                    for k, p in v.items()):
+                raise ValueError("expected a landmarks file of 'name: [x, y, z]' (or a vertex index) lines")
+            v = {k: p if isinstance(p, int) else tuple(float(x) for x in p) for k, p in v.items()}
+        if len(v) < 6:
+            raise ValueError(f"expected at least 6 landmarks on the design's head (got {len(v)})")
+        return v
 
 
 class MaterialSpec(StudyModel):
@@ -556,6 +608,8 @@ class GridFile(StudyModel):
     render: RenderSettings = Field(default_factory=RenderSettings)
     #: Clips instead of still images (:class:`AnimationSpec`); None: one still image a cell.
     animation: AnimationSpec | None = None
+    #: The shape axis's stylised end: an artist's head (:class:`DesignSpec`); None: the analytic operator.
+    design: DesignSpec | None = None
 
     def seeds(self) -> dict[str, int]:
         """The seeds of the grid's random textures (painted skin, pores) and generated heads, by field."""
@@ -607,6 +661,11 @@ class GridFile(StudyModel):
             if m.from_character is not None and m.from_character not in names:
                 raise ValueError(f"material '{m.name}': from_character '{m.from_character}' is not a character "
                                  f"of this grid (expected one of: {', '.join(names)})")
+        if self.design is not None:
+            rigless = [c.name for c in self.characters if c.ict is None]
+            if rigless:
+                raise ValueError(f"design: character '{rigless[0]}' has no ICT rig (a design is corresponded with the "
+                                 "ICT model's mean face; expected 'ict:' on every character)")
         for p in self.photographs:
             if p.character not in names:
                 raise ValueError(f"photographs: character '{p.character}' is not in the grid")

@@ -6,6 +6,9 @@ Public API
 ----------
 stylise, stylise_rig, StyliseParams
     The shape operator: neotenous proportions by regions of the rig (module ``shape``).
+own_cartoon, designed_shape, model_identity
+    The shape axis toward a design: each person's own cartoon of an artist's head and the morphs
+    on the way (module ``designed_shape``).
 MATERIAL_LEVELS, stylise_albedo, stylise_map, stylise_material
     Material levels 0 (original) … 4 (flat) on albedos and their maps (module ``materials``).
 blend_vertices, blend_images, partial_blend, blend_meshes, part_morph
@@ -21,6 +24,7 @@ ssim_distance, face_descriptor
     ``identity``).
 """
 
+from stimulus_engine.stylisation.designed_shape import designed_shape, model_identity, own_cartoon
 from stimulus_engine.stylisation.eyes import bold_lash_texture, stylised_eye_texture
 from stimulus_engine.stylisation.hair import hair_mass_texture
 from stimulus_engine.stylisation.identity import face_descriptor
@@ -36,6 +40,9 @@ __all__ = [
     "blend_images",
     "blend_meshes",
     "blend_vertices",
+    "designed_shape",
+    "model_identity",
+    "own_cartoon",
     "bold_lash_texture",
     "face_descriptor",
     "hair_mass_texture",
