@@ -19,6 +19,7 @@ from typing import Any
 from appeal.atomic import atomic_write_text
 from appeal.cells import neutralise
 from appeal.errors import AppealInputError
+from appeal.text_bytes import decoded
 
 __all__ = ["session_stem", "format_cell", "TsvWriter", "read_completed", "read_sidecar", "write_sidecar", "write_demographics", "NA"]
 
@@ -153,13 +154,7 @@ def read_completed(path: str | Path, columns: Sequence[str] | None = None) -> li
             fh.flush()
             os.fsync(fh.fileno())
         data = data[:cut]
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise AppealInputError(f"{path}:{line}: not UTF-8 (byte 0x{data[exc.start]:02x}): expected the session file "
-                               "as the runner wrote it") from None
-    lines = text.splitlines()
+    lines = decoded(data, str(path), "the session file as the runner wrote it").splitlines()
     if not lines:
         return []
     header = lines[0].split("\t")

@@ -196,16 +196,16 @@ def _bad_file(path: Path, kind: str) -> str:
     path.parent.mkdir(parents=True, exist_ok=True)
     if kind == "binary":
         path.write_bytes(np.random.default_rng(0).bytes(4096) + b"\x00")
-        return "not a text table: a NUL byte on line"
+        return ": a NUL byte (a binary file, or text in UTF-16?)"
     if kind == "nul":
         path.write_bytes(b"participant_id\ttrial\n01\t1\x002\n")
-        return "not a text table: a NUL byte on line 2"
+        return ":2: a NUL byte"
     if kind == "utf16":
         path.write_text("participant_id\ttrial\n01\t1\n", encoding="utf-16")
-        return "a NUL byte on line 1 (a binary file, or text in UTF-16?)"
+        return ":1: a NUL byte (a binary file, or text in UTF-16?)"
     if kind == "latin1":
         path.write_bytes("participant_id\tshape\n01\tr\xe9aliste\n".encode("latin-1"))
-        return "not UTF-8 text: byte 0xe9 on line 2"
+        return ":2: not UTF-8 (byte 0xe9)"
     if kind == "empty":
         path.write_bytes(b"")
         return "the file is empty"

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from appeal.errors import AppealInputError
+from appeal.text_bytes import decoded
 from appeal.logs import logger
 
 __all__ = ["Design", "prepare_design", "read_table", "read_ratings", "factor_levels", "rows_text"]
@@ -164,17 +165,7 @@ def _read_bytes(path: Path, gz: bool) -> bytes:
 
 def _text_of(path: Path, data: bytes) -> str:
     """The bytes of a CSV/TSV as text: one-line errors for binary data, text that is not UTF-8, an empty file."""
-    nul = data.find(b"\x00")
-    if nul >= 0:
-        line = data.count(b"\n", 0, nul) + 1
-        raise AppealInputError(f"{path}: not a text table: a NUL byte on line {line} (a binary file, or text in "
-                               "UTF-16?); expected UTF-8 CSV/TSV text")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise AppealInputError(f"{path}: not UTF-8 text: byte {data[exc.start]:#04x} on line {line} (saved in "
-                               "another encoding? save it as UTF-8)") from None
+    text = decoded(data, str(path), "UTF-8 CSV/TSV text")
     if not text.strip():
         raise AppealInputError(f"{path}: the file is empty (expected a header row and data rows)")
     return text

@@ -34,6 +34,7 @@ from pathlib import Path
 
 from appeal.errors import AppealInputError
 from appeal.labels import MAX_LABEL, MAX_SESSION, label_problem, shown
+from appeal.text_bytes import decoded
 from appeal.levels import level_key
 from appeal.provenance import file_sha256
 from experiments.clips import CLIP_COLUMNS
@@ -320,10 +321,6 @@ class SessionFile:
         return len(self.rows) == self.n_list
 
 
-def _line_of(data: bytes, offset: int) -> int:
-    return data.count(b"\n", 0, offset) + 1
-
-
 def _read_text(path: Path, ctx: ImportContext) -> tuple[str, bytes]:
     """The file's text and bytes, after the checks on the file as a whole (1 above)."""
     if not path.exists():
@@ -343,17 +340,7 @@ def _read_text(path: Path, ctx: ImportContext) -> tuple[str, bytes]:
         raise AppealInputError(f"{path}: more than the {ctx.max_bytes} bytes a session of {ctx.protocol.name} can hold")
     if not data:
         raise AppealInputError(f"{path}: empty file (expected a header line and one line per trial)")
-    nul = data.find(b"\0")
-    if nul >= 0:
-        raise AppealInputError(f"{path}:{_line_of(data, nul)}: a NUL byte: expected text (UTF-8) as the browser writes it")
-    if data.startswith(b"\xef\xbb\xbf"):
-        raise AppealInputError(f"{path}:1: a byte-order mark: the file was saved again by another program "
-                               "(expected the file as the browser wrote it)")
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise AppealInputError(f"{path}:{_line_of(data, exc.start)}: not UTF-8 (byte 0x{data[exc.start]:02x}): "
-                               "expected the file as the browser wrote it") from None
+    text = decoded(data, str(path), "text (UTF-8) as the browser writes it", bom=False)
     if not text.endswith("\n"):
         raise AppealInputError(f"{path}:{text.count(chr(10)) + 1}: the last line has no line end: the file was cut off "
                                "(a truncated download or upload?); get the participant's file again")
