@@ -42,22 +42,26 @@ def sophia(shared_data):
     return _sophia(str(shared_data))
 
 
-def _similar(a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether ``b`` is ``a`` moved whole (rotated, scaled uniformly, shifted): an eyeball stays a ball."""
-    from stimulus_engine.correspondence import umeyama
-
-    err = np.linalg.norm(umeyama(a, b).apply(a) - b, axis=1).max()
-    return bool(err < 1e-3 * np.ptp(b, axis=0).max())
-
-
-def measures(rig, v) -> dict[str, float]:
-    lm = rig.landmark_points(v)
+def _landmark_measures(lm: dict) -> dict[str, float]:
+    """:func:`measures` of landmark points already averaged (the grid's ``landmarks.csv``)."""
     d = lambda a, b: float(np.linalg.norm(lm[a] - lm[b]))  # noqa: E731
     face_w, face_l = d("face_left", "face_right"), d("forehead_top", "chin")
     eye_w = (d("eye_right_outer", "eye_right_inner") + d("eye_left_outer", "eye_left_inner")) / 2
     eye_h = (d("eye_right_top", "eye_right_bottom") + d("eye_left_top", "eye_left_bottom")) / 2
     return {"eye_area": eye_w * eye_h / (face_w * face_l), "eye_ratio": eye_h / eye_w,
             "nose": d("nose_left", "nose_right") / face_w, "mouth": d("mouth_left", "mouth_right") / face_w}
+
+
+def measures(rig, v) -> dict[str, float]:
+    return _landmark_measures(rig.landmark_points(v))
+
+
+def _similar(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether ``b`` is ``a`` moved whole (rotated, scaled uniformly, shifted): an eyeball stays a ball."""
+    from stimulus_engine.correspondence import umeyama
+
+    err = np.linalg.norm(umeyama(a, b).apply(a) - b, axis=1).max()
+    return bool(err < 1e-3 * np.ptp(b, axis=0).max())
 
 
 def test_the_design_is_a_cartoon_in_the_rigs_topology(sophia):
@@ -224,6 +228,8 @@ def test_a_grid_with_a_design(shared_data, tmp_path, capsys):
 
     lm = pd.read_csv(tmp_path / "out" / "landmarks.csv")
     pts = {(r.shape, r.expression, r.landmark): np.array([r.x, r.y, r.z]) for r in lm.itertuples()}
+    real, toon = (_landmark_measures({k[2]: p for k, p in pts.items() if k[:2] == (s, "neutral")}) for s in (0.0, 1.0))
+    assert toon["eye_area"] >= 2.5 * real["eye_area"] and toon["eye_ratio"] >= 0.5 and toon["nose"] <= 0.6 * real["nose"]
     for shape in (0.0, 1.0):
         width = np.linalg.norm(pts[shape, "neutral", "face_left"] - pts[shape, "neutral", "face_right"])
         move = {e: np.mean([np.linalg.norm(pts[shape, e, k] - pts[shape, "neutral", k]) for k in ks]) / width

@@ -339,7 +339,8 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
                          names: list[str] | None = None, frames: np.ndarray | None = None,
                          markers: np.ndarray | None = None, n_markers: int = 120,
                          alpha: float = ALIGN_ALPHA, beta: float = ALIGN_BETA,
-                         dense_base: str = "deformation_transfer", face_units: str = "length") -> dict[str, np.ndarray]:
+                         dense_base: str = "deformation_transfer", face_units: str = "length",
+                         reference: tuple[np.ndarray, dict[str, np.ndarray]] | None = None) -> dict[str, np.ndarray]:
     """``rig``'s blendshapes carried onto the neutral ``target`` (same topology) as dense deltas.
 
     Parameters
@@ -371,6 +372,9 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
         blendshape then scaled up where its landmarks fall short of :data:`CARTOON_EXPRESSIVENESS`
         times the rig's motion in those units (a designed cartoon, whose face is wider than long, then moves
         at least as far in units of either).
+    reference : (neutral, blendshapes), optional
+        With ``face_units: larger``: the shape whose motion the transferred blendshapes must reach
+        (default the rig's own), e.g. the character's realistic level, its blendshapes by name.
 
     Returns
     -------
@@ -408,23 +412,26 @@ def transfer_blendshapes(rig: FaceRig, target: np.ndarray, method: str = "aligne
     res = align_blendshapes(s, frames, guess, target[markers], alpha=alpha, beta=beta)
     dense = densify(dense_g, res.blendshapes, markers, target)
     if face_units == "larger":
-        dense = _at_least_as_far(rig, target, deltas, dense)
+        ref_v, ref = (rig.vertices, deltas) if reference is None else (
+            np.asarray(reference[0], np.float64), np.stack([reference[1][n] for n in names]))
+        dense = _at_least_as_far(rig, ref_v, ref, target, dense)
     return dict(zip(names, dense))
 
 
-def _at_least_as_far(rig: FaceRig, target: np.ndarray, deltas: np.ndarray, dense: np.ndarray) -> np.ndarray:
+def _at_least_as_far(rig: FaceRig, ref_v: np.ndarray, ref: np.ndarray, target: np.ndarray,
+                     dense: np.ndarray) -> np.ndarray:
     """Each transferred blendshape scaled up, where it falls short, to move each face landmark it moves
     most (a mouth corner, a brow, a lid: those moving at least half as far as its most-moving one) at least
     :data:`CARTOON_EXPRESSIVENESS` times as far in units of its face's length and of its width as the
-    rig's own does in its face's."""
+    reference (the rig's own, or a character's realistic level, with neutral ``ref_v``) does in its face's."""
     sets = [np.asarray(v) for k, v in sorted(rig.landmarks.items()) if k not in ("eye_right", "eye_left")
             and not k.startswith("pupil_")]
 
     def moved(d: np.ndarray) -> np.ndarray:  # (shapes, landmarks)
         return np.stack([np.linalg.norm(d[:, idx].mean(axis=1), axis=1) for idx in sets], axis=1)
 
-    src, got = moved(deltas), moved(dense)
-    units = max(face_length(rig, target) / face_length(rig), face_width(rig, target) / face_width(rig))
+    src, got = moved(ref), moved(dense)
+    units = max(face_length(rig, target) / face_length(rig, ref_v), face_width(rig, target) / face_width(rig, ref_v))
     main = src >= 0.5 * src.max(axis=1, keepdims=True)
     ratio = np.where(main & (got > 0), CARTOON_EXPRESSIVENESS * units * src / np.maximum(got, 1e-300), 0.0)
     gain = np.where(src.max(axis=1) > 0, ratio.max(axis=1), 1.0)

@@ -45,6 +45,7 @@ from appeal.errors import AppealInputError
 from stimulus_engine.characters.rig import FaceRig
 
 __all__ = ["FEATURE_BLOCKS", "LID_POSE", "Design", "design_head", "neck_weights", "correspond_design", "feature_falloff",
+           "open_lids",
            "feature_sizes"]
 
 #: Each carried-over feature: (name, the rig landmarks whose mean is its centre, the landmark pair
@@ -194,10 +195,20 @@ def _carry_features(rig: FaceRig, surface: np.ndarray, rotation: np.ndarray) -> 
     return out, scales
 
 
-def _open_lids(rig: FaceRig, v: np.ndarray, target: dict[str, float], scales: dict[str, float],
-               rotation: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
-    """The lids opened towards each eye's ``target`` height over width (step 4), with :data:`LID_POSE`."""
+def open_lids(rig: FaceRig, v: np.ndarray, target: dict[str, float], scales: dict[str, float] | None = None,
+              rotation: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, float]]:
+    """``v`` with the lids opened towards each eye's ``target`` height over width (``eye_right_ratio``,
+    ``eye_left_ratio``) with :data:`LID_POSE`, at most its full weight; never closed.
+
+    ``scales`` (by ``eye_right``/``eye_left``; default each eye's width over the rig's) and ``rotation``
+    (default none) carry the rig's lid shapes to the eye as it is in ``v``. Returns the vertices and
+    the weight used per eye.
+    """
     out = np.array(v, np.float64, copy=True)
+    rotation = np.eye(3) if rotation is None else rotation
+    if scales is None:
+        now0, now = feature_sizes(rig, rig.vertices), feature_sizes(rig, out)
+        scales = {k: now[k] / now0[k] for k in ("eye_right", "eye_left")}
     used = {}
     for side, tag in (("right", "R"), ("left", "L")):
         shapes = {f"{k}_{tag}": w for k, w in LID_POSE.items() if f"{k}_{tag}" in rig.blendshapes}
@@ -265,7 +276,7 @@ def correspond_design(rig: FaceRig, head: trimesh.Trimesh, landmarks: Mapping[st
     rotation = umeyama(rig.vertices[mc.region], surface[mc.region]).rotation
     target = feature_sizes(rig, surface)
     v, scales = _carry_features(rig, surface, rotation)
-    v, lids = _open_lids(rig, v, target, scales, rotation)
+    v, lids = open_lids(rig, v, target, scales, rotation)
     v = _into_rig_frame(rig, v)
     neck = neck_weights(rig)[:, None]
     v = v * (1 - neck) + rig.vertices * neck

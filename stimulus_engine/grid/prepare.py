@@ -198,16 +198,21 @@ _LEVEL_RIGS: dict[tuple, dict[str, np.ndarray]] = {}
 
 def level_blendshapes(ch: Character, shape: float, shape_v: np.ndarray, method: str) -> dict[str, np.ndarray]:
     """The character's blendshapes carried onto one shape level by ``method`` (``aligned`` or ``rbf``:
-    :func:`~stimulus_engine.characters.blendshape_transfer.transfer_blendshapes`), made once."""
+    :func:`~stimulus_engine.characters.blendshape_transfer.transfer_blendshapes`), made once. A designed
+    level's (a grid ``design``) then move each main landmark at least as far, in units of the face's width
+    and length, as the character's realistic level's do."""
     from stimulus_engine.characters.blendshape_transfer import transfer_blendshapes
 
     key = (ch.rig_hash, float(shape), method)
     if key not in _LEVEL_RIGS:
         if len(_LEVEL_RIGS) >= 16:
             _LEVEL_RIGS.clear()
-        # a designed cartoon's face is wider than long: it moves at least as far in units of either
-        units = "larger" if ch.cartoon is not None and shape > 0 else "length"
-        _LEVEL_RIGS[key] = transfer_blendshapes(ch.expression_rig, shape_v, method, face_units=units)
+        if ch.cartoon is not None and shape > 0:  # a designed level moves at least as far as the realistic one
+            reference = (ch.rig.vertices, level_blendshapes(ch, 0.0, ch.rig.vertices, method))
+            _LEVEL_RIGS[key] = transfer_blendshapes(ch.expression_rig, shape_v, method, face_units="larger",
+                                                    reference=reference)
+        else:
+            _LEVEL_RIGS[key] = transfer_blendshapes(ch.expression_rig, shape_v, method)
     return _LEVEL_RIGS[key]
 
 

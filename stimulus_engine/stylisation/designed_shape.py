@@ -90,7 +90,8 @@ def own_cartoon(rig: FaceRig, mean: np.ndarray, character: np.ndarray, design: n
     Parameters
     ----------
     rig : FaceRig
-        The topology (faces, eyeballs) the three shapes share.
+        The topology (faces, eyeballs) the three shapes share, with its lid shapes (the cartoon's lids
+        are opened again to the design's eye height over width where the character's eyes narrowed them).
     mean, character, design : (N, 3) arrays
         The rig's mean face, the character's face and the design, in one frame.
     identity : float
@@ -101,13 +102,17 @@ def own_cartoon(rig: FaceRig, mean: np.ndarray, character: np.ndarray, design: n
     -------
     (N, 3) array
     """
+    from stimulus_engine.characters.design import feature_sizes, open_lids
     from stimulus_engine.characters.expressions import deformation_transfer
 
+    design = np.asarray(design, np.float64)
     if identity == 0:
-        return np.array(design, np.float64, copy=True)
+        return design.copy()
     moved = deformation_transfer(mean, character, design, rig.faces)
-    moved = _rigid_eyeballs(rig, np.asarray(design, np.float64), moved)
-    return np.asarray(design, np.float64) + identity * (moved - np.asarray(design, np.float64))
+    moved = _rigid_eyeballs(rig, design, moved)
+    out = design + identity * (moved - design)
+    # a person's narrower eyes narrow the cartoon's: its lids opened again as far as the design's
+    return open_lids(rig, out, feature_sizes(rig, design))[0]
 
 
 def part_levels(rig: FaceRig, level: float, eyes_ahead: float = 0.0) -> np.ndarray:
