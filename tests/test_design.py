@@ -226,6 +226,10 @@ def test_a_grid_with_a_design(shared_data, tmp_path, capsys):
     assert np.array_equal(*same)
     import pandas as pd
 
+    cont = pd.read_csv(tmp_path / "out" / "continuum.csv")
+    assert {"cheek_detail", "eye_area", "eye_roundness", "nose_width", "mouth_width", "forehead_height"} <= set(cont.columns)
+    shape = cont[cont["factor"] == "shape"].set_index("position")
+    assert shape.loc[1, "eye_area"] >= 2.5 * shape.loc[0, "eye_area"] and shape.loc[1, "eye_roundness"] >= 0.5
     lm = pd.read_csv(tmp_path / "out" / "landmarks.csv")
     pts = {(r.shape, r.expression, r.landmark): np.array([r.x, r.y, r.z]) for r in lm.itertuples()}
     real, toon = (_landmark_measures({k[2]: p for k, p in pts.items() if k[:2] == (s, "neutral")}) for s in (0.0, 1.0))
@@ -250,3 +254,21 @@ def test_bad_design_entries_give_one_line_errors(shared_data, tmp_path, capsys, 
     g = tmp_path / "g.yaml"
     g.write_text(_grid_text(shared_data, change))
     one_line_error(capsys, ["stimuli", "grid", str(g), "--out", str(tmp_path / "out")], *needles)
+
+
+def test_cheek_detail_tells_a_photograph_from_paint(shared_data):
+    """The continuum's skin-detail measure: a London photograph at stimulus size shows what a photograph
+    does (0.012-0.02); the same face with its fine detail blurred away, a fraction of it."""
+    from PIL import Image
+    from scipy.ndimage import gaussian_filter
+
+    from stimulus_engine.morphpca.keypoints import detect_landmarks
+    from stimulus_engine.stylisation.image_distance import cheek_detail
+
+    photo = np.asarray(Image.open(shared_data / "faces2d/london-frl/neutral_front/001_03.jpg").convert("RGB")
+                       .resize((512, 512)))
+    lm = detect_landmarks(photo)
+    real = cheek_detail(photo, lm)
+    assert 0.012 <= real <= 0.025
+    smooth = np.clip(gaussian_filter(photo.astype(float), (3, 3, 0)), 0, 255).astype(np.uint8)
+    assert cheek_detail(smooth, lm) <= 0.3 * real

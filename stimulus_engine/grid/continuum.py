@@ -38,11 +38,13 @@ import pandas as pd
 from stimulus_engine.grid.schema import GridFile, MaterialContinuum, MaterialSpec, ShapeContinuum
 from appeal.cells import write_table
 
-__all__ = ["CANDIDATES", "common_levels", "continuum_table", "even_amounts", "even_materials", "even_shapes",
+__all__ = ["CANDIDATES", "EVEN_STEPS", "LEVEL_MEASURES", "common_levels", "continuum_table", "even_amounts", "even_materials", "even_shapes",
            "needs_measuring", "pins", "plot_continuum", "spaced_by_value", "write_continuum"]
 
 logger = logging.getLogger(__name__)
 
+#: Steps within this factor of each other count as even in the report (the issue's "within 2x").
+EVEN_STEPS = 2.0
 #: Amounts of the family rendered to measure it out.
 CANDIDATES: tuple[float, ...] = tuple(np.linspace(0.0, 1.0, 5).round(4))
 #: Then the levels themselves are rendered and re-spaced by their own steps, at most this many
@@ -388,7 +390,38 @@ def _material_order(grid: GridFile) -> list[str]:
     return [s.name for s in specs]
 
 
-def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile) -> pd.DataFrame:
+#: The neoteny measures (rig landmarks, neutral) the report gives per level (thesis Fig. 7.10).
+LEVEL_MEASURES: tuple[str, ...] = ("eye_area", "eye_roundness", "nose_width", "mouth_width", "forehead_height")
+
+
+def _level_measures(landmarks: pd.DataFrame | None) -> dict[tuple[str, float], dict[str, float]]:
+    """(character, shape) -> :data:`LEVEL_MEASURES` of its neutral (first expression) geometry."""
+    from stimulus_engine.stylisation.neoteny import neoteny_measures
+
+    if landmarks is None or landmarks.empty:
+        return {}
+    expression = "neutral" if "neutral" in set(landmarks["expression"]) else landmarks["expression"].iloc[0]
+    out = {}
+    for (ch, shape), g in landmarks[landmarks["expression"] == expression].groupby(["character", "shape"]):
+        m = neoteny_measures({r.landmark: np.array([r.x, r.y, r.z], float) for r in g.itertuples()})
+        out[str(ch), float(shape)] = {k: m[k] for k in LEVEL_MEASURES}
+    return out
+
+
+def _cheek_detail(image: np.ndarray) -> float:
+    """:func:`~stimulus_engine.audit.measures.cheek_detail` of the face dlib finds (NaN without one)."""
+    from appeal.errors import AppealInputError
+    from stimulus_engine.stylisation.image_distance import cheek_detail
+    from stimulus_engine.morphpca.keypoints import detect_landmarks
+
+    try:
+        return cheek_detail(image, detect_landmarks(image))
+    except AppealInputError:
+        return float("nan")
+
+
+def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile,
+                    landmarks: pd.DataFrame | None = None) -> pd.DataFrame:
     """The continuum of a rendered grid, one row per (character, factor, level) (module docstring).
 
     Columns: character, factor (``shape``, ``material`` or ``shape+material``), position (0 at
@@ -396,7 +429,9 @@ def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile) -> pd.Dat
     image_to_next (the image distance to the next level; empty at the last), identity_to_realistic
     (to the same factor's realistic level), identity_to_nearest_other (the least identity
     distance to another character's realistic level of the same factor), same_person (identity
-    to realistic within :data:`~stimulus_engine.stylisation.identity.SAME_PERSON`).
+    to realistic within :data:`~stimulus_engine.stylisation.identity.SAME_PERSON`), cheek_detail
+    (:func:`~stimulus_engine.audit.measures.cheek_detail`: fine skin detail in the cheeks) and, from
+    the grid's ``landmarks`` (its rig landmarks), the level's :data:`LEVEL_MEASURES`.
     """
     from PIL import Image
 
@@ -420,6 +455,7 @@ def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile) -> pd.Dat
             descriptors[f] = face_descriptor(image(f), box)
         return descriptors[f]
 
+    shapes = _level_measures(landmarks)
     slices = [(ch, factor, rows) for ch, factor, rows in _slices(grid, manifest) if len(rows)]  # none where all failed
     realistic = {(ch, factor): rows["file"].iloc[0] for ch, factor, rows in slices}
     table = []
@@ -436,7 +472,8 @@ def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile) -> pd.Dat
                 "identity_to_realistic": to_real,
                 "identity_to_nearest_other": min((identity_distance(descriptor(o), descriptor(f)) for o in others),
                                                  default=np.nan),
-                "same_person": bool(to_real <= SAME_PERSON)})
+                "same_person": bool(to_real <= SAME_PERSON), "cheek_detail": _cheek_detail(image(f)),
+                **shapes.get((str(ch), float(rows["shape"].iloc[i])), {k: np.nan for k in LEVEL_MEASURES})})
     return pd.DataFrame(table)
 
 
@@ -482,8 +519,11 @@ def write_continuum(out: Path, table: pd.DataFrame, grid: GridFile) -> list[Path
         return []
     for (ch, factor), g in table.groupby(["character", "factor"], sort=False):
         steps = g["image_to_next"].dropna()
-        logger.info("%s: %s %s steps %s (largest / smallest %.2f); identity to realistic %s", grid.name, ch, factor,
-                    ", ".join(f"{x:.4f}" for x in steps), steps.max() / max(steps.min(), 1e-12) if len(steps) else 1.0,
-                    ", ".join(f"{x:.2f}" for x in g["identity_to_realistic"]))
+        ratio = steps.max() / max(steps.min(), 1e-12) if len(steps) else 1.0
+        logger.info("%s: %s %s steps %s (largest / smallest %.2f: %s); reaches %.3f from the realistic level; "
+                    "identity to realistic %s; cheek detail %s of the realistic level's", grid.name, ch, factor,
+                    ", ".join(f"{x:.4f}" for x in steps), ratio, "even" if ratio <= EVEN_STEPS else "uneven",
+                    float(g["image_to_realistic"].iloc[-1]), ", ".join(f"{x:.2f}" for x in g["identity_to_realistic"]),
+                    ", ".join(f"{x / g['cheek_detail'].iloc[0]:.2f}" for x in g["cheek_detail"]))
     csv = write_table(table, Path(out) / "continuum.csv", float_format="%.5f")
     return [csv, plot_continuum(table, Path(out) / "continuum.png")]

@@ -106,7 +106,7 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     if animated:
         manifest = clip_checksums(out, manifest)
     stills = apex_view(manifest)  # a clip shown by its apex frame
-    continuum = continuum_table(out, stills, grid)
+    continuum = continuum_table(out, stills, grid, landmarks)
     if not continuum.empty:  # each measured image's identity distance to its character's realistic level
         manifest["identity_to_realistic"] = stills["file"].map(
             continuum.drop_duplicates("file").set_index("file")["identity_to_realistic"])

@@ -1,4 +1,5 @@
-"""How different two stimuli look: structural dissimilarity of their luminance inside the face.
+"""How different two stimuli look (structural dissimilarity of their luminance inside the face), and how
+much fine skin detail a face shows (:func:`cheek_detail`).
 
 The stylisation continuum is spaced and reported by one image distance (docs/stimuli.md,
 "Even steps"): ``1 - SSIM`` (Wang et al. 2004: 11-tap Gaussian window, sigma 1.5, K1 0.01,
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["face_mask", "luma", "ssim_distance"]
+__all__ = ["CHEEK_POLYGONS", "CHEEK_SIGMA", "cheek_detail", "face_mask", "luma", "ssim_distance"]
 
 
 def luma(image: np.ndarray) -> np.ndarray:
@@ -67,3 +68,41 @@ def ssim_distance(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) 
     c1, c2 = (0.01 * 255.0) ** 2, (0.03 * 255.0) ** 2
     smap = (2 * ux * uy + c1) * (2 * vxy + c2) / ((ux * ux + uy * uy + c1) * (vx + vy + c2))
     return float(1.0 - (smap[mask].mean() if mask is not None else smap.mean()))
+
+
+#: The cheeks as polygons of the 68 dlib landmarks: the jaw line, the mouth corner, the nose's ala
+#: and the lower lid (the person's right cheek on the image's left, then the left one).
+CHEEK_POLYGONS: tuple[tuple[int, ...], ...] = ((2, 3, 4, 48, 31, 40, 41), (14, 13, 12, 54, 35, 47, 46))
+#: Width (pixels) of the Gaussian whose residual is a cheek's fine detail.
+CHEEK_SIGMA = 1.5
+
+
+def cheek_detail(rgb: np.ndarray, landmarks: np.ndarray, sigma: float = CHEEK_SIGMA) -> float:
+    """Fine skin detail in the cheeks: the standard deviation of luminance's high-pass (the image's
+    relative luminance minus its Gaussian blur of ``sigma`` px) inside :data:`CHEEK_POLYGONS`.
+
+    Pores, stubble and a photograph's blotches give a photograph of a face 0.012-0.017 (London set);
+    flat paint next to none.
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 array
+    landmarks : (68, 2) array
+        dlib's 68 landmarks of the face in the image (x, y pixels).
+    sigma : float
+        The high-pass's Gaussian width in pixels.
+    """
+    from PIL import Image, ImageDraw
+    from scipy.ndimage import gaussian_filter
+
+    from skimage.color import rgb2lab
+
+    lum = rgb2lab(np.asarray(rgb)[..., :3].astype(np.float64) / 255.0)[..., 0] / 100.0
+    detail = lum - gaussian_filter(lum, sigma)
+    mask = Image.new("L", (rgb.shape[1], rgb.shape[0]), 0)
+    draw = ImageDraw.Draw(mask)
+    lm = np.asarray(landmarks, np.float64)
+    for poly in CHEEK_POLYGONS:
+        draw.polygon([tuple(lm[i]) for i in poly], fill=255)
+    inside = np.asarray(mask) > 127
+    return float(detail[inside].std()) if inside.sum() > 20 else float("nan")

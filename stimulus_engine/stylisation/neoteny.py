@@ -11,6 +11,8 @@ nose_width             |nose left − nose right| / W
 mouth_width            |mouth left − mouth right| / W
 forehead_height        (forehead top − brow centre) height / L
 eye_position           (eye centre − chin) height / L  (lower = more neotenic)
+eye_area               mean eye width × mean eye height / (W × L)  (a share of the face's area)
+eye_roundness          mean eye height / mean eye width  (an adult's almond ~0.3, a cartoon's round ≥ 0.5)
 =====================  ===========================================================
 """
 
@@ -25,7 +27,7 @@ __all__ = ["MEASURES", "neoteny_measures", "neoteny_table", "plot_neoteny"]
 
 #: The measures, in table order.
 MEASURES: tuple[str, ...] = ("eye_width", "eye_height", "nose_length", "nose_width", "mouth_width",
-                             "forehead_height", "eye_position")
+                             "forehead_height", "eye_position", "eye_area", "eye_roundness")
 
 
 def neoteny_measures(lm: dict[str, np.ndarray]) -> dict[str, float]:
@@ -60,6 +62,7 @@ def neoteny_measures(lm: dict[str, np.ndarray]) -> dict[str, float]:
         "nose_width": d("nose_left", "nose_right") / W, "mouth_width": d("mouth_left", "mouth_right") / W,
         "forehead_height": (float(lm["forehead_top"][1]) - brow_y) / L,
         "eye_position": (eye_y - float(lm["chin"][1])) / L,
+        "eye_area": eye_w * eye_h / (W * L), "eye_roundness": eye_h / eye_w,
     }
 
 
@@ -85,7 +88,7 @@ def plot_neoteny(table: pd.DataFrame, path: str | Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     neutral = table[table["expression"] == "neutral"] if (table["expression"] == "neutral").any() else table
-    fig, axes = plt.subplots(2, 4, figsize=(13, 6), constrained_layout=True)
+    fig, axes = plt.subplots(2, 5, figsize=(16, 6), constrained_layout=True)
     for ax, m in zip(axes.ravel(), MEASURES):
         sub = neutral[neutral["measure"] == m]
         for ch, g in sub.groupby("character", sort=False):
