@@ -31,10 +31,15 @@ def test_painted_runs_from_the_original_to_painted_regions():
     lips[180:220, 90:170] = 1.0
     masks = {"lips": lips}
     assert np.array_equal(stylise_albedo(img, "painted", masks, amount=0.0), img)
-    # the end: painted regions, half their mean colour, half the blurred albedo's gradients
-    flat, end = stylise_albedo(img, "flat", masks).astype(float), stylise_albedo(img, "painted", masks, amount=1.0)
-    blurred = stylise_albedo(img, "painted", masks, amount=0.5).astype(float)
-    assert np.abs(end - (flat + blurred) / 2).max() <= 1.0
+    # the end: paint — each region one colour (the lips', the skin's), the speckle and the skin's
+    # gradients gone, only the borders softened; a dark feature drawn in the skin (a brow) kept as one
+    img = img.copy()
+    img[40:60, 40:200] = (img[40:60, 40:200] * 0.45).astype(np.uint8)
+    end = stylise_albedo(img, "painted", masks, amount=1.0).astype(float)
+    lip_core, skin_core, brow_core = end[190:210, 110:150], end[150:170, 20:60], end[46:54, 80:160]
+    assert lip_core.std(axis=(0, 1)).max() < 1.0 and skin_core.std(axis=(0, 1)).max() < 1.0
+    assert np.abs(lip_core.mean(axis=(0, 1)) - img[180:220, 90:170].reshape(-1, 3).mean(axis=0)).max() < 3
+    assert brow_core.mean() < 0.7 * skin_core.mean() and brow_core.std(axis=(0, 1)).max() < 3.0
     # detail goes first (the speckle's contrast falls), then the colours flatten: the distance to
     # the original grows along the family
     d = [ssim_distance(img, stylise_albedo(img, "painted", masks, amount=a)) for a in np.linspace(0, 1, 6)]
@@ -186,7 +191,8 @@ def test_the_shipped_continua_step_evenly_and_keep_the_person(name, tmp_path):
     neighbouring material levels differ by image steps within 1.5x of each other (the ERP grid's
     paired shape+material levels likewise); along each continuum the identity distance to the
     realistic level grows, stays within dlib's same-person 0.6 up to the middle of the scale, and
-    every level is nearer its own character's realistic level than any other character's."""
+    every level is nearer its own character's realistic level than any other character's; the most
+    painted level's cheek detail is at most 0.3x the original's."""
     from stimulus_engine.grid import run_grid
 
     grid, cut = _neutral_slice(name)
@@ -205,3 +211,6 @@ def test_the_shipped_continua_step_evenly_and_keep_the_person(name, tmp_path):
         assert (ident[: len(ident) // 2 + 1] <= 0.6).all(), (ch, factor, ident.round(3))
         other = g["identity_to_nearest_other"].to_numpy()
         assert np.isnan(other).all() or (ident < other).all(), (ch, factor, ident.round(3), other.round(3))
+        if factor != "shape":  # paint that is paint: the most painted level keeps no photograph's skin detail
+            cheek = g["cheek_detail"].to_numpy()
+            assert cheek[-1] <= 0.3 * cheek[0], (ch, factor, cheek.round(4))

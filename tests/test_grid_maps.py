@@ -132,7 +132,7 @@ def test_stylise_map_follows_the_albedo_operator():
 def test_stylise_material_filters_albedo_and_maps_together_as_each_alone(style):
     """One stack of the albedo's and the maps' channels gives what each texture stylised on its
     own gives, byte for byte (regions, an unused part, a partial amount)."""
-    from stimulus_engine.stylisation.materials import stylise_material
+    from stimulus_engine.stylisation.materials import paint_masks, stylise_material
 
     rng = np.random.default_rng(3)
     albedo = rng.integers(0, 256, (60, 90, 3), dtype=np.uint8)
@@ -144,6 +144,7 @@ def test_stylise_material_filters_albedo_and_maps_together_as_each_alone(style):
     masks["lips"][:9] = 0.0  # disjoint, as a scan's regions are
     a, maps = stylise_material(albedo, style, masks, {"normal": normal, "specular": spec}, 0.7)
     assert np.array_equal(a, stylise_albedo(albedo, style, masks, 0.7))
+    masks = paint_masks(albedo, masks, style, 0.7)  # the albedo's dark features, the maps' regions too
     assert np.array_equal(maps["normal"], stylise_map(normal, "normal", style, masks, 0.7))
     assert np.array_equal(maps["specular"], stylise_map(spec, "specular", style, masks, 0.7))
     if style not in ("original", "bilateral"):  # the region filters

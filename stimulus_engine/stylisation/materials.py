@@ -9,10 +9,11 @@ Albedo stylisation (thesis ch. 5 & §6.3, material levels 1a …):
 ``bilateral``  edge-preserving blur (OpenCV bilateral filter, repeated): skin detail goes,
     region borders stay.
 ``flat``  a "cartoon" albedo: every region becomes its mean colour.
-``painted``  one continuous family from the original (``amount`` 0) to painted regions (1):
-    detail removal (a region-wise Gaussian blur growing to :data:`PAINT_BLUR_AT_4K` px at 4k
-    by ``amount`` :data:`PAINT_BLUR_UNTIL`), then colour flattening (the blurred albedo blended
-    half-way into each region's mean colour by amount 1: gradient regions, :data:`PAINT_FLAT_SHARE`). A grid spaces its levels by measured image distance
+``painted``  one continuous family from the original (``amount`` 0) to paint (1): detail removal
+    (a region-wise Gaussian blur growing to :data:`PAINT_BLUR_AT_4K` px at 4k by ``amount``
+    :data:`PAINT_BLUR_UNTIL`), then the blurred albedo blended into paint by amount 1: each region
+    (skin, lips, hair, the skin's dark features — brows, lash lines, nostrils) one colour of the
+    character's own, the borders softened (:data:`PAINT_FLAT_SHARE`). A grid spaces its levels by measured image distance
     (:mod:`stimulus_engine.grid.continuum`), not by ``amount``.
 
 :data:`MATERIAL_LEVELS` orders them as a five-step material-stylisation axis (0 = original …
@@ -37,6 +38,7 @@ __all__ = [
     "stylise_albedo",
     "stylise_map",
     "stylise_material",
+    "paint_masks",
 ]
 
 #: Albedo stylisations.
@@ -46,11 +48,20 @@ MATERIAL_LEVELS: dict[int, str] = dict(enumerate(MATERIAL_STYLES[:5]))
 #: ``painted``: the blur's kernel at full detail removal (px at 4k, as the thesis's blur25 and
 #: blur50) and the amount where it is reached; from there on the colours flatten.
 PAINT_BLUR_AT_4K, PAINT_BLUR_UNTIL = 100, 0.5
-#: ... and at amount 1 each region is this share its mean colour, the rest the blurred albedo's
-#: gradients (painted regions that keep the brows and the face's shading in the paint: wholly
-#: flat, the ERP grid's most stylised Lee Perry-Smith lost his brows and lay 0.756 from his
-#: realistic face, farther than from james's, 0.746; at a half share 0.72, and james 0.70 -> 0.58).
-PAINT_FLAT_SHARE = 0.5
+#: ... and at amount 1 each region is this share paint (its one colour, :func:`_paint`), the rest the
+#: blurred albedo's gradients. Wholly (issue 48: "paint that is paint"; the thesis's m0 is flat colour):
+#: at a half share the most painted level kept 0.54x and 0.57x of james's and Lee Perry-Smith's cheek
+#: detail, a photograph's sockets and blotches. What keeps a face its own is then its colours and its
+#: dark features (brows, lash lines), kept as a region of their own (:data:`FEATURE_DARKNESS`).
+PAINT_FLAT_SHARE = 1.0
+#: Paint keeps the dark features drawn in the skin (brows, lash lines, nostrils) as a region of their
+#: own: lighter than this share of the skin's median luminance, in pieces of at least this share of the
+#: texture (the thesis's m0 is flat colour; wholly flat over one skin region, a scan's brows went).
+FEATURE_DARKNESS, FEATURE_MIN_AREA = 0.72, 2e-4
+#: ... and of at least this share of the largest one (the brows): a photograph's moles and blotches go.
+FEATURE_SHARE_OF_LARGEST = 0.25
+#: The width (px at 4k) over which paint's region borders are softened.
+PAINT_EDGE_AT_4K = 16
 #: The mask of texels no triangle samples, left as they are (:func:`_regions`).
 UNUSED = "unused"
 
@@ -145,6 +156,49 @@ def _region_means(f: np.ndarray, regions: list[np.ndarray]) -> np.ndarray:
     return out
 
 
+def _dark_features(f: np.ndarray, skin: np.ndarray) -> np.ndarray:
+    """Soft weights of the dark features drawn in the skin (brows, lash lines): skin texels whose lightly
+    blurred luminance is below :data:`FEATURE_DARKNESS` of the skin's median, in pieces of at least
+    :data:`FEATURE_MIN_AREA` of the texture and :data:`FEATURE_SHARE_OF_LARGEST` of the largest piece
+    (speckle — stubble, pores — and a photograph's moles are no features)."""
+    from scipy import ndimage
+
+    lum = f[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    size = f.shape[1]
+    core = skin > 0.5
+    if core.sum() < 100:
+        return np.zeros(skin.shape, np.float32)
+    blurred = ndimage.gaussian_filter(lum, 0.002 * size)
+    dark = core & (blurred < FEATURE_DARKNESS * float(np.median(lum[core])))
+    labels, n = ndimage.label(dark)
+    if n:
+        area = ndimage.sum(dark, labels, np.arange(1, n + 1))
+        keep = (area >= FEATURE_MIN_AREA * dark.size) & (area >= FEATURE_SHARE_OF_LARGEST * area.max())
+        dark = np.isin(labels, 1 + np.flatnonzero(keep))
+    return np.minimum(ndimage.gaussian_filter(dark.astype(np.float32), 0.0015 * size), skin)
+
+
+def _paint(f: np.ndarray, regions: list[np.ndarray]) -> np.ndarray:
+    """Paint: each region one colour (its mean), every border softened (:data:`PAINT_EDGE_AT_4K`), so no
+    speckle of a photograph's regions shows (the skin's dark features are a region of their own:
+    :func:`paint_masks`)."""
+    from scipy import ndimage
+
+    edge = PAINT_EDGE_AT_4K * f.shape[1] / 4096.0
+    soft = [ndimage.gaussian_filter(r, edge) for r in regions]
+    total = np.maximum(sum(soft), 1e-6)
+    inside = sum(regions)  # texels of no region (unused) stay as they are
+    return _left(f, regions) + sum((w * inside / total)[..., None] * _mean(f, r) for w, r in zip(soft, regions))
+
+
+def _mean(f: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """The colour of ``f`` weighted by ``w`` (zeros for an empty region)."""
+    total = float(w.sum(dtype=np.float64))
+    if total <= 0:
+        return np.zeros(f.shape[-1], np.float32)
+    return (w.reshape(-1) @ f.reshape(w.size, -1) / total).astype(np.float32)
+
+
 def _painted(f: np.ndarray, regions: list[np.ndarray], amount: float) -> np.ndarray:
     """The ``painted`` family at ``amount`` (see the module docstring)."""
     if amount <= 0:
@@ -154,7 +208,7 @@ def _painted(f: np.ndarray, regions: list[np.ndarray], amount: float) -> np.ndar
     if amount <= PAINT_BLUR_UNTIL:
         return blurred
     w = PAINT_FLAT_SHARE * (amount - PAINT_BLUR_UNTIL) / (1.0 - PAINT_BLUR_UNTIL)
-    return (1 - w) * blurred + w * _region_means(f, regions)
+    return (1 - w) * blurred + w * _paint(f, regions)
 
 
 def _operated(img: np.ndarray, style: str, masks: dict[str, np.ndarray], amount: float) -> np.ndarray:
@@ -187,6 +241,22 @@ def _checked(style: str, amount: float) -> None:
         raise ValueError(f"material amount must be within 0..1 (got {amount})")
 
 
+def paint_masks(albedo: np.ndarray, masks: dict[str, np.ndarray] | None, style: str,
+                amount: float) -> dict[str, np.ndarray]:
+    """``masks`` with the skin's dark features (brows, lash lines; :func:`_dark_features`) as a region of
+    their own, ``features``, where the ``painted`` family paints (amount above :data:`PAINT_BLUR_UNTIL`);
+    ``masks`` as they are otherwise. The albedo's features are its maps' too (:func:`stylise_material`)."""
+    masks = dict(masks or {})
+    if style != "painted" or amount <= PAINT_BLUR_UNTIL or "features" in masks:
+        return masks
+    img = np.asarray(albedo)
+    if any(np.shape(m) != img.shape[:2] for m in masks.values()):
+        return masks
+    skin = _regions(masks, img.shape[:2])[-1]
+    masks["features"] = _dark_features(img[..., :3].astype(np.float32), skin)
+    return masks
+
+
 def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] | None = None,
                    amount: float = 1.0) -> np.ndarray:
     """Stylise an albedo texture.
@@ -207,7 +277,8 @@ def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] 
     (H, W, 3) uint8 array
     """
     _checked(style, amount)
-    return _operated(np.asarray(albedo, np.uint8)[..., :3], style, masks or {}, amount)
+    img = np.asarray(albedo, np.uint8)[..., :3]
+    return _operated(img, style, paint_masks(img, masks, style, amount), amount)
 
 
 def _unit_normals(code: np.ndarray) -> np.ndarray:
@@ -258,8 +329,9 @@ def stylise_material(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray
         The maps given, stylised (:func:`stylise_map`), in the same order.
     """
     _checked(style, amount)
-    masks, maps = masks or {}, maps or {}
+    maps = maps or {}
     img = np.asarray(albedo, np.uint8)[..., :3]
+    masks = paint_masks(img, masks, style, amount)
     size = img.shape[:2]
     map_masks = masks if all(np.shape(v) == size for v in masks.values()) else {}
     if style in ("original", "bilateral") or map_masks is not masks or any(np.shape(a)[:2] != size for a in maps.values()):
