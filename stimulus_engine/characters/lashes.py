@@ -13,7 +13,12 @@ import numpy as np
 
 from stimulus_engine.characters.rig import FaceRig
 
-__all__ = ["seat_lashes"]
+__all__ = ["LASH_GROWTH", "seat_lashes"]
+
+#: A lash grows with its eye's width to this power: an eye twice as wide (a design's cartoon eye) has
+#: lashes 1.4x as long, not 2x (at full scale a cartoon's lash cards reached a third of the eye's
+#: height above the lid, a dark arc apart from it).
+LASH_GROWTH = 0.5
 
 
 def _frames(normals: np.ndarray, across: np.ndarray) -> np.ndarray:
@@ -30,7 +35,7 @@ def seat_lashes(rig: FaceRig, v0: np.ndarray, new_v: np.ndarray) -> np.ndarray:
 
     Each lash vertex keeps its offset from the lid point under its root (the nearest lash vertex
     lying on the skin in ``v0``), in the frame of the skin's smooth normal there and the nearer
-    eye's corner-to-corner axis, scaled with that eye's width.
+    eye's corner-to-corner axis, scaled with that eye's width (to the power :data:`LASH_GROWTH`).
 
     Parameters
     ----------
@@ -73,7 +78,7 @@ def seat_lashes(rig: FaceRig, v0: np.ndarray, new_v: np.ndarray) -> np.ndarray:
         nearer = np.argmin([np.linalg.norm(v0[lash] - lm0[f"eye_{s}"], axis=1) for s in sides], axis=0)
         axis0 = np.array([lm0[f"eye_{s}_outer"] - lm0[f"eye_{s}_inner"] for s in sides])
         axis1 = np.array([lm1[f"eye_{s}_outer"] - lm1[f"eye_{s}_inner"] for s in sides])
-        scale = (np.linalg.norm(axis1, axis=1) / np.linalg.norm(axis0, axis=1))[nearer]
+        scale = (np.linalg.norm(axis1, axis=1) / np.linalg.norm(axis0, axis=1))[nearer] ** LASH_GROWTH
         across0, across1 = axis0[nearer], axis1[nearer]
     # smooth frames (interpolated vertex normals, the eye's corner-to-corner axis): a frame from
     # one triangle's edge turned with every shear of a stylised lid, flinging the tips over the eye
