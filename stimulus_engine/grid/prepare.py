@@ -440,7 +440,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
     landmarks : DataFrame
         Long table: character, shape, stylisation, expression, landmark, x, y, z.
     """
-    from stimulus_engine.grid.designs import shape_vertices
+    from stimulus_engine.grid.designs import drawn_rig, shape_vertices
 
     cache = Path(cache) if cache is not None else out / ".cache"
     chars = _characters(grid, cache, source, characters)
@@ -455,20 +455,22 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
             lambda sm: _prepare_material(sm[1], chars[sm[0]], albedos[sm[0]], cache, source, keys[sm[0]]), sources)))
     r = grid.render
     rows, items, lm_rows = [], [], []
-    rig_files: dict[str, Path] = {}
+    rig_files: dict[tuple, Path] = {}
     shapes: dict[tuple, tuple[np.ndarray, tuple]] = {}
     geometry: dict[tuple, tuple[Path, str]] = {}
     uppers: dict[str, np.ndarray] = {}
     for im in images:
         ch = chars[im.character]
-        if im.character not in rig_files:
-            drawn = ch.rig if ch.scan is None else ch.scan.topology
-            rig_files[im.character] = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash, drawn.name)}.npz"
-            save_rig(rig_files[im.character], drawn)
         if (im.character, im.shape) not in shapes:
             shape_v = shape_vertices(ch, im.shape)
             shapes[im.character, im.shape] = (shape_v, _camera_for(ch, shape_v, grid))
         shape_v, cam = shapes[im.character, im.shape]
+        level_rig = drawn_rig(ch, im.shape, shape_v) if ch.scan is None else ch.scan.topology
+        rig_key = (im.character, im.shape if level_rig is not ch.rig and ch.scan is None else None)
+        if rig_key not in rig_files:  # one file per character, or per designed level where its hair is refitted
+            level = () if rig_key[1] is None else ("level", im.shape)
+            rig_files[rig_key] = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash, level_rig.name, *level)}.npz"
+            save_rig(rig_files[rig_key], level_rig)
         gkey = (im.character, im.shape, im.expression)
         target = _gaze_target(grid, cam)
         if gkey not in geometry:
@@ -484,7 +486,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
         eyes = _eye_style(grid, im)
         ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(exclude={"stylised_eyes"}),
                  *extra, *((("eyes",) + eyes) if eyes else ()))  # the eyes' style where it changes them
-        items.append(RenderItem(im.file, str(out), str(rig_files[im.character]), str(gp), look.albedo_png,
+        items.append(RenderItem(im.file, str(out), str(rig_files[rig_key]), str(gp), look.albedo_png,
                                 im.lighting, im.shading, cam, r.width, r.height, r.shadows, tuple(r.background),
                                 look.normal_png, look.specular_png, r.engine, r.samples, r.seed,
                                 face_oval(r.width, r.height, r.eye_row, r.face_fraction) if r.vignette else (),

@@ -62,6 +62,10 @@ NECK_EXTENSION_IOD = 0.3
 #: ... at the sides and back only: beyond this angle from the front around the neck's axis
 #: (degrees; under the chin, the extension came through james's chin).
 NECK_EXTENSION_FROM_DEG = 30.0
+#: The garment goes on this far straight down below the base mesh's cut across the chest (iod; see
+#: :func:`_hem_extended`): a designed cartoon's larger head is framed from further away, and its
+#: bust's cut edge, 5.3 iod under the eyes, came into the picture (Lee Perry-Smith's cartoon).
+HEM_EXTENSION_IOD = 6.0
 #: The crew neckline, in inter-ocular distances (iod) below the eye centres: lowest in front
 #: (just above the sternal notch), highest at the back (the seventh vertebra); and its radius
 #: from the neck's axis, where it crosses the slope of the shoulders at the sides.
@@ -152,10 +156,30 @@ def bust_asset() -> BustAsset:
     vertices, faces, cloth, cloth_face = _neck_extended(d["vertices"].astype(np.float64), d["faces"].astype(np.int64),
                                                         d["cloth"].astype(bool), d["cloth_face"].astype(bool),
                                                         d["eyes"].astype(np.float64), d["axis"].astype(np.float64))
+    vertices, faces, cloth, cloth_face = _hem_extended(vertices, faces, cloth, cloth_face, d["eyes"].astype(np.float64))
     arrays = [vertices, faces, cloth, cloth_face, d["eyes"].astype(np.float64), tex, d["axis"].astype(np.float64)]
     for a in arrays:
         a.setflags(write=False)
     return BustAsset(*arrays)
+
+
+def _hem_extended(vertices: np.ndarray, faces: np.ndarray, cloth: np.ndarray, cloth_face: np.ndarray,
+                  eyes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The bust with the garment's open lower edge (the base mesh's cut across the chest) extruded
+    straight down by :data:`HEM_EXTENSION_IOD`: (vertices, faces, cloth, cloth_face), the new
+    vertices and faces garment."""
+    from stimulus_engine.geometry.mesh_ops import boundary_half_edges
+
+    edges = boundary_half_edges(faces)
+    edges = edges[cloth[edges].all(axis=1)]
+    bottom = np.unique(edges)
+    new = np.full(len(vertices), -1, np.int64)
+    new[bottom] = len(vertices) + np.arange(len(bottom))
+    drop = HEM_EXTENSION_IOD * float(np.linalg.norm(eyes[1] - eyes[0]))
+    a, b = edges[:, 0], edges[:, 1]
+    quads = np.concatenate([np.stack([b, a, new[a]], axis=1), np.stack([b, new[a], new[b]], axis=1)])
+    return (np.concatenate([vertices, vertices[bottom] - [0.0, drop, 0.0]]), np.concatenate([faces, quads]),
+            np.concatenate([cloth, np.ones(len(bottom), bool)]), np.concatenate([cloth_face, np.ones(len(quads), bool)]))
 
 
 def _neck_extended(vertices: np.ndarray, faces: np.ndarray, cloth: np.ndarray, cloth_face: np.ndarray,

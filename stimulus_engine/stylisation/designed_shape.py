@@ -20,7 +20,7 @@ import numpy as np
 
 from stimulus_engine.characters.rig import FaceRig
 
-__all__ = ["IDENTITY_NOISE", "own_cartoon", "designed_shape", "part_levels", "model_identity"]
+__all__ = ["IDENTITY_NOISE", "own_cartoon", "on_character", "designed_shape", "part_levels", "model_identity"]
 
 
 def _rigid_eyeballs(rig: FaceRig, before: np.ndarray, after: np.ndarray) -> np.ndarray:
@@ -113,6 +113,38 @@ def own_cartoon(rig: FaceRig, mean: np.ndarray, character: np.ndarray, design: n
     out = design + identity * (moved - design)
     # a person's narrower eyes narrow the cartoon's: its lids opened again as far as the design's
     return open_lids(rig, out, feature_sizes(rig, design))[0]
+
+
+def on_character(rig: FaceRig, cartoon: np.ndarray, reference: np.ndarray, character: np.ndarray,
+                 region: np.ndarray) -> np.ndarray:
+    """The cartoon in the character's own frame, standing on the character's own neck.
+
+    A cartoon is made in the mean face's frame (the design's, and the model's face of the character);
+    the best similarity over ``region`` from ``reference`` (the character's face in that frame, or
+    the mean face) to ``character`` moves it onto the character's head, and below the jaw
+    (:func:`~stimulus_engine.characters.design.neck_weights`) it keeps the character's neck: the body
+    a grid draws under every level is bound to that neck, and a neck moving with the head (a fifth of
+    Lee Perry-Smith's head height, measured) pulled the garment's collar and shoulders with it.
+
+    Parameters
+    ----------
+    rig : FaceRig
+    cartoon, reference, character : (N, 3) arrays
+    region : int array
+        The vertices the frames are matched on (the face).
+
+    Returns
+    -------
+    (N, 3) array
+    """
+    from stimulus_engine.characters.design import neck_weights
+    from stimulus_engine.correspondence import umeyama
+
+    region = np.asarray(region)
+    character = np.asarray(character, np.float64)
+    placed = umeyama(np.asarray(reference, np.float64)[region], character[region]).apply(np.asarray(cartoon, np.float64))
+    w = neck_weights(rig, character)[:, None]
+    return placed * (1 - w) + character * w
 
 
 def part_levels(rig: FaceRig, level: float, eyes_ahead: float = 0.0) -> np.ndarray:
