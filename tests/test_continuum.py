@@ -188,15 +188,20 @@ def _neutral_slice(name: str):
 @pytest.mark.parametrize("name", ["exp1a_shape_material", "exp2_stylisation", "erp_stylisation"])
 def test_the_shipped_continua_step_evenly_and_keep_the_person(name, tmp_path):
     """The shipped Exp. 1a, Exp. 2 and ERP grids (neutral): neighbouring shape levels and
-    neighbouring material levels differ by image steps within 1.5x of each other (the ERP grid's
-    paired shape+material levels likewise); along each continuum the identity distance to the
-    realistic level grows, stays within dlib's same-person 0.6 up to the middle of the scale, and
-    every level is nearer its own character's realistic level than any other character's; the most
-    painted level's cheek detail is at most 0.3x the original's."""
+    neighbouring material levels differ by image steps within 1.5x of each other (2x along a shape
+    axis that ends in a design, as issue 48 asks; the ERP grid's paired shape+material levels
+    likewise); every level is nearer its own character's realistic level than any other character's
+    (a designed grid: up to the middle of the scale, where a face recogniser trained on photographs
+    still measures a person); without a design, the identity distance to the realistic level grows
+    and stays within dlib's same-person 0.6 up to the middle; the most painted level's cheek detail is
+    at most 0.3x the original's. A designed grid's most stylised shape has at least 2.5x the realistic
+    level's eye area, eyes at least half as high as wide and at most 0.6x its nose width (issue 48)."""
     from stimulus_engine.grid import run_grid
 
     grid, cut = _neutral_slice(name)
     assert grid.n_images() == {"exp1a_shape_material": 45, "exp2_stylisation": 250, "erp_stylisation": 36}[name]
+    designed = grid.design is not None
+    assert designed == (name != "exp1a_shape_material")
     run_grid(cut, tmp_path, n_jobs=2)
     table = pd.read_csv(tmp_path / "continuum.csv")
     factors = {"exp1a_shape_material": {"shape", "material"}, "exp2_stylisation": {"shape", "material"},
@@ -205,12 +210,23 @@ def test_the_shipped_continua_step_evenly_and_keep_the_person(name, tmp_path):
     for (ch, factor), g in table.groupby(["character", "factor"]):
         g = g.sort_values("position")
         steps = g["image_to_next"].dropna()
-        assert steps.max() <= 1.5 * steps.min(), (ch, factor, steps.round(4).tolist())
+        even = 2.0 if designed and factor != "material" else 1.5
+        assert steps.max() <= even * steps.min(), (ch, factor, steps.round(4).tolist())
         ident = g["identity_to_realistic"].to_numpy()
-        assert np.all(np.diff(ident) > 0), (ch, factor, ident.round(3))
-        assert (ident[: len(ident) // 2 + 1] <= 0.6).all(), (ch, factor, ident.round(3))
         other = g["identity_to_nearest_other"].to_numpy()
-        assert np.isnan(other).all() or (ident < other).all(), (ch, factor, ident.round(3), other.round(3))
-        if factor != "shape":  # paint that is paint: the most painted level keeps no photograph's skin detail
+        middle = len(ident) // 2 + 1
+        if designed and factor != "material":
+            assert (ident[:middle] < other[:middle]).all(), (ch, factor, ident.round(3), other.round(3))
+        else:
+            assert np.all(np.diff(ident) > 0), (ch, factor, ident.round(3))
+            assert (ident[:middle] <= 0.6).all(), (ch, factor, ident.round(3))
+            assert np.isnan(other).all() or (ident < other).all(), (ch, factor, ident.round(3), other.round(3))
+        # paint that is paint: the most painted level keeps no photograph's skin detail (measured in dlib's
+        # cheek polygons, which it finds on a designed cartoon's face only some of the time)
+        if factor == "material" or (factor != "shape" and not designed):
             cheek = g["cheek_detail"].to_numpy()
             assert cheek[-1] <= 0.3 * cheek[0], (ch, factor, cheek.round(4))
+        if designed and factor != "material":
+            real, toon = g.iloc[0], g.iloc[-1]
+            assert toon["eye_area"] >= 2.5 * real["eye_area"], (ch, real["eye_area"], toon["eye_area"])
+            assert toon["eye_roundness"] >= 0.5 and toon["nose_width"] <= 0.6 * real["nose_width"], (ch, toon)

@@ -48,6 +48,7 @@ def _shipped_cut(path, name: str, expressions: list[str], characters: list[str] 
     src = __import__("pathlib").Path(__file__).resolve().parent.parent / "protocols" / "grids" / f"{name}.yaml"
     spec = yaml.safe_load(src.read_text())
     spec.update({"name": f"{name}_cut", "shapes": [0.0], "materials": ["original"], "expressions": expressions})
+    spec.pop("design", None)  # the realistic level only: no cartoon to make
     if characters is not None:
         spec["characters"] = [c for c in spec["characters"] if c["name"] in characters]
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
