@@ -69,8 +69,8 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     page = (out / "index.html").read_text()
     assert "This stage failed" not in page
     names = [s.name for s in discover_stages()]
-    assert {"environment", "grid", "correspond", "part_morph", "avatar", "faces2d", "experiment", "psychophysics",
-            "ratings", "erp"} <= set(names)
+    assert {"environment", "grid", "design", "correspond", "part_morph", "avatar", "faces2d", "experiment",
+            "psychophysics", "ratings", "erp"} <= set(names)
     links = set(re.findall(r"(?:src|href)='([^'#]+)'", page))
     assert len(links) > 20
     missing = [link for link in links if not (out / link).exists()]
@@ -98,6 +98,14 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     assert {"psychophysics/analysis/figures/sub-01_psychometric.png", "psychophysics/analysis/index.html"} <= links
     pooled = pd.read_csv(out / "psychophysics" / "analysis" / "pooled.csv").set_index("expression")
     assert pooled.loc["happiness", "x_at_pc"] < pooled.loc["anger", "x_at_pc"]  # the simulated observers' order
+    # the designed continuum (../shared/data here): two people's own cartoons of Sophia, eyes 2.5x or more
+    assert {"design/contact_sheet.png", "design/contact_sheet_expressions.png", "design/continuum.png"} <= links
+    design = pd.read_csv(out / "design" / "manifest.csv")
+    assert len(design) == 36 and (design.status == "rendered").all()  # 2 people x 3 shapes x 2 materials x 3 expressions
+    cont = pd.read_csv(out / "design" / "continuum.csv")
+    for _, g in cont[cont["factor"] == "shape"].groupby("character"):
+        g = g.sort_values("position")
+        assert g["eye_area"].iloc[-1] >= 2.5 * g["eye_area"].iloc[0]
 
 
 def test_report_page_fits_a_laptop_screen(tmp_path):
@@ -145,3 +153,16 @@ def test_report_page_is_no_wider_than_a_laptop_window_in_a_browser(tmp_path):
                          capture_output=True, text=True, timeout=120).stdout
     width = int(re.search(r'data-width="(\d+)"', dom).group(1))
     assert width <= 1366
+
+
+def test_design_stage_without_its_data_says_how_to_get_it(tmp_path, monkeypatch):
+    """The designed continuum reads registered third-party data: where it is missing, the section says
+    which datasets and the command that fetches them, and nothing is rendered."""
+    from appeal import datasets
+    from appeal_cli.demo_stages.design import STAGE
+
+    monkeypatch.setattr(datasets, "find_dataset", lambda name: None if name == "gdquest-sophia" else tmp_path)
+    section = STAGE.run(tmp_path / "design", 0)
+    assert section.failed is None and not section.figures
+    assert "appeal data fetch gdquest-sophia" in section.text
+    assert not (tmp_path / "design").exists()
