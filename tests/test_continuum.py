@@ -195,7 +195,9 @@ def test_the_shipped_continua_step_evenly_and_keep_the_person(name, tmp_path):
     still measures a person); without a design, the identity distance to the realistic level grows
     and stays within dlib's same-person 0.6 up to the middle; the most painted level's cheek detail is
     at most 0.3x the original's. A designed grid's most stylised shape has at least 2.5x the realistic
-    level's eye area, eyes at least half as high as wide and at most 0.6x its nose width (issue 48)."""
+    level's eye area, eyes at least half as high as wide and at most 0.6x its nose width, and the
+    difference between the two characters' cartoons correlates >= 0.5 with their realistic faces'
+    (issue 48)."""
     from stimulus_engine.grid import run_grid
 
     grid, cut = _neutral_slice(name)
@@ -230,3 +232,18 @@ def test_the_shipped_continua_step_evenly_and_keep_the_person(name, tmp_path):
             real, toon = g.iloc[0], g.iloc[-1]
             assert toon["eye_area"] >= 2.5 * real["eye_area"], (ch, real["eye_area"], toon["eye_area"])
             assert toon["eye_roundness"] >= 0.5 and toon["nose_width"] <= 0.6 * real["nose_width"], (ch, toon)
+    if designed:  # the two cartoons differ the way the two people do (rig landmarks, after a similarity fit)
+        lm = pd.read_csv(tmp_path / "landmarks.csv")
+        real, toon = (_difference_of_people(lm[(lm["expression"] == "neutral") & (lm["shape"] == s)]) for s in (0.0, 1.0))
+        assert np.corrcoef(real, toon)[0, 1] >= 0.5
+
+
+def _difference_of_people(lm: pd.DataFrame) -> np.ndarray:
+    """The first character's landmarks minus the second's, the first moved onto the second by the best
+    similarity, in units of the second's face width (one shape level's rows of ``landmarks.csv``)."""
+    from stimulus_engine.correspondence import umeyama
+
+    a, b = (g.drop_duplicates("landmark").set_index("landmark").sort_index()[["x", "y", "z"]]
+            for _, g in lm.groupby("character", sort=True))
+    width = np.linalg.norm(b.loc["face_left"] - b.loc["face_right"])
+    return ((umeyama(a.to_numpy(), b.to_numpy()).apply(a.to_numpy()) - b.to_numpy()) / width).ravel()
