@@ -47,7 +47,8 @@ def _run(out: Path, seed: int) -> ReportSection:
     n = int((manifest["status"] == "rendered").sum())
     text = (
         "The stylised end as a design (thesis §6.4, §3.2): GDQuest's Sophia, an artist-made chibi head "
-        "(CC BY 4.0), is brought into the ICT rig's topology by ElastiFace from 25 landmarks read off her painted "
+        "(CC BY 4.0), is brought into the ICT rig's topology by ElastiFace from "
+        f"{len(grid.design.landmarks)} landmarks read off her painted "
         "eyes and mouth, the rig's eyes, nose and mouth carried over whole at her features' sizes. Each scanned "
         "person's own proportions (their face explained by the ICT model's 100 identity components) are carried "
         "onto the design by deformation transfer, so james's and Lee Perry-Smith's cartoons are two people in one "
