@@ -409,7 +409,7 @@ def _level_measures(landmarks: pd.DataFrame | None) -> dict[tuple[str, float], d
 
 
 def _cheek_detail(image: np.ndarray) -> float:
-    """:func:`~stimulus_engine.audit.measures.cheek_detail` of the face dlib finds (NaN without one)."""
+    """:func:`~stimulus_engine.stylisation.image_distance.cheek_detail` of the face dlib finds (NaN without one)."""
     from appeal.errors import AppealInputError
     from stimulus_engine.stylisation.image_distance import cheek_detail
     from stimulus_engine.morphpca.keypoints import detect_landmarks
@@ -430,7 +430,7 @@ def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile,
     (to the same factor's realistic level), identity_to_nearest_other (the least identity
     distance to another character's realistic level of the same factor), same_person (identity
     to realistic within :data:`~stimulus_engine.stylisation.identity.SAME_PERSON`), cheek_detail
-    (:func:`~stimulus_engine.audit.measures.cheek_detail`: fine skin detail in the cheeks) and, from
+    (:func:`~stimulus_engine.stylisation.image_distance.cheek_detail`: fine skin detail in the cheeks) and, from
     the grid's ``landmarks`` (its rig landmarks), the level's :data:`LEVEL_MEASURES`.
     """
     from PIL import Image

@@ -91,19 +91,27 @@ def grid_characters(grid: GridFile, cache: Path, source: str) -> dict[str, Chara
     from stimulus_engine.stylisation.designed_shape import model_identity, on_character, own_cartoon
 
     d = grid.design
+    per_rig: dict[str, tuple] = {}  # characters on one ICT model share its design, mean face and components
+
+    def model_of(ict: Path) -> tuple:
+        if str(ict) not in per_rig:
+            mean = load_ict_rig(ict, "generic_neutral_mesh", shapes=[])
+            basis = _basis(ict, d.identity_model, cache) if d.identity > 0 else None
+            per_rig[str(ict)] = (load_design(d, ict, cache, source), mean, front_region(mean), basis)
+        return per_rig[str(ict)]
+
     out = {}
     for name, ch in chars.items():
-        design = load_design(d, ch.spec.ict, cache, source)
+        design, mean, region, basis = model_of(ch.spec.ict)
         if design.shape != ch.rig.vertices.shape:
             raise AppealInputError(f"{source}: design.{d.name}: character '{name}' is not in the ICT rig's topology "
                                    f"({len(ch.rig.vertices)} vertices, the design {len(design)})")
-        mean_rig = load_ict_rig(ch.spec.ict, "generic_neutral_mesh", shapes=[])
-        face, region = ch.rig.vertices, front_region(mean_rig)
-        if d.identity > 0:
-            face, _ = model_identity(_basis(ch.spec.ict, d.identity_model, cache), mean_rig.vertices, ch.rig.vertices,
-                                     region)
-        cartoon = own_cartoon(ch.rig, mean_rig.vertices, face, design, d.identity)
-        cartoon = on_character(ch.rig, cartoon, face if d.identity > 0 else mean_rig.vertices, ch.rig.vertices, region)
+        face, reference = ch.rig.vertices, mean.vertices  # the face as the model explains it, in the mean's frame
+        if basis is not None:
+            face, _ = model_identity(basis, mean.vertices, ch.rig.vertices, region)
+            reference = face
+        cartoon = own_cartoon(ch.rig, mean.vertices, face, design, d.identity)
+        cartoon = on_character(ch.rig, cartoon, reference, ch.rig.vertices, region)
         out[name] = replace(ch, cartoon=cartoon, eyes_ahead=d.eyes_ahead,
                             rig_hash=sha(ch.rig_hash, "design", d.name, d.identity, str(d.identity_model),
                                          d.eyes_ahead, np.ascontiguousarray(cartoon).tobytes()))

@@ -363,6 +363,21 @@ def _landmark_rows(ch: Character, im: PlannedImage, vertices: np.ndarray) -> lis
             for name, pt in ch.rig.landmark_points(vertices.astype(np.float64)).items()]
 
 
+def _rig_file(ch: Character, level: float, shape_v: np.ndarray, cache: Path, saved: set[Path]) -> Path:
+    """The rig file the workers draw ``ch``'s shape ``level`` with (saved once into ``saved``): one per
+    character, or one per designed level, whose hair is fitted to it
+    (:func:`~stimulus_engine.grid.designs.drawn_rig`)."""
+    from stimulus_engine.grid.designs import drawn_rig
+
+    drawn = ch.scan.topology if ch.scan is not None else drawn_rig(ch, level, shape_v)
+    per_level = () if drawn is ch.rig or ch.scan is not None else ("level", level)
+    path = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash, drawn.name, *per_level)}.npz"
+    if path not in saved:
+        save_rig(path, drawn)
+        saved.add(path)
+    return path
+
+
 def _characters(grid: GridFile, cache: Path, source: str,
                 loaded: dict[str, Character] | None) -> dict[str, Character]:
     """The grid's characters by name: ``loaded`` if given, else each loaded from ``cache``."""
@@ -440,7 +455,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
     landmarks : DataFrame
         Long table: character, shape, stylisation, expression, landmark, x, y, z.
     """
-    from stimulus_engine.grid.designs import drawn_rig, shape_vertices
+    from stimulus_engine.grid.designs import shape_vertices
 
     cache = Path(cache) if cache is not None else out / ".cache"
     chars = _characters(grid, cache, source, characters)
@@ -455,22 +470,17 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
             lambda sm: _prepare_material(sm[1], chars[sm[0]], albedos[sm[0]], cache, source, keys[sm[0]]), sources)))
     r = grid.render
     rows, items, lm_rows = [], [], []
-    rig_files: dict[tuple, Path] = {}
-    shapes: dict[tuple, tuple[np.ndarray, tuple]] = {}
+    rig_files: set[Path] = set()
+    shapes: dict[tuple, tuple[np.ndarray, tuple, Path]] = {}
     geometry: dict[tuple, tuple[Path, str]] = {}
     uppers: dict[str, np.ndarray] = {}
     for im in images:
         ch = chars[im.character]
         if (im.character, im.shape) not in shapes:
             shape_v = shape_vertices(ch, im.shape)
-            shapes[im.character, im.shape] = (shape_v, _camera_for(ch, shape_v, grid))
-        shape_v, cam = shapes[im.character, im.shape]
-        level_rig = drawn_rig(ch, im.shape, shape_v) if ch.scan is None else ch.scan.topology
-        rig_key = (im.character, im.shape if level_rig is not ch.rig and ch.scan is None else None)
-        if rig_key not in rig_files:  # one file per character, or per designed level where its hair is refitted
-            level = () if rig_key[1] is None else ("level", im.shape)
-            rig_files[rig_key] = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash, level_rig.name, *level)}.npz"
-            save_rig(rig_files[rig_key], level_rig)
+            shapes[im.character, im.shape] = (shape_v, _camera_for(ch, shape_v, grid),
+                                              _rig_file(ch, im.shape, shape_v, cache, rig_files))
+        shape_v, cam, rig_file = shapes[im.character, im.shape]
         gkey = (im.character, im.shape, im.expression)
         target = _gaze_target(grid, cam)
         if gkey not in geometry:
@@ -486,7 +496,7 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
         eyes = _eye_style(grid, im)
         ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(exclude={"stylised_eyes"}),
                  *extra, *((("eyes",) + eyes) if eyes else ()))  # the eyes' style where it changes them
-        items.append(RenderItem(im.file, str(out), str(rig_files[rig_key]), str(gp), look.albedo_png,
+        items.append(RenderItem(im.file, str(out), str(rig_file), str(gp), look.albedo_png,
                                 im.lighting, im.shading, cam, r.width, r.height, r.shadows, tuple(r.background),
                                 look.normal_png, look.specular_png, r.engine, r.samples, r.seed,
                                 face_oval(r.width, r.height, r.eye_row, r.face_fraction) if r.vignette else (),

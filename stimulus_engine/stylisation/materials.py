@@ -150,9 +150,7 @@ def _region_means(f: np.ndarray, regions: list[np.ndarray]) -> np.ndarray:
     for w in regions:
         span = _window(w)
         if span is not None:
-            ws = w[span]
-            mean = ws.reshape(-1) @ f[span].reshape(ws.size, -1) / ws.sum(dtype=np.float64)  # one BLAS product
-            out[span] += ws[..., None] * mean.astype(out.dtype)
+            out[span] += w[span][..., None] * _mean(f[span], w[span]).astype(out.dtype)
     return out
 
 
@@ -192,7 +190,7 @@ def _paint(f: np.ndarray, regions: list[np.ndarray]) -> np.ndarray:
 
 
 def _mean(f: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """The colour of ``f`` weighted by ``w`` (zeros for an empty region)."""
+    """The colour of ``f`` weighted by ``w`` (zeros for an empty region; one BLAS product)."""
     total = float(w.sum(dtype=np.float64))
     if total <= 0:
         return np.zeros(f.shape[-1], np.float32)
