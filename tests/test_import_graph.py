@@ -37,9 +37,11 @@ ENGINE_LAYERS: dict[str, set[str]] = {
     "morphpca": {"data", "geometry"},
     "correspondence": {"data", "geometry", "render", "morphpca"},
     "parts": {"data", "geometry"},
-    "characters": {"data", "geometry", "render", "correspondence", "parts"},
-    "stylisation": {"data", "geometry", "render", "morphpca", "correspondence", "parts", "characters"},
-    "grid": {"data", "geometry", "render", "morphpca", "correspondence", "parts", "characters", "stylisation"},
+    # a character from a photograph reads its landmarks (morphpca's dlib points, faces2d's .tem)
+    "characters": {"data", "geometry", "render", "morphpca", "faces2d", "correspondence", "parts"},
+    "stylisation": {"data", "geometry", "render", "morphpca", "faces2d", "correspondence", "parts", "characters"},
+    "grid": {"data", "geometry", "render", "morphpca", "faces2d", "correspondence", "parts", "characters",
+             "stylisation"},
     "audit": {"data", "geometry", "render", "morphpca"},
     "faces2d": {"data", "geometry", "render", "morphpca"},
 }

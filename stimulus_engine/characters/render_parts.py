@@ -23,8 +23,9 @@ import trimesh
 from stimulus_engine.characters.rig import FaceRig
 from stimulus_engine.parts.body import Body
 from stimulus_engine.parts.hair import Hair
+from stimulus_engine.parts.surround import Surround
 
-__all__ = ["INSIDE_PARTS", "SHADINGS", "SKIN_LIKE", "body_render_parts", "hair_render_part", "rig_occlusion", "rig_render_parts"]
+__all__ = ["INSIDE_PARTS", "SHADINGS", "SKIN_LIKE", "body_render_parts", "hair_render_part", "surround_render_part", "rig_occlusion", "rig_render_parts"]
 
 #: Shading models: ``pbr`` (metallic-roughness), ``phong`` (specular-glossiness, Blinn-Phong: the
 #: thesis's contrast to PBR), ``skin`` (PBR with scattering-softened skin, wet eyes and a filmic
@@ -187,7 +188,8 @@ def _split_parts(rig: FaceRig, textured_skin: bool) -> list:
 
 def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | None, *,
                      shading: str = "pbr", normal_map: np.ndarray | None = None,
-                     specular_map: np.ndarray | None = None, occlusion: np.ndarray | None = None) -> list:
+                     specular_map: np.ndarray | None = None, occlusion: np.ndarray | None = None,
+                     surround_image: np.ndarray | None = None) -> list:
     """Render parts (skin with texture, eyes, teeth, mouth, lashes) for ``vertices`` of ``rig``.
 
     Skin vertices are split where the UV layout has seams (normals are computed on the welded
@@ -208,6 +210,9 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
     occlusion : (N,) array, optional
         Ambient visibility per rig vertex (:func:`rig_occlusion`), used by ``skin`` shading for
         its ambient light, and in every shading for the parts inside the mouth (:data:`INSIDE_PARTS`).
+    surround_image : (H, W, 3) uint8 array, optional
+        The image drawn on the rig's surround (default its own photograph; a stylised copy at
+        painted levels).
     """
     from stimulus_engine.render.renderer import RenderPart
 
@@ -249,7 +254,32 @@ def rig_render_parts(rig: FaceRig, vertices: np.ndarray, albedo: np.ndarray | No
         parts += body_render_parts(rig.body, v, albedo, shading=shading, normal_map=normal_map, specular_map=specular_map)
     if rig.hair is not None:
         parts.append(hair_render_part(rig.hair, v, shading))
+    if rig.surround is not None:
+        parts.append(surround_render_part(rig.surround, surround_image))
     return parts
+
+
+def surround_render_part(surround: Surround, image: np.ndarray | None = None) -> object:
+    """A photograph's head and shoulders (:mod:`stimulus_engine.parts.surround`) as an unlit
+    plane: its colour is the photograph's (``image``: a stylised copy of it), whatever the
+    lights and the shading."""
+    from stimulus_engine.parts.surround import surround_mesh
+    from stimulus_engine.render._pyrender import pyrender
+    from stimulus_engine.render.renderer import RenderPart
+
+    v, f, uv = surround_mesh(surround)
+    mesh = trimesh.Trimesh(v, f, process=False)
+    mesh.visual = trimesh.visual.TextureVisuals(uv=uv)
+    img = np.ascontiguousarray(surround.image if image is None else image)
+
+    def make() -> object:  # RGBA: OpenGL reads rows in 4-byte steps, and an RGB row of odd width is skewed
+        rgba = np.concatenate([img[..., :3], np.full((*img.shape[:2], 1), 255, np.uint8)], axis=2)
+        return pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(0.0, 0.0, 0.0, 1.0), metallicFactor=0.0, roughnessFactor=1.0,
+            emissiveFactor=(1.0, 1.0, 1.0), emissiveTexture=pyrender.Texture(source=rgba, source_channels="RGBA"))
+
+    mat = _cached(("surround",), (img,), make, _TEXTURES)
+    return RenderPart(mesh, material=mat, smooth=True, name="surround")
 
 
 #: The lids' wet line (the rig's lacrimal fluid): a clear film, nearly colourless, that shows only

@@ -19,6 +19,7 @@ import numpy as np
 if TYPE_CHECKING:
     from stimulus_engine.parts.body import Body
     from stimulus_engine.parts.hair import Hair
+    from stimulus_engine.parts.surround import Surround
 
 __all__ = ["LANDMARK_NAMES", "IBUG_LANDMARKS", "FaceRig"]
 
@@ -89,6 +90,9 @@ class FaceRig:
     body : Body or None
         Neck, shoulders and garment bound to the skin (:func:`stimulus_engine.parts.body.fit_body`),
         drawn posed with it like the hair.
+    surround : Surround or None
+        A character from a photograph: the photograph's head and shoulders on a plane behind
+        the face (:mod:`stimulus_engine.parts.surround`), fixed in the head's frame.
     """
 
     name: str
@@ -108,6 +112,7 @@ class FaceRig:
     texture_maps: dict[str, np.ndarray] = field(default_factory=dict)
     hair: Hair | None = None
     body: Body | None = None
+    surround: Surround | None = None
 
     def landmark_points(self, vertices: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Landmark positions (mean of each vertex set) on ``vertices`` (default: the neutral)."""

@@ -13,6 +13,9 @@ Hair, fit_hair, hair_asset, HAIR_STYLES
 Body, fit_body, bust_asset, under_garment
     A neck, shoulders and a crew-neck garment joined under any head's neck (module ``body``;
     MakeHuman's CC0 base mesh).
+Surround, surround_view
+    A photograph's head and shoulders on a plane behind a character made from it (module
+    ``surround``).
 """
 
 from stimulus_engine.parts.body import Body, bust_asset, fit_body, under_garment
@@ -26,11 +29,13 @@ from stimulus_engine.parts.eyes import (
     tint_iris,
 )
 from stimulus_engine.parts.hair import HAIR_STYLES, Hair, fit_hair, hair_asset
+from stimulus_engine.parts.surround import Surround, surround_view
 
 __all__ = [
-    "Body",
     "HAIR_STYLES",
+    "Body",
     "Hair",
+    "Surround",
     "bust_asset",
     "eye_texture",
     "eyeball_asset",
@@ -41,7 +46,8 @@ __all__ = [
     "hair_asset",
     "lash_strip",
     "lash_texture",
-    "under_garment",
     "photographic_eye_texture",
+    "surround_view",
     "tint_iris",
+    "under_garment",
 ]

@@ -57,7 +57,22 @@ def _image(bpy, folder: Path, name: str, colour: bool):
 EYE_PARTS = ("eyes", "eye", "sclera", "iris", "cornea")
 
 
+def _emission(bpy, rec: dict, folder: Path):
+    """An unlit image (a photograph's surround): emission of its texture, seen by the camera only."""
+    mat = bpy.data.materials.new(rec["name"] or "part")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = _image(bpy, folder, rec["emission"], True)
+    em = nodes.new("ShaderNodeEmission")
+    links.new(tex.outputs["Color"], em.inputs["Color"])
+    links.new(em.outputs["Emission"], nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
 def _material(bpy, rec: dict, folder: Path, mm_per_unit: float):
+    if "emission" in rec:
+        return _emission(bpy, rec, folder)
     mat = bpy.data.materials.new(rec["name"] or "part")
     mat.use_nodes = True
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
@@ -235,6 +250,8 @@ def build_scene(bpy, scene_path: Path, samples: int, seed: int, threads: int):
         me = _mesh(bpy, rec["name"], parts[f"v{k}"], parts[f"f{k}"], parts[f"n{k}"], uv)
         me.materials.append(_material(bpy, rec, folder, spec["mm_per_unit"]))
         ob = bpy.data.objects.new(rec["name"] or f"part{k}", me)
+        if "emission" in rec:  # a photograph behind the head: seen, not lighting the face nor shadowed
+            ob.visible_diffuse = ob.visible_glossy = ob.visible_transmission = ob.visible_shadow = False
         sc.collection.objects.link(ob)
         if rec.get("strands"):
             curves = _strands(bpy, "strands", parts[f"sp{k}"], parts[f"ss{k}"], parts[f"sr{k}"])

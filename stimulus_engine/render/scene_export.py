@@ -66,6 +66,10 @@ def _material_record(name: str, mat: Any, folder: Path, index: int) -> dict:
     if mat is None:
         rec["base_color"] = [0.7, 0.7, 0.7, 1.0]
         return rec
+    emissive = _texture_array(getattr(mat, "emissiveTexture", None))
+    if emissive is not None:  # an unlit image (a photograph's surround): its own colour, whatever the light
+        rec["emission"] = f"part{index}_emission.png"
+        Image.fromarray(np.ascontiguousarray(emissive[..., :3])).save(folder / rec["emission"])
     if hasattr(mat, "baseColorFactor"):  # metallic-roughness
         rec["base_color"] = [float(v) for v in mat.baseColorFactor]
         rec["roughness"] = float(mat.roughnessFactor if mat.roughnessFactor is not None else 1.0)
