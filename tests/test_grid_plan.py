@@ -79,7 +79,7 @@ def test_every_character_has_one_kind_with_a_rig_builder():
                           "materials": ["original"]},
                          GridFile, source="g.yaml", check_paths=False)
     assert [character_kind(c) for c in grid.characters] == ["procedural", "ict"]
-    assert set(CHARACTER_KINDS) == {"ict", "procedural"}
+    assert set(CHARACTER_KINDS) == {"photo", "ict", "procedural"}
 
 
 #: Images per shipped grid as the thesis designs them (§6.3.1 Exp. 1a: 3 shapes x 3 materials x 5

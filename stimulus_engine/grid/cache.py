@@ -19,14 +19,15 @@ from pathlib import Path
 import numpy as np
 
 from appeal.atomic import atomic_write_bytes
+from stimulus_engine.characters.rig import FaceRig
 from stimulus_engine.parts.body import body_arrays, body_from_arrays
 from stimulus_engine.parts.hair import hair_arrays, hair_from_arrays
-from stimulus_engine.characters.rig import FaceRig
+from stimulus_engine.parts.surround import surround_arrays, surround_from_arrays
 
 __all__ = ["GRID_VERSION", "file_sha", "load_rig", "npz_cached", "save_npy", "save_npz", "save_png_once", "save_rig", "sha"]
 
 #: Bumped when the rendering code changes what pixels come out (part of every input hash).
-GRID_VERSION = "grid-45"  # 45: the garment goes on 6 iod below the bust's cut across the chest, a designed cartoon on its character's neck, its hair fitted to each designed level's head; 44: a dark painted iris lifted to grey 85, the Cycles toon highlight 0.03; 43: the eyes, lashes and hair stylised along the scale (stylisation.eyes, .hair), toon shading; 42: the painted material family, eyes 1.3x at the cartoon end; 41: a scan's upper incisors shown between parted lips; 40: the bust's neck extended up at the sides and back; 39: half the white hair highlight; 38: pyrender anti-aliased by supersampling (render.supersample, default 1.5); 37: hair cards blended back to front, strand edges softened; 36: no dips in the collar's edge; 35: a scan's lids drawn with a margin from the rim back onto the eyeball; 34: the inside of a mesh character's lips drawn as mucosa in its lips' shade; 33: a scan fades into its neck's colour toward its border, the neck coloured from skin texels only; 32: the inside of the mouth lit at least 0.55 (teeth 0.7), as Cycles bounces light in; 31: Kajiya-Kay strand highlights on pyrender hair; 30: the eye-occlusion shell drawn as the lids' shadow and the caruncle, one glint per eye; 29: the bust neck coloured from 0.1 iod above its border; 28: Cycles draws hair strands as curves with the Principled Hair BSDF; 27: the ICT rig's lacrimal fluid drawn as the lids' wet line; 26: a scan's collar edge hidden from mask 0.2, the bust neck coloured from 0.35 iod above its border; 25: the garment drawn on both sides, Cycles cuts alpha-tested hair out; 24: the neck's own texture coordinates at the neckline; 23: a soft oval vignette with the head framing; 22: a hair style per character (MakeHuman's eight), locks hang by their offsets, a style over a scan's own hair; 21: a crew neckline at the base of the neck, the character's neck on under the garment, a scan's collar cut in a clean line; 20: a bust (neck, shoulders, garment) under every head, head-and-shoulders framing; 19: lash cards follow their roots; 18: eyeball sclera lit to SCLERA_LEVEL; 17: a mesh character's lashes seated on its lids; 16: painted-eye remnants inpainted on scan lids; 15: eyeballs kept behind the lids; 14: teeth, gums and tongue behind a scan's lips, the mouth lit through its opening, glossy corneas; 13: eyes aimed at the gaze target, scan eyeballs by their painted pupils; 12: render engine, samples and seed in the hash; skin shading
+GRID_VERSION = "grid-46"  # 46: characters from one photograph (photo:), their surround drawn unlit; 45: the garment goes on 6 iod below the bust's cut across the chest, a designed cartoon on its character's neck, its hair fitted to each designed level's head; 44: a dark painted iris lifted to grey 85, the Cycles toon highlight 0.03; 43: the eyes, lashes and hair stylised along the scale (stylisation.eyes, .hair), toon shading; 42: the painted material family, eyes 1.3x at the cartoon end; 41: a scan's upper incisors shown between parted lips; 40: the bust's neck extended up at the sides and back; 39: half the white hair highlight; 38: pyrender anti-aliased by supersampling (render.supersample, default 1.5); 37: hair cards blended back to front, strand edges softened; 36: no dips in the collar's edge; 35: a scan's lids drawn with a margin from the rim back onto the eyeball; 34: the inside of a mesh character's lips drawn as mucosa in its lips' shade; 33: a scan fades into its neck's colour toward its border, the neck coloured from skin texels only; 32: the inside of the mouth lit at least 0.55 (teeth 0.7), as Cycles bounces light in; 31: Kajiya-Kay strand highlights on pyrender hair; 30: the eye-occlusion shell drawn as the lids' shadow and the caruncle, one glint per eye; 29: the bust neck coloured from 0.1 iod above its border; 28: Cycles draws hair strands as curves with the Principled Hair BSDF; 27: the ICT rig's lacrimal fluid drawn as the lids' wet line; 26: a scan's collar edge hidden from mask 0.2, the bust neck coloured from 0.35 iod above its border; 25: the garment drawn on both sides, Cycles cuts alpha-tested hair out; 24: the neck's own texture coordinates at the neckline; 23: a soft oval vignette with the head framing; 22: a hair style per character (MakeHuman's eight), locks hang by their offsets, a style over a scan's own hair; 21: a crew neckline at the base of the neck, the character's neck on under the garment, a scan's collar cut in a clean line; 20: a bust (neck, shoulders, garment) under every head, head-and-shoulders framing; 19: lash cards follow their roots; 18: eyeball sclera lit to SCLERA_LEVEL; 17: a mesh character's lashes seated on its lids; 16: painted-eye remnants inpainted on scan lids; 15: eyeballs kept behind the lids; 14: teeth, gums and tongue behind a scan's lips, the mouth lit through its opening, glossy corneas; 13: eyes aimed at the gaze target, scan eyeballs by their painted pupils; 12: render engine, samples and seed in the hash; skin shading
 
 
 def sha(*parts: object) -> str:
@@ -89,7 +90,7 @@ def save_rig(path: Path, rig: FaceRig) -> None:
         uv=rig.uv if rig.uv is not None else np.zeros((0, 2)),
         face_uv=rig.face_uv if rig.face_uv is not None else np.zeros((0, 3), np.int64),
         **{f"part_texture_{k}": t for k, t in rig.part_textures.items()}, **hair_arrays(rig.hair),
-        **body_arrays(rig.body)))
+        **body_arrays(rig.body), **surround_arrays(rig.surround)))
 
 
 @functools.lru_cache(maxsize=8)
@@ -101,4 +102,5 @@ def load_rig(path: str) -> FaceRig:
     textures = {k[len("part_texture_"):]: d[k] for k in d.files if k.startswith("part_texture_")}
     return FaceRig(name=Path(path).stem, vertices=np.zeros((0, 3)), faces=d["faces"], uv=uv, face_uv=fuv,
                    face_part=d["face_part"], part_names=tuple(str(x) for x in d["part_names"]), landmarks={},
-                   part_textures=textures, hair=hair_from_arrays(d), body=body_from_arrays(d))
+                   part_textures=textures, hair=hair_from_arrays(d), body=body_from_arrays(d),
+                   surround=surround_from_arrays(d))

@@ -19,26 +19,24 @@ import trimesh
 
 from appeal.errors import AppealInputError
 from appeal.logs import logger
+from stimulus_engine.characters.rig import FaceRig
+from stimulus_engine.characters.scan_surface import ScanSurface, wear_rig_hair
 from stimulus_engine.correspondence.alignment import Similarity
+from stimulus_engine.geometry.mesh_io import load_mesh
 from stimulus_engine.grid.cache import GRID_VERSION, file_sha, npz_cached, save_npz, sha
 from stimulus_engine.grid.inputs import load_map, load_texture
 from stimulus_engine.grid.schema import CharacterSpec, MeshSpec
-from stimulus_engine.geometry.mesh_io import load_mesh
-from stimulus_engine.characters.rig import FaceRig
-from stimulus_engine.characters.scan_surface import ScanSurface, wear_rig_hair
 
 __all__ = ["CHARACTER_KINDS", "Character", "base_rig", "character_albedo", "character_kind", "load_character"]
 
 
-def _ict_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
+def _ict_rig(c: CharacterSpec, cache: Path | None = None, render: object = None) -> tuple[FaceRig, str]:
     from stimulus_engine.characters.ict import load_ict_rig
 
-    rig = load_ict_rig(c.ict, c.identity)
-    files = sorted(Path(c.ict).glob("*.obj*"))
-    return rig, sha("ict", c.identity, [(f.name, f.stat().st_size, int(f.stat().st_mtime)) for f in files])
+    return load_ict_rig(c.ict, c.identity), sha(_ict_rig_key(c.ict), c.identity)
 
 
-def _procedural_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
+def _procedural_rig(c: CharacterSpec, cache: Path | None = None, render: object = None) -> tuple[FaceRig, str]:
     from stimulus_engine.characters.procedural_head import procedural_head
 
     p = c.procedural
@@ -46,9 +44,52 @@ def _procedural_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
     return rig, sha("procedural", p.model_dump())
 
 
-#: Character kinds, each named like the :class:`CharacterSpec` field that holds its settings:
-#: the base rig of a spec and a hash of its inputs.
-CHARACTER_KINDS: dict[str, Callable[[CharacterSpec], tuple[FaceRig, str]]] = {
+def _photo_rig(c: CharacterSpec, cache: Path | None = None, render: object = None) -> tuple[FaceRig, str]:
+    """The ICT model fitted to a photograph, wearing it (:mod:`stimulus_engine.characters.photo_character`),
+    laid on through the grid's camera (``render``: its :class:`~stimulus_engine.grid.schema.RenderSettings`; default framing
+    without); kept in ``cache/photo`` (the fit and the texture take a few seconds, the model's
+    100 components longer to read)."""
+    from stimulus_engine.characters.photo_character import PHOTO_VERSION, found_template
+    from stimulus_engine.grid.schema import RenderSettings
+    from stimulus_engine.parts.surround import surround_arrays, surround_from_arrays
+
+    r = render if render is not None else RenderSettings()
+    portrait = (r.yfov_deg, r.eye_row, r.face_fraction)
+    template = c.template or found_template(c.photo)
+    h = sha(GRID_VERSION, PHOTO_VERSION, file_sha(c.photo), file_sha(template) if template else None,
+            _ict_rig_key(c.ict), str(c.identity_model), portrait)
+
+    def make() -> dict[str, np.ndarray]:
+        from stimulus_engine.characters.photo_character import photo_character
+
+        logger.info("%s: fitting the ICT model to %s", c.name, c.photo)
+        pc = photo_character(c.photo, c.ict, c.identity_model, name=c.name, template=template, portrait=portrait)
+        r = pc.rig
+        return {"vertices": r.vertices, "face_part": r.face_part, "texture": r.texture,
+                "part_texture_eye": r.part_textures["eye"], **{f"mask_{k}": v for k, v in r.texture_masks.items()},
+                **surround_arrays(r.surround), "rms_residual_iod": np.array(pc.fit.rms)}
+
+    from stimulus_engine.characters.ict import load_ict_rig
+
+    d = npz_cached(cache / "photo" / f"{h}.npz", make) if cache is not None else make()
+    base = load_ict_rig(c.ict, "generic_neutral_mesh")
+    rig = replace(base.with_vertices(d["vertices"], name=c.name), face_part=d["face_part"], texture=d["texture"],
+                  texture_masks={k[5:]: v for k, v in d.items() if k.startswith("mask_")},
+                  part_textures={**base.part_textures, "eye": d["part_texture_eye"]},
+                  surround=surround_from_arrays(d))
+    return rig, h
+
+
+def _ict_rig_key(ict: Path) -> str:
+    files = sorted(Path(ict).glob("*.obj*"))
+    return sha("ict", [(f.name, f.stat().st_size, int(f.stat().st_mtime)) for f in files])
+
+
+#: Character kinds, each named like the :class:`CharacterSpec` field that holds its settings
+#: (the first set wins: a photo character names its ICT model too): the base rig of a spec and a
+#: hash of its inputs, given the grid's cache folder (None: nothing kept) and render settings.
+CHARACTER_KINDS: dict[str, Callable[..., tuple[FaceRig, str]]] = {
+    "photo": _photo_rig,
     "ict": _ict_rig,
     "procedural": _procedural_rig,
 }
@@ -62,9 +103,11 @@ def character_kind(c: CharacterSpec) -> str:
     return next(k for k in CHARACTER_KINDS if getattr(c, k) is not None)
 
 
-def base_rig(c: CharacterSpec) -> tuple[FaceRig, str]:
-    """The character's own rig (before any ``mesh``) and a hash of its inputs."""
-    return CHARACTER_KINDS[character_kind(c)](c)
+def base_rig(c: CharacterSpec, cache: Path | None = None, render: object = None) -> tuple[FaceRig, str]:
+    """The character's own rig (before any ``mesh``) and a hash of its inputs (``cache``: the
+    grid's cache folder, where a photo character's fit is kept; ``render``: the grid's
+    :class:`~stimulus_engine.grid.schema.RenderSettings`, whose camera a photo is laid on through)."""
+    return CHARACTER_KINDS[character_kind(c)](c, cache, render)
 
 
 @dataclass(frozen=True)
@@ -119,10 +162,15 @@ def _with_body(c: CharacterSpec, rig: FaceRig, rig_hash: str, eyes: FaceRig | No
     ``fade`` (a scan, whose lower border the bust's neck continues) its skin fades into the
     neck's colour toward that border (:func:`~stimulus_engine.parts.body.fade_into_neck`)."""
     from stimulus_engine.characters.scan_regions import skin_texels
-    from stimulus_engine.parts.body import clothes_faces, fade_into_neck, fit_body, under_garment
+    from stimulus_engine.parts.body import (
+        clothes_faces,
+        fade_into_neck,
+        fit_body,
+        under_garment,
+    )
     from stimulus_engine.parts.hair import linear_rgb
 
-    if c.body == "none":
+    if not c.draws_bust:
         return rig, rig_hash
     skin = rig.face_part == rig.part_names.index("skin")
     lm = (eyes or rig).landmark_points()
@@ -159,9 +207,10 @@ def _dressed(c: CharacterSpec, rig: FaceRig, rig_hash: str) -> tuple[FaceRig, st
     return _with_body(c, *_with_hair(c, rig, rig_hash))
 
 
-def load_character(c: CharacterSpec, cache: Path, source: str) -> Character:
-    """The character of ``c``; a ``mesh`` is corresponded once and kept in ``cache/mesh``."""
-    base, base_hash = base_rig(c)
+def load_character(c: CharacterSpec, cache: Path, source: str, render: object = None) -> Character:
+    """The character of ``c``; a ``mesh`` is corresponded once and kept in ``cache/mesh``
+    (``render``: the grid's render settings, for a photo character's camera)."""
+    base, base_hash = base_rig(c, cache, render)
     if c.mesh is None:
         return Character(c, *_dressed(c, base, base_hash), base)
     m = c.mesh
@@ -226,11 +275,11 @@ def _scan_surface(c: CharacterSpec, rig: FaceRig, mesh: trimesh.Trimesh, alignme
     ``rig``, wearing its own albedo (``mesh.texture``, else the mesh file's texture), with
     eyeballs behind its lids (``mesh.eyes: eyeballs``) and lips that part over the rig's mouth
     (``mesh.mouth: inside``); ``ibug``: the 68 points on the mesh."""
-    from stimulus_engine.geometry.mesh_io import mesh_uv_layout, texture_image
     from stimulus_engine.characters.scan_eyes import erase_painted_eyes, eye_geometry
     from stimulus_engine.characters.scan_mouth import cut_lips
     from stimulus_engine.characters.scan_regions import scan_masks
     from stimulus_engine.characters.scan_surface import bind_scan
+    from stimulus_engine.geometry.mesh_io import mesh_uv_layout, texture_image
 
     where = f"{source}: characters.{c.name}.mesh"
     layout = mesh_uv_layout(mesh)

@@ -83,12 +83,16 @@ def _basis(ict: Path, more: Path, cache: Path) -> np.ndarray:
 def grid_characters(grid: GridFile, cache: Path, source: str) -> dict[str, Character]:
     """The grid's characters by name, each loaded once; with a ``design``, each with its own cartoon
     (:func:`~stimulus_engine.stylisation.designed_shape.own_cartoon`)."""
-    chars = {c.name: load_character(c, cache, source) for c in grid.characters}
+    chars = {c.name: load_character(c, cache, source, grid.render) for c in grid.characters}
     if grid.design is None:
         return chars
     from stimulus_engine.characters.ict import load_ict_rig
     from stimulus_engine.characters.mesh_character import front_region
-    from stimulus_engine.stylisation.designed_shape import model_identity, on_character, own_cartoon
+    from stimulus_engine.stylisation.designed_shape import (
+        model_identity,
+        on_character,
+        own_cartoon,
+    )
 
     d = grid.design
     per_rig: dict[str, tuple] = {}  # characters on one ICT model share its design, mean face and components

@@ -33,9 +33,14 @@ from stimulus_engine.grid.cache import (
 )
 from stimulus_engine.grid.characters import Character, character_albedo
 from stimulus_engine.grid.inputs import load_map
-from stimulus_engine.grid.plan import PlannedImage, material_sources, plan_images, plan_photos
-from stimulus_engine.grid.worker import RenderItem
+from stimulus_engine.grid.plan import (
+    PlannedImage,
+    material_sources,
+    plan_images,
+    plan_photos,
+)
 from stimulus_engine.grid.schema import GridFile, MaterialSpec
+from stimulus_engine.grid.worker import RenderItem
 from stimulus_engine.render.vignette import face_oval
 
 if TYPE_CHECKING:
@@ -123,7 +128,11 @@ def _prepare_material(m: MaterialSpec, ch: Character, albedo: tuple[np.ndarray, 
     ``cache/looks``: a material met again (a continuum's probes, then its grid; a re-run) is not
     stylised again.
     """
-    from stimulus_engine.stylisation.materials import albedo_hash, maps_hash, stylise_material
+    from stimulus_engine.stylisation.materials import (
+        albedo_hash,
+        maps_hash,
+        stylise_material,
+    )
 
     img, masks = albedo
     unstyled = _material_maps(m, ch, img.shape[:2], cache, source)
@@ -143,6 +152,22 @@ def _prepare_material(m: MaterialSpec, ch: Character, albedo: tuple[np.ndarray, 
         memo.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(memo, json.dumps(asdict(look)))
     return look
+
+
+def _surround_look(ch: Character, m: MaterialSpec, cache: Path) -> tuple[str, str]:
+    """A photo character's surround stylised with material ``m`` (its PNG in ``cache/albedo`` and
+    its hash); ``("", "")`` for a character without one."""
+    from stimulus_engine.stylisation.materials import albedo_hash, stylise_material
+
+    s = ch.rig.surround
+    if s is None:
+        return "", ""
+    amount = m.amount_for(ch.spec.name)
+    h = sha(albedo_hash(s.image), m.style, amount)
+    path = cache / "albedo" / f"surround_{h}.png"
+    if not path.exists():
+        save_png_once(stylise_material(s.image, m.style, {}, {}, amount)[0], path)
+    return str(path), h
 
 
 def level_up(eye_right: np.ndarray, eye_left: np.ndarray, view_dir: tuple[float, float, float] = (0.0, 0.0, 1.0)
@@ -173,6 +198,13 @@ def _camera_for(ch: Character, shape_vertices: np.ndarray, grid: GridFile) -> tu
     eye = (lm["eye_left"] + lm["eye_right"]) / 2
     length = float(np.linalg.norm(lm["forehead_top"] - lm["chin"]))
     r = grid.render
+    if ch.rig.surround is not None:  # a photo character: seen as its photograph was taken
+        from stimulus_engine.parts.surround import surround_view
+
+        view, up = surround_view(ch.rig.surround)
+        cam = face_camera(eye, length, yfov_deg=r.yfov_deg, eye_row=r.eye_row, face_fraction=r.face_fraction,
+                          view_dir=tuple(view), up=tuple(up))
+        return (cam.position, cam.target, cam.yfov_deg, cam.up)
     cam = face_camera(eye, length, yfov_deg=r.yfov_deg, eye_row=r.eye_row, face_fraction=r.face_fraction,
                       up=level_up(lm["eye_right"], lm["eye_left"]))
     return (cam.position, cam.target, cam.yfov_deg, cam.up)
@@ -281,7 +313,10 @@ def drawn_geometry(ch: Character, posed: np.ndarray, target: np.ndarray | None,
     (``teeth``: the upper teeth met so far, by character); float32, as cached."""
     from stimulus_engine.characters.gaze import aim_eyes
     from stimulus_engine.characters.incisor_display import show_upper_incisors
-    from stimulus_engine.characters.skin_clearance import eyes_behind_skin, inside_behind_skin
+    from stimulus_engine.characters.skin_clearance import (
+        eyes_behind_skin,
+        inside_behind_skin,
+    )
 
     if ch.scan is None:
         return posed
@@ -363,14 +398,31 @@ def _landmark_rows(ch: Character, im: PlannedImage, vertices: np.ndarray) -> lis
             for name, pt in ch.rig.landmark_points(vertices.astype(np.float64)).items()]
 
 
-def _rig_file(ch: Character, level: float, shape_v: np.ndarray, cache: Path, saved: set[Path]) -> Path:
+def photo_eyes(ch: Character, shape: float, expression: str) -> bool:
+    """Whether an image shows the photograph's own eyes: a photo character's realistic level, its
+    lids not raised past the photograph's (:func:`~stimulus_engine.characters.photo_character.widens_eyes`);
+    elsewhere (the eyes grow or open wider) the rig's eyeballs, their iris in the photograph's colour."""
+    if ch.rig.surround is None or shape != 0.0:
+        return False
+    from stimulus_engine.characters.expressions import expression_weights
+    from stimulus_engine.characters.photo_character import widens_eyes
+
+    return not widens_eyes(expression_weights(expression))
+
+
+def _rig_file(ch: Character, level: float, shape_v: np.ndarray, cache: Path, saved: set[Path],
+              own_eyes: bool = False) -> Path:
     """The rig file the workers draw ``ch``'s shape ``level`` with (saved once into ``saved``): one per
     character, or one per designed level, whose hair is fitted to it
-    (:func:`~stimulus_engine.grid.designs.drawn_rig`)."""
+    (:func:`~stimulus_engine.grid.designs.drawn_rig`); ``own_eyes``: a photo character with its
+    photograph's eyes (:func:`photo_eyes`)."""
+    from stimulus_engine.characters.photo_character import photo_eyed
     from stimulus_engine.grid.designs import drawn_rig
 
     drawn = ch.scan.topology if ch.scan is not None else drawn_rig(ch, level, shape_v)
-    per_level = () if drawn is ch.rig or ch.scan is not None else ("level", level)
+    if own_eyes:
+        drawn = photo_eyed(drawn)
+    per_level = () if drawn is ch.rig or ch.scan is not None else ("level", level, own_eyes)
     path = cache / "rigs" / f"{sha(GRID_VERSION, ch.rig_hash, drawn.name, *per_level)}.npz"
     if path not in saved:
         save_rig(path, drawn)
@@ -423,7 +475,11 @@ def measured_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Pat
     ``cache``, with the grid's ``characters`` loaded once, and rendered here); a grid of listed
     levels as it is; continua with ``spacing: even`` written out by value, nothing rendered
     (:func:`stimulus_engine.grid.continuum.spaced_by_value`)."""
-    from stimulus_engine.grid.continuum import measured, needs_measuring, spaced_by_value
+    from stimulus_engine.grid.continuum import (
+        measured,
+        needs_measuring,
+        spaced_by_value,
+    )
 
     grid = spaced_by_value(grid)
     if not needs_measuring(grid):
@@ -481,6 +537,8 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
             shapes[im.character, im.shape] = (shape_v, _camera_for(ch, shape_v, grid),
                                               _rig_file(ch, im.shape, shape_v, cache, rig_files))
         shape_v, cam, rig_file = shapes[im.character, im.shape]
+        if photo_eyes(ch, im.shape, im.expression):
+            rig_file = _rig_file(ch, im.shape, shape_v, cache, rig_files, own_eyes=True)
         gkey = (im.character, im.shape, im.expression)
         target = _gaze_target(grid, cam)
         if gkey not in geometry:
@@ -494,13 +552,15 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
         look = looks[im.albedo_from, im.material.name]
         extra = () if look.maps_hash == "none" else (look.maps_hash,)  # hashes without maps as before
         eyes = _eye_style(grid, im)
+        surround_png, surround_hash = _surround_look(ch, im.material, cache)
         ih = sha(GRID_VERSION, gh, look.albedo_hash, im.lighting, im.shading, cam, r.model_dump(exclude={"stylised_eyes"}),
-                 *extra, *((("eyes",) + eyes) if eyes else ()))  # the eyes' style where it changes them
+                 *extra, *((("eyes",) + eyes) if eyes else ()),  # the eyes' style where it changes them
+                 *((surround_hash,) if surround_hash else ()))
         items.append(RenderItem(im.file, str(out), str(rig_file), str(gp), look.albedo_png,
                                 im.lighting, im.shading, cam, r.width, r.height, r.shadows, tuple(r.background),
                                 look.normal_png, look.specular_png, r.engine, r.samples, r.seed,
                                 face_oval(r.width, r.height, r.eye_row, r.face_fraction) if r.vignette else (),
-                                r.supersample, eyes))
+                                r.supersample, eyes, surround_png=surround_png))
         rows.append({"file": im.file, "character": im.character, "shape": im.shape, "shape_label": im.shape_label,
                      "stylisation": im.stylisation, "material": im.material.name,
                      "material_style": im.material.style, "material_from": im.albedo_from,
@@ -521,4 +581,17 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
                      "maps_hash": "", "input_hash": sha(GRID_VERSION, "photo", file_sha(p.source), r.width, r.height),
                      "camera": f"photo:{p.source.name}", "width": r.width, "height": r.height,
                      "_photo": str(p.source)})
-    return pd.DataFrame(rows), items, pd.DataFrame(lm_rows)
+    return _with_people(pd.DataFrame(rows), grid), items, pd.DataFrame(lm_rows)
+
+
+def _with_people(manifest: pd.DataFrame, grid: GridFile) -> pd.DataFrame:
+    """The manifest with the London set's ``age``, ``gender`` and ``ethnicity`` of each photo
+    character that comes from it (:func:`~stimulus_engine.characters.photo_character.photo_person`)."""
+    from stimulus_engine.characters.photo_character import photo_person
+
+    people = {c.name: photo_person(c.photo) for c in grid.characters if c.photo is not None}
+    if not any(people.values()):
+        return manifest
+    for col in ("age", "gender", "ethnicity"):
+        manifest[col] = manifest["character"].map(lambda n, col=col: people.get(n, {}).get(col))
+    return manifest

@@ -26,6 +26,17 @@ from stimulus_engine.grid.schema import GridFile
 __all__ = ["previous_hashes", "run_grid"]
 
 
+def _framing_reference(manifest: pd.DataFrame, character: str, out: Path) -> str | None:
+    """The rendered image a character's photographs are framed like: its realistic level, neutral
+    where there is one (None without renders)."""
+    from stimulus_engine.grid.photo_sheet import realistic_images
+
+    rendered = manifest[(manifest["character"] == character) & (manifest["shape"].astype(str) != "photograph")]
+    if rendered.empty:
+        return None
+    return str(out / realistic_images(rendered).iloc[0]["file"])
+
+
 def previous_hashes(out: Path) -> dict[str, str]:
     """``file`` -> ``input_hash`` of the images a previous run over ``out`` rendered (none without its manifest)."""
     p = out / "manifest.csv"
@@ -98,7 +109,7 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
         t0 = time.perf_counter()
         f = manifest.at[idx, "file"]
         place_photo(manifest.at[idx, "_photo"], out / f, grid.render.width, grid.render.height,
-                     grid.render.background)
+                     grid.render.background, _framing_reference(manifest, manifest.at[idx, "character"], out))
         status[f] = ("rendered", time.perf_counter() - t0)
     manifest["seconds"] = [round(status[f][1], 4) for f in manifest["file"]]
     manifest["status"] = [status[f][0] for f in manifest["file"]]

@@ -48,8 +48,21 @@ from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_v
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
-__all__ = ["AnimationSpec", "CharacterSpec", "GridFile", "MaterialContinuum", "MaterialSpec", "MeshSpec", "ShapeContinuum",
-           "PhotoSpec", "RenderSettings", "DesignSpec", "even_values", "frame_at", "shape_label"]
+__all__ = [
+    "AnimationSpec",
+    "CharacterSpec",
+    "DesignSpec",
+    "GridFile",
+    "MaterialContinuum",
+    "MaterialSpec",
+    "MeshSpec",
+    "PhotoSpec",
+    "RenderSettings",
+    "ShapeContinuum",
+    "even_values",
+    "frame_at",
+    "shape_label",
+]
 
 _STYLES = ("original", "blur25", "blur50", "bilateral", "flat", "painted")
 _LIGHTING = ("direct_hard", "direct_soft", "gi_soft", "flat")
@@ -144,6 +157,14 @@ class CharacterSpec(StudyModel):
     ``body``: ``bust`` (the default: a neck, shoulders and a plain crew-neck garment joined under
     the head, :mod:`stimulus_engine.parts.body`) or ``none`` (the head alone, as modelled).
     ``garment_colour``: sRGB hex (default a muted slate blue).
+
+    ``photo``: a character from one frontal photograph
+    (:mod:`stimulus_engine.characters.photo_character`): the ICT model (``ict``, default
+    ``data:ict-facekit``, with the identity components of ``identity_model``, default
+    ``data:ict-facekit-more``) fitted to its landmarks, the photograph as its material, its hair,
+    ears, neck and clothes the photograph's own (no bust, no hair style unless asked for).
+    ``template``: a ``.tem`` beside it is found by itself (the London set's 189-point templates:
+    their hand-placed eye, brow, nose and mouth points replace dlib's).
     """
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
@@ -151,6 +172,9 @@ class CharacterSpec(StudyModel):
     identity: str = "identity000"
     procedural: ProceduralSpec | None = None
     mesh: MeshSpec | None = None
+    photo: InputFile | None = None
+    template: InputFile | None = None
+    identity_model: InputDir | None = None
     texture: InputFile | None = None
     texture_seed: int = 0
     hair: Literal["auto", "none", "short", "short01", "short02", "short03", "short04", "bob02", "long01", "afro01",
@@ -163,11 +187,30 @@ class CharacterSpec(StudyModel):
     def hair_style(self) -> str | None:
         """The hair drawn on this character (a key of :data:`stimulus_engine.parts.hair.HAIR_STYLES`), or None."""
         if self.hair == "auto":
-            return "short" if self.ict is not None and self.mesh is None else None
+            return "short" if self.ict is not None and self.mesh is None and self.photo is None else None
         return None if self.hair == "none" else self.hair
+
+    @model_validator(mode="before")
+    @classmethod
+    def _photo_defaults(cls, data: Any) -> Any:
+        """A photo character's model defaults to the registered ICT face kit and its 100 components."""
+        if isinstance(data, dict) and data.get("photo") is not None and data.get("procedural") is None:
+            data = {"ict": "data:ict-facekit", "identity_model": "data:ict-facekit-more", **data}
+        return data
+
+    @property
+    def draws_bust(self) -> bool:
+        """Whether the bust is drawn: a photo character wears its photograph's own neck and
+        clothes unless ``body: bust`` is written out."""
+        return self.body == "bust" and (self.photo is None or "body" in self.model_fields_set)
 
     @model_validator(mode="after")
     def _one_source(self) -> CharacterSpec:
+        if self.photo is not None and (self.mesh is not None or self.procedural is not None or self.texture is not None):
+            raise ValueError("photo: a character from a photograph takes no 'mesh', 'procedural' or 'texture' "
+                             "(its shape is fitted to the photograph and the photograph is its material)")
+        if self.template is not None and self.photo is None:
+            raise ValueError("template: only with 'photo' (the photograph's landmarks)")
         if (self.ict is None) == (self.procedural is None):
             raise ValueError("give exactly one of 'ict' (an ICT-FaceKit folder) or 'procedural' (a generated head)"
                              + (" as the rig of the mesh" if self.mesh is not None else ""))

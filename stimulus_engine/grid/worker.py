@@ -51,6 +51,8 @@ class RenderItem:
     eye_style: tuple = ()  # (iris scale, paint) of stylised eyes, lashes and hair (stimulus_engine.stylisation); () as modelled
     #: -1: ``geometry_npy`` is one (N, 3) geometry; k >= 0: it is a clip's (frames, N, 3) and this draws frame k
     frame: int = -1
+    #: a photo character's surround stylised with the material ("": none, or the rig's own)
+    surround_png: str = ""
 
     def outputs(self) -> list[str]:
         """The files the render writes, relative to ``out_dir``."""
@@ -120,8 +122,8 @@ def _occlusion(rig, vertices: np.ndarray, geometry_npy: str, inside_only: bool =
     """The geometry's baked ambient visibility, cached beside it (once per character, shape and
     expression: every lighting, material and shading of that geometry reuses it); with
     ``inside_only``, only the mouth's inside (the rest 1)."""
-    from stimulus_engine.grid.cache import save_npy
     from stimulus_engine.characters.render_parts import rig_occlusion
+    from stimulus_engine.grid.cache import save_npy
 
     path = Path(geometry_npy).with_suffix(".inside.npy" if inside_only else ".occlusion.npy")
     if path.exists():
@@ -133,10 +135,12 @@ def _occlusion(rig, vertices: np.ndarray, geometry_npy: str, inside_only: bool =
 
 def item_scene(item: RenderItem) -> tuple[list, object]:
     """The render parts and the camera of ``item`` (the scene both engines draw)."""
+    from stimulus_engine.characters.render_parts import (
+        INSIDE_PARTS,
+        SKIN_LIKE,
+        rig_render_parts,
+    )
     from stimulus_engine.render import CameraSpec
-    from stimulus_engine.characters.render_parts import rig_render_parts
-
-    from stimulus_engine.characters.render_parts import INSIDE_PARTS, SKIN_LIKE
 
     rig = load_rig(item.rig_npz)
     if item.eye_style:  # stylised eyes, lashes and hair (stimulus_engine.stylisation.eyes, .hair)
@@ -149,7 +153,8 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     occlusion = _occlusion(rig, v, item.geometry_key(), inside_only) if wanted and item.engine == "pyrender" else None
     parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,
                              normal_map=_map_image(item.normal_png, "normal"),
-                             specular_map=_map_image(item.specular_png, "specular"), occlusion=occlusion)
+                             specular_map=_map_image(item.specular_png, "specular"), occlusion=occlusion,
+                             surround_image=_image(item.surround_png) if item.surround_png else None)
     pos, target, yfov, up = item.camera
     return parts, CameraSpec(tuple(pos), tuple(target), yfov, tuple(up))
 
@@ -208,10 +213,23 @@ def render_item(item: RenderItem) -> float:
     return time.perf_counter() - t0
 
 
-def place_photo(src: str, dst: Path, width: int, height: int, background: tuple) -> None:
-    """Letterbox a photograph into the stimulus size on the grid's background."""
+def place_photo(src: str, dst: Path, width: int, height: int, background: tuple, like: str | None = None) -> None:
+    """A photograph at the stimulus size on the grid's background: framed as the rendered image
+    ``like`` (its eye centres and philtrum on the render's:
+    :func:`~stimulus_engine.grid.photo_sheet.photo_like_render`, so the photograph of a character
+    lands where its renders put the face), else letterboxed."""
     from stimulus_engine.render import save_png
 
+    if like is not None and Path(like).is_file():
+        from appeal.errors import AppealInputError
+        from stimulus_engine.grid.photo_sheet import photo_like_render
+
+        bg = tuple(int(round(b * 255)) for b in background)
+        try:
+            save_png(photo_like_render(_image(src), _image(like), bg, src), dst)
+            return
+        except AppealInputError:  # no face found in one of them: letterboxed as before
+            pass
     with Image.open(src) as im:
         im = im.convert("RGB")
         scale = min(width / im.width, height / im.height)
