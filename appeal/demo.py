@@ -40,6 +40,20 @@ class DemoStage:
     run: Callable[[Path, int], ReportSection]
 
 
+def missing_data(title: str, needs: Sequence[str], what: str, stage: str) -> ReportSection | None:
+    """The section of a stage whose registered datasets ``needs`` are not all on this machine:
+    ``what`` it would show, which datasets are missing and the command that fetches them (None
+    when all are there)."""
+    from appeal.datasets import find_dataset
+
+    missing = [n for n in needs if find_dataset(n) is None]
+    if not missing:
+        return None
+    return ReportSection(title=title, text=(
+        f"Not shown: {what} and needs the datasets {', '.join(missing)}, which are not on this machine. "
+        f"Fetch them with `appeal data fetch {' '.join(missing)}` and run `appeal demo --only {stage}` again."))
+
+
 def run_demo(stages: Sequence[DemoStage], out: Path, seed: int) -> tuple[Path, list[ReportSection]]:
     """Run ``stages`` in order into ``out`` and write ``out/index.html``.
 

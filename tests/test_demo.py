@@ -69,7 +69,7 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     page = (out / "index.html").read_text()
     assert "This stage failed" not in page
     names = [s.name for s in discover_stages()]
-    assert {"environment", "grid", "design", "correspond", "part_morph", "avatar", "faces2d", "experiment",
+    assert {"environment", "grid", "design", "photo", "correspond", "part_morph", "avatar", "faces2d", "experiment",
             "psychophysics", "ratings", "erp"} <= set(names)
     links = set(re.findall(r"(?:src|href)='([^'#]+)'", page))
     assert len(links) > 20
@@ -106,6 +106,10 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     for _, g in cont[cont["factor"] == "shape"].groupby("character"):
         g = g.sort_values("position")
         assert g["eye_area"].iloc[-1] >= 2.5 * g["eye_area"].iloc[0]
+    # a character from the embedded photograph at every level, her photographs on top, her London record
+    photo = pd.read_csv(out / "photo" / "manifest.csv")
+    assert len(photo) == 5 * 2 * 2 + 2 and (photo.status == "rendered").all()
+    assert set(photo["gender"]) == {"female"} and "photo/contact_sheet.png" in links
 
 
 def test_report_page_fits_a_laptop_screen(tmp_path):
@@ -153,6 +157,17 @@ def test_report_page_is_no_wider_than_a_laptop_window_in_a_browser(tmp_path):
                          capture_output=True, text=True, timeout=120).stdout
     width = int(re.search(r'data-width="(\d+)"', dom).group(1))
     assert width <= 1366
+
+
+def test_photo_stage_without_its_data_says_how_to_get_it(tmp_path, monkeypatch):
+    from appeal import datasets
+    from appeal_cli.demo_stages.photo import STAGE
+
+    monkeypatch.setattr(datasets, "find_dataset", lambda name: None if name == "ict-facekit-more" else tmp_path)
+    section = STAGE.run(tmp_path / "photo", 0)
+    assert section.failed is None and not section.figures
+    assert "appeal data fetch ict-facekit-more" in section.text
+    assert not (tmp_path / "photo").exists()
 
 
 def test_design_stage_without_its_data_says_how_to_get_it(tmp_path, monkeypatch):

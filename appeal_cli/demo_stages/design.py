@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from appeal.demo import DemoStage
+from appeal.demo import DemoStage, missing_data
 from appeal.report import ReportSection
 
 #: The registry's datasets the shipped Exp. 2 grid reads (scans, rig, identity model, design).
@@ -16,18 +16,15 @@ def _run(out: Path, seed: int) -> ReportSection:
     import pandas as pd
 
     from appeal.assets import protocols_dir
-    from appeal.datasets import find_dataset
     from appeal.studyfile import load_study_file
     from stimulus_engine.grid import run_grid
     from stimulus_engine.grid.schema import GridFile, MaterialSpec
 
     title = "Designed stylisation: each person's own cartoon"
-    missing = [n for n in NEEDS if find_dataset(n) is None]
-    if missing:  # third-party data, not embedded: the page says how to get it
-        return ReportSection(title=title, text=(
-            "Not shown: the designed continuum morphs two real scans to their cartoons of GDQuest's Sophia "
-            f"and needs the datasets {', '.join(missing)}, which are not on this machine. Fetch them with "
-            f"`appeal data fetch {' '.join(missing)}` and run `appeal demo --only design` again."))
+    absent = missing_data(title, NEEDS, "the designed continuum morphs two real scans to their cartoons of "
+                          "GDQuest's Sophia", "design")
+    if absent is not None:  # third-party data, not embedded: the page says how to get it
+        return absent
     grid = load_study_file(protocols_dir() / "grids" / "exp2_stylisation.yaml", GridFile)
     painted = MaterialSpec(name="paint4", style="painted", amount=1.0)
     cut = grid.model_copy(update={

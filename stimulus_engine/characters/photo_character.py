@@ -58,7 +58,7 @@ __all__ = [
 PHOTO_EYE_PARTS = ("eye", "eye_shadow", "tear", "lashes")
 
 #: Changes whenever the fit or the photo material change (part of a grid's cache key).
-PHOTO_VERSION = "photo-8"
+PHOTO_VERSION = "photo-12"
 
 #: The smallest face a character is made from: pixels between the eye centres (below it the
 #: texture is blurred and dlib's points scatter by more than the fit's noise).
@@ -126,16 +126,9 @@ class PhotoCharacter:
 
 def read_photo(path: str | os.PathLike) -> np.ndarray:
     """The photograph as RGB uint8 (one-line errors for a missing or unreadable file)."""
-    from PIL import Image, UnidentifiedImageError
+    from stimulus_engine.faces2d.align import read_rgb
 
-    p = Path(path)
-    if not p.is_file():
-        raise AppealInputError(f"{p}: photograph not found (expected a JPEG or PNG file)")
-    try:
-        with Image.open(p) as im:
-            return np.asarray(im.convert("RGB"))
-    except (UnidentifiedImageError, OSError) as exc:
-        raise AppealInputError(f"{p}: not an image ({str(exc).splitlines()[0]}; expected a JPEG or PNG photograph)") from None
+    return np.rint(read_rgb(path) * 255.0).astype(np.uint8)
 
 
 def find_face(image: np.ndarray, name: str = "photo", max_side: int = 640) -> np.ndarray:
@@ -308,6 +301,16 @@ def _not_skin(photo: np.ndarray, points: np.ndarray, xy: np.ndarray) -> np.ndarr
     return (m2 > SKIN_SIGMA ** 2) & (hull[r, c] == 0)
 
 
+def _below_jaw(points: np.ndarray, xy: np.ndarray, margin: float = 0.04) -> np.ndarray:
+    """Which image positions lie under the jaw line (iBUG 0-16, continued level beyond its ends)
+    by more than ``margin`` of the eye distance: the neck, which the photograph shows itself."""
+    jaw = points[:17]
+    order = np.argsort(jaw[:, 0])
+    iod = float(np.linalg.norm(points[36:42].mean(axis=0) - points[42:48].mean(axis=0)))
+    line = np.interp(xy[:, 0], jaw[order, 0], jaw[order, 1])
+    return xy[:, 1] > line + margin * iod
+
+
 #: Skin colour this many standard deviations from the cheeks' (Mahalanobis, Lab) is not skin.
 SKIN_SIGMA = 4.0
 
@@ -316,7 +319,8 @@ def _hide_rim(rig: FaceRig, vertices: np.ndarray, camera, zbuf: np.ndarray, phot
               points: np.ndarray, step: int = 2) -> FaceRig:
     """The rig with its rim not drawn: skin reached from the drawn face's border through skin that
     is oblique (:data:`RIM_COS`), hidden, or covered in the photograph (hair over the forehead:
-    :func:`_not_skin`)."""
+    :func:`_not_skin`), and the neck under the jaw line (:func:`_below_jaw`): the photograph
+    behind shows them as they were."""
     import trimesh
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -329,6 +333,7 @@ def _hide_rim(rig: FaceRig, vertices: np.ndarray, camera, zbuf: np.ndarray, phot
     c = np.clip(xy[:, 0].astype(int), 0, zbuf.shape[1] - 1)
     hidden = camera.depth(vertices) < zbuf[r, c] - 0.25
     low = ((cos < RIM_COS) | hidden | _not_skin(photo, points, xy * step))[mesh.faces].any(axis=1)
+    low |= _below_jaw(points, xy * step)[mesh.faces].all(axis=1)
     adj = mesh.face_adjacency
     both = low[adj[:, 0]] & low[adj[:, 1]]
     n = len(skin)

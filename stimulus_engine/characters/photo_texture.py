@@ -226,9 +226,9 @@ def surround_image(photo: np.ndarray, face_mask: np.ndarray, *, grow: int = 6, w
 
 
 def padded(image: np.ndarray, share: tuple[float, float, float] = (0.4, 1.2, 0.8), max_side: int = 2048,
-           blur: float = 0.04) -> tuple[np.ndarray, tuple[float, float, float]]:
+           blur: float = 0.08) -> tuple[np.ndarray, tuple[float, float, float]]:
     """``image`` continued by ``share`` (top, bottom, each side) of its size (its border pixels
-    repeated, blurred more the farther out: a stimulus frame is wider than a portrait, and a
+    repeated, blurred more the farther out (mirrored, clothes made an X below the neckline): a stimulus frame is wider than a portrait, and a
     head-and-shoulders framing reaches below it), at most ``max_side`` pixels; returns the image
     and the padding."""
     import cv2
@@ -242,7 +242,7 @@ def padded(image: np.ndarray, share: tuple[float, float, float] = (0.4, 1.2, 0.8
     yy, xx = np.mgrid[0:big.shape[0], 0:big.shape[1]]
     out_y = np.maximum((top * k - yy) / max(top * k, 1), (yy - (top + h) * k) / max(bottom * k, 1))
     out_x = np.maximum(side * k - xx, xx - (side + w) * k) / max(side * k, 1)
-    t = np.clip(np.maximum(out_x, out_y) * 3, 0, 1)[..., None]  # 0 inside, 1 a third of the way out
+    t = np.clip(np.maximum(out_x, out_y) * 10, 0, 1)[..., None]  # 0 inside, 1 a tenth of the way out
     return np.rint((1 - t) * big + t * soft).astype(np.uint8), tuple(float(f) for f in share)
 
 

@@ -157,16 +157,16 @@ def _prepare_material(m: MaterialSpec, ch: Character, albedo: tuple[np.ndarray, 
 def _surround_look(ch: Character, m: MaterialSpec, cache: Path) -> tuple[str, str]:
     """A photo character's surround stylised with material ``m`` (its PNG in ``cache/albedo`` and
     its hash); ``("", "")`` for a character without one."""
-    from stimulus_engine.stylisation.materials import albedo_hash, stylise_material
+    from stimulus_engine.stylisation.materials import albedo_hash, stylise_photograph
 
     s = ch.rig.surround
     if s is None:
         return "", ""
     amount = m.amount_for(ch.spec.name)
-    h = sha(albedo_hash(s.image), m.style, amount)
+    h = sha(albedo_hash(s.image), "photograph", m.style, amount)
     path = cache / "albedo" / f"surround_{h}.png"
     if not path.exists():
-        save_png_once(stylise_material(s.image, m.style, {}, {}, amount)[0], path)
+        save_png_once(stylise_photograph(s.image, m.style, amount), path)
     return str(path), h
 
 

@@ -279,6 +279,33 @@ def stylise_albedo(albedo: np.ndarray, style: str, masks: dict[str, np.ndarray] 
     return _operated(img, style, paint_masks(img, masks, style, amount), amount)
 
 
+def stylise_photograph(image: np.ndarray, style: str, amount: float = 1.0) -> np.ndarray:
+    """A photograph (a photo character's head and shoulders behind it) stylised as its face's
+    material ``style`` is.
+
+    The albedo operators work on a face's texture, in regions its masks give; a photograph has no
+    such regions (hair, clothes and background meet anywhere), and the region-flattening of
+    ``painted`` and ``flat`` left a single blob of it. So ``painted`` (by ``amount``) and ``flat``
+    (fully) blend toward OpenCV's edge-preserving stylisation (Gastal & Oliveira's domain
+    transform: flat colour areas with their edges kept, as a painted background is); ``blur*`` and
+    ``bilateral`` run as on the albedo; ``original`` is the photograph.
+    """
+    import cv2
+
+    _checked(style, amount)
+    img = np.asarray(image, np.uint8)[..., :3]
+    if style == "original" or (style == "painted" and amount == 0.0):
+        return img
+    if style in ("painted", "flat"):
+        a = 1.0 if style == "flat" else float(amount)
+        side = max(img.shape[:2])
+        painted = cv2.stylization(np.ascontiguousarray(img), sigma_s=min(200.0, 0.05 * side), sigma_r=0.35)
+        painted = cv2.edgePreservingFilter(painted, flags=cv2.RECURS_FILTER, sigma_s=min(200.0, 0.03 * side),
+                                           sigma_r=0.5)
+        return np.clip(np.rint((1 - a) * img + a * painted), 0, 255).astype(np.uint8)
+    return stylise_albedo(img, style, {}, amount)
+
+
 def _unit_normals(code: np.ndarray) -> np.ndarray:
     """Normal-map RGB codes whose vectors were filtered, made unit vectors again (facing out)."""
     out = code.astype(np.float64) / 255 * 2 - 1
