@@ -68,8 +68,13 @@ def _names_for(files: tuple[str, ...]) -> list[str]:
             text = Path(f).read_text(encoding="utf-8")
         except OSError as exc:
             raise AppealInputError(f"{f}: cannot read ({exc.strerror})") from None
-        for m in re.finditer(re.escape(DATA_PREFIX) + r"([A-Za-z0-9_.-]+)", text):
-            names += group_members(m.group(1))
+        refs = [m.group(1) for m in re.finditer(re.escape(DATA_PREFIX) + r"([A-Za-z0-9_.-]+)", text)]
+        if re.search(r"(^|[\s{,-])photo\s*:", text, re.M):  # photo characters: the model they default to
+            from stimulus_engine.grid.schema import PHOTO_DEFAULTS
+
+            refs += [v[len(DATA_PREFIX):] for v in PHOTO_DEFAULTS.values()]
+        for name in refs:
+            names += group_members(name)
     return list(dict.fromkeys(names))
 
 

@@ -102,7 +102,7 @@ def test_a_reference_to_a_missing_dataset_says_how_to_fetch_it(empty_data, capsy
     with pytest.raises(AppealInputError, match="unknown dataset 'ict-kit'"):
         resolve_reference("data:ict-kit")
     assert resolve_reference("data:ict-facekit/x.obj", missing_ok=True) == empty_data / "meshes/ict-facekit/x.obj"
-    rc = main(["validate", str(ROOT / "protocols" / "grids" / "exp2_stylisation.yaml")])
+    rc = main(["validate", str(ROOT / "protocols" / "grids" / "erp_stylisation.yaml")])
     err = _err_lines(capsys)
     assert rc == 2 and any("characters[0].ict" in ln and "appeal data fetch ict-facekit" in ln for ln in err)
     assert any("appeal data fetch leeperrysmith" in ln for ln in err)
@@ -186,7 +186,8 @@ def test_every_shipped_study_file_is_fetched_from_upstream_without_a_mirror(shar
     upstream repositories (raw, uncompressed; the Lee Perry-Smith OBJ as a Draco-compressed glTF):
     every file arrives with the registry's checksum, the scan's OBJ decoded byte for byte."""
     studies = sorted(str(p) for p in (ROOT / "protocols").rglob("*.yaml") if "data:" in p.read_text())
-    names = ["ict-facekit", "ict-facekit-more", "menpo3d-james", "leeperrysmith", "gdquest-sophia", "biosemi-newtest17"]
+    names = ["ict-facekit", "ict-facekit-more", "menpo3d-james", "leeperrysmith", "gdquest-sophia", "biosemi-newtest17",
+             "london-frl"]
     tree = upstream_tree(shared_data, tmp_path / "upstream", names)
     with serve(tree) as (url, requests):
         _upstream_registry(monkeypatch, url, names)
@@ -259,6 +260,7 @@ def test_exp2_renders_from_fetched_data_only(shared_data, empty_data, tmp_path, 
     with serve(shared_data) as (url, _):
         assert main(["data", "fetch", "--for", str(ROOT / "protocols/grids/exp2_stylisation.yaml"), "--url", url]) == 0
     fetched = {p.name for p in (empty_data / "meshes").iterdir()}
-    assert fetched == {"ict-facekit", "ict-facekit-more", "menpo3d-james", "leeperrysmith", "gdquest-sophia"}
+    assert fetched == {"ict-facekit", "ict-facekit-more", "gdquest-sophia"}
+    assert {p.name for p in (empty_data / "faces2d").iterdir()} == {"london-frl"}  # the two photographed people
     assert main(["stimuli", "grid", str(small), "--out", str(tmp_path / "out")]) == 0
     assert len(list((tmp_path / "out" / "images").glob("*.png"))) == 2

@@ -194,7 +194,10 @@ def test_lashes_stay_rooted_on_the_lids(prepared):
             assert gap.max() < 0.05, (row.file, float(gap.max()))
             # each card keeps its shape, grown with its eye: bound vertex by vertex, the cartoon
             # level's lash tips came apart into dark shards over the eye (stretch up to 2.2x)
-            own = roots[cKDTree(rig.vertices[roots]).query(rig.vertices[lash])[1]]
+            # each card's root as seat_lashes takes it (the lash vertices nearest the lid, its closest tenth)
+            d0 = index.query(rig.vertices[lash]).distance
+            seated = lash[d0 <= max(float(np.percentile(d0, 10)), 1e-9)]
+            own = seated[cKDTree(rig.vertices[seated]).query(rig.vertices[lash])[1]]
             lm0, lm1 = rig.landmark_points(), rig.landmark_points(v)
             grow = max(np.linalg.norm(lm1[f"eye_{s}_outer"] - lm1[f"eye_{s}_inner"])
                        / np.linalg.norm(lm0[f"eye_{s}_outer"] - lm0[f"eye_{s}_inner"]) for s in ("right", "left"))

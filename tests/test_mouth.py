@@ -139,7 +139,7 @@ def test_the_inside_is_moved_behind_the_skin_it_pokes_through():
 @pytest.mark.slow
 @pytest.mark.render
 def test_parted_lips_open_on_a_dark_gap(tmp_path):
-    """Lee Perry-Smith (Exp. 2's second character) in neutral, front render at full size: his
+    """Lee Perry-Smith (the realism continuum's character) in neutral, front render at full size: his
     rig's lips part a little, and the inside of the lips between them took the texels of the
     scan's closed lip line, a pale band brighter than the upper lip (row means 114-122 under a
     lip of 96). Drawn as mucosa in the lips' shade (MUCOSA_SHADE), the gap is no brighter than
@@ -148,7 +148,7 @@ def test_parted_lips_open_on_a_dark_gap(tmp_path):
     from stimulus_engine.grid import run_grid
     from stimulus_engine.grid.schema import GridFile
 
-    grid_file = _shipped_cut(tmp_path / "lips.yaml", "exp2_stylisation", expressions=["neutral"], characters=["lps"])
+    grid_file = _shipped_cut(tmp_path / "lips.yaml", "realism_continuum", expressions=["neutral"], characters=["lps"])
     run_grid(load_study_file(grid_file, GridFile), tmp_path / "out", n_jobs=1)
     row = next(pd.read_csv(tmp_path / "out" / "manifest.csv").itertuples())
     assert row.character == "lps" and (row.width, row.height) == (1024, 768)

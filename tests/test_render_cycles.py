@@ -250,7 +250,7 @@ def test_the_inside_of_an_open_mouth_agrees_between_the_engines(tmp_path):
     from stimulus_engine.render.cycles import render_cycles
 
     root = Path(__file__).resolve().parents[1]
-    grid = yaml.safe_load((root / "protocols/grids/exp2_stylisation.yaml").read_text())
+    grid = yaml.safe_load((root / "protocols/grids/realism_continuum.yaml").read_text())
     grid["characters"] = [c for c in grid["characters"] if c["name"] == "lps"]
     # the scene this comparison was made on: deformation transfer opens the mouth a little wider at
     # the realistic level than the aligned transfer the grid file asks for, so the tongue shows

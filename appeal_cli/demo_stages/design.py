@@ -1,4 +1,4 @@
-"""Demo stage 112: the designed continuum — two scanned people morphed to their own cartoons of an
+"""Demo stage 112: the designed continuum — two photographed people morphed to their own cartoons of an
 artist's head (the shipped Exp. 2 grid's ``design:``, issue 48), with the continuum report."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ from pathlib import Path
 from appeal.demo import DemoStage, missing_data
 from appeal.report import ReportSection
 
-#: The registry's datasets the shipped Exp. 2 grid reads (scans, rig, identity model, design).
-NEEDS = ("menpo3d-james", "leeperrysmith", "ict-facekit", "ict-facekit-more", "gdquest-sophia")
+#: The registry's datasets the shipped Exp. 2 grid reads (photographs, rig, identity model, design).
+NEEDS = ("london-frl", "ict-facekit", "ict-facekit-more", "gdquest-sophia")
 
 
 def _run(out: Path, seed: int) -> ReportSection:
@@ -21,7 +21,7 @@ def _run(out: Path, seed: int) -> ReportSection:
     from stimulus_engine.grid.schema import GridFile, MaterialSpec
 
     title = "Designed stylisation: each person's own cartoon"
-    absent = missing_data(title, NEEDS, "the designed continuum morphs two real scans to their cartoons of "
+    absent = missing_data(title, NEEDS, "the designed continuum morphs two photographed people to their cartoons of "
                           "GDQuest's Sophia", "design")
     if absent is not None:  # third-party data, not embedded: the page says how to get it
         return absent
@@ -46,10 +46,10 @@ def _run(out: Path, seed: int) -> ReportSection:
         "The stylised end as a design (thesis §6.4, §3.2): GDQuest's Sophia, an artist-made chibi head "
         "(CC BY 4.0), is brought into the ICT rig's topology by ElastiFace from "
         f"{len(grid.design.landmarks)} landmarks read off her painted "
-        "eyes and mouth, the rig's eyes, nose and mouth carried over whole at her features' sizes. Each scanned "
-        "person's own proportions (their face explained by the ICT model's 100 identity components) are carried "
-        "onto the design by deformation transfer, so james's and Lee Perry-Smith's cartoons are two people in one "
-        "design language; the levels between are morphs, and the expressions reach every level by the aligned "
+        "eyes and mouth, the rig's eyes, nose and mouth carried over whole at her features' sizes. Each person "
+        "is a character from one London-set photograph (the ICT model fitted to it, the photograph as material); "
+        "their own proportions (the model's 100 identity components) are carried onto the design by deformation "
+        "transfer, so the man's and the woman's cartoons are two people in one design language; the levels between are morphs, and the expressions reach every level by the aligned "
         f"blendshape transfer. {n} images: the shipped Exp. 2 grid (`protocols/grids/exp2_stylisation.yaml`) cut "
         "to shape levels 0, 0.5, 1, the original and the most painted material, neutral, happiness and "
         "surprise.\n\n"

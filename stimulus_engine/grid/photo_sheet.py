@@ -17,6 +17,7 @@ import pandas as pd
 from PIL import Image
 
 from appeal.errors import AppealInputError
+from stimulus_engine.grid.photo_framing import photo_like_render
 
 __all__ = ["realistic_images", "photo_like_render", "realism_sheet"]
 
@@ -51,31 +52,6 @@ def realistic_images(manifest: pd.DataFrame) -> pd.DataFrame:
                 sub = sub[sub[col] == want]
         rows.append(sub.iloc[0])
     return pd.DataFrame(rows)
-
-
-def _faceframe(image: np.ndarray, name: str) -> np.ndarray:
-    from stimulus_engine.morphpca.keypoints import detect_faceframe
-
-    return detect_faceframe(image, name)  # eye centres and philtrum
-
-
-def photo_like_render(photo: np.ndarray, render: np.ndarray, background: tuple[int, int, int],
-                      name: str = "photo") -> np.ndarray:
-    """``photo`` moved, scaled and turned so its eye centres and philtrum fall on ``render``'s
-    (least squares), at the render's size."""
-    import cv2
-
-    from stimulus_engine.correspondence.alignment import umeyama
-
-    src = _faceframe(photo, name)
-    dst = _faceframe(render, "rendered image")
-    pad = lambda p: np.c_[p, np.zeros(len(p))]  # noqa: E731 - 2D points as 3D for umeyama
-    sim = umeyama(pad(src), pad(dst))
-    m = (sim.scale * sim.rotation)[:2, :2]
-    affine = np.c_[m, sim.translation[:2]]
-    h, w = render.shape[:2]
-    return cv2.warpAffine(np.ascontiguousarray(photo[..., :3]), affine, (w, h), flags=cv2.INTER_AREA,
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=tuple(int(b) for b in background))
 
 
 def realism_sheet(manifest_path: str | Path, photos: Sequence[str | Path], *, thumb_width: int = 400) -> np.ndarray:

@@ -48,7 +48,12 @@ from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_v
 
 from appeal.studyfile import InputDir, InputFile, StudyModel
 
+#: What a photo character (``photo:``) uses when it names no model: the registered ICT face kit and its
+#: 100 identity components (``appeal data fetch --for`` fetches them for a study with photo characters).
+PHOTO_DEFAULTS = {"ict": "data:ict-facekit", "identity_model": "data:ict-facekit-more"}
+
 __all__ = [
+    "PHOTO_DEFAULTS",
     "AnimationSpec",
     "CharacterSpec",
     "DesignSpec",
@@ -195,7 +200,7 @@ class CharacterSpec(StudyModel):
     def _photo_defaults(cls, data: Any) -> Any:
         """A photo character's model defaults to the registered ICT face kit and its 100 components."""
         if isinstance(data, dict) and data.get("photo") is not None and data.get("procedural") is None:
-            data = {"ict": "data:ict-facekit", "identity_model": "data:ict-facekit-more", **data}
+            data = {**PHOTO_DEFAULTS, **data}
         return data
 
     @property

@@ -216,13 +216,13 @@ def render_item(item: RenderItem) -> float:
 def place_photo(src: str, dst: Path, width: int, height: int, background: tuple, like: str | None = None) -> None:
     """A photograph at the stimulus size on the grid's background: framed as the rendered image
     ``like`` (its eye centres and philtrum on the render's:
-    :func:`~stimulus_engine.grid.photo_sheet.photo_like_render`, so the photograph of a character
+    :func:`~stimulus_engine.grid.photo_framing.photo_like_render`, so the photograph of a character
     lands where its renders put the face), else letterboxed."""
     from stimulus_engine.render import save_png
 
     if like is not None and Path(like).is_file():
         from appeal.errors import AppealInputError
-        from stimulus_engine.grid.photo_sheet import photo_like_render
+        from stimulus_engine.grid.photo_framing import photo_like_render
 
         bg = tuple(int(round(b * 255)) for b in background)
         try:
