@@ -16,7 +16,7 @@ _METHODS = ("aligned", "rbf", "deformation_transfer")
 def _rig(ict: Path, identity: str):
     from stimulus_engine.characters.ict import load_ict_rig
 
-    return load_ict_rig(ict, identity)
+    return load_ict_rig(ict, identity, textures=False)  # geometry only: nothing here is drawn
 
 
 @stimuli.command("rig-transfer", context_settings=CONTEXT, epilog="""\b
@@ -94,8 +94,10 @@ Examples:
 @click.option("--fps", type=float, default=None, help="Frame rate of a CSV (default 30; a C3D has its own).")
 @click.option("--transfer", type=click.Choice(["aligned", "rbf"]), default="aligned", show_default=True,
               help="How the actor's blendshapes are made from the rig's (aligned: to the performance's range of motion).")
-@click.option("--mu", type=float, default=0.3, show_default=True, help="Weight of the bending prior (Eq. 4.16).")
-@click.option("--nu", type=float, default=0.6, show_default=True, help="Weight of the L1 sparsity (Eq. 4.16).")
+@click.option("--mu", type=float, default=0.01, show_default=True,
+              help="Weight of the bending prior (Eq. 4.16), relative to the fit: scale-free, whatever the markers' units.")
+@click.option("--nu", type=float, default=0.2, show_default=True,
+              help="Weight of the L1 sparsity (Eq. 4.16), relative to the fit (each weight lowered by about nu/2K).")
 @click.option("--out", "out", required=True, type=click.Path(path_type=Path), help="Output CSV of weights.")
 @click.option("--force", is_flag=True, help="Overwrite --out.")
 def retarget(motion: Path, ict: Path, identity: str, marker_map: Path | None, fps: float | None, transfer: str,
@@ -105,8 +107,12 @@ def retarget(motion: Path, ict: Path, identity: str, marker_map: Path | None, fp
     \b
     Frame 0 of a marker file is the actor's neutral. The actor's blendshapes are the rig's
     aligned to the performance's range of motion (thesis §4.3), then each frame is solved by
-    Eq. 4.16: fit + mu * bending prior + nu * L1 sparsity, by iteratively reweighted least
-    squares. Writes OUT: frame, time (s), one column per blendshape.
+    Eq. 4.16: fit + mu * bending prior + nu * L1 sparsity, weights >= 0 (non-negative least
+    squares). mu and nu are relative to the fit (the fit divided by a blendshape's mean squared
+    marker motion, the prior by its own scale), so the defaults hold for markers in mm or cm;
+    the thesis's 0.3 and 0.6 assumed its own units and erase an ICT-sized performance. Where
+    this departs from the thesis: stimulus_engine.characters.retarget. Writes OUT: frame,
+    time (s), one column per blendshape.
     """
     import pandas as pd
 

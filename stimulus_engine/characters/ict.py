@@ -131,7 +131,7 @@ def _ict_file(d: Path, name: str) -> str:
 
 
 def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
-                 shapes: list[str] | None = None) -> FaceRig:
+                 shapes: list[str] | None = None, textures: bool = True) -> FaceRig:
     """The ICT Face Model as a :class:`FaceRig`.
 
     Parameters
@@ -144,6 +144,9 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
         ``generic_neutral_mesh``).
     shapes : list of str, optional
         Blendshapes to load (default: every shape the FACS recipes use that exists in the folder).
+    textures : bool
+        Make the eyes' textures (the photographic iris and the lid shadow, ~3 s); False for a rig
+        that is only posed, never drawn (retargeting, rig transfer).
 
     Notes
     -----
@@ -186,7 +189,8 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
         name=identity, vertices=v, faces=faces, uv=uv, face_uv=face_uv, face_part=face_part, part_names=_ICT_PARTS,
         landmarks=_ict_landmarks(v, regions["landmarks"], regions, pupils), blendshapes=blend,
         rigid_sets=[regions["eyeball_left"], regions["eyeball_right"]], skin=skin,
-        part_textures={} if uv is None else {"eye": photographic_eye_texture(), "eye_shadow": eye_shadow_texture()},
+        part_textures={} if uv is None or not textures else {"eye": photographic_eye_texture(),
+                                                             "eye_shadow": eye_shadow_texture()},
     )
 
 
