@@ -11,9 +11,12 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import pandas as pd
 from appeal.cells import write_table
+
+if TYPE_CHECKING:  # pandas loads when the audit runs, not with every command's --help
+    import pandas as pd
 
 __all__ = ["AuditOutputs", "write_audit", "write_grid_page"]
 
@@ -70,6 +73,8 @@ def write_audit(job, out: Path, *, thresholds: Mapping[str, float] | None = None
         figures.insert(0, plot_flags(tests, out / "flags.png"))
         tables = [out / "design_tests.csv", out / "level_means.csv", *tables]
     else:
+        import pandas as pd
+
         tests = pd.DataFrame()
     _, html = write_report(out, table, tests, source=str(job.source), figures=figures, tables=tables, paired=paired,
                            thresholds_set=thresholds)

@@ -7,14 +7,26 @@ in a PsychoPy window (or, simulated, on a virtual clock), writing one durable TS
 trial. PsychoPy is imported only when a window is opened.
 """
 
-from experiments.datafile import TsvWriter, read_completed, session_stem
-from experiments.ordering import check_order, constrained_order, run_lengths
-from experiments.protocol_schema import Protocol
-from experiments.report import session_summary, write_session_report
-from experiments.session import SessionResult, default_seed, load_protocol, run_session
-from experiments.simulate import DEFAULT_MODEL, ParticipantModel, SimulatedParticipant, load_participant_model
-from experiments.stimuli import StimulusSet, load_stimuli, select_stimuli
-from experiments.trials import Trial, build_trials, fixation_frame_range, seconds_to_frames, trials_frame
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["clips", "datafile", "demographics", "display", "drawn_faces", "ordering", "protocol_schema",
+                "psychophysics", "report", "responders", "runner", "screens", "session", "simulate", "stimuli",
+                "trials", "triggers", "web"],
+    submod_attrs={
+        "datafile": ["TsvWriter", "read_completed", "session_stem"],
+        "ordering": ["check_order", "constrained_order", "run_lengths"],
+        "protocol_schema": ["Protocol"],
+        "report": ["session_summary", "write_session_report"],
+        "session": ["SessionResult", "default_seed", "load_protocol", "run_session"],
+        "simulate": ["DEFAULT_MODEL", "ParticipantModel", "SimulatedParticipant", "load_participant_model"],
+        "stimuli": ["StimulusSet", "load_stimuli", "select_stimuli"],
+        "trials": ["Trial", "build_trials", "fixation_frame_range", "seconds_to_frames", "trials_frame"],
+    },
+)
 
 __all__ = [
     "Protocol", "load_protocol", "StimulusSet", "load_stimuli", "select_stimuli", "Trial", "build_trials",

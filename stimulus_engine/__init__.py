@@ -19,66 +19,33 @@ The names below are the user-facing ones, grouped by what they do; each sub-pack
 """
 
 # --- meshes in and out ---
-from stimulus_engine.geometry import load_mesh, load_parts, mesh_uv_layout, save_mesh, select_region, texture_image
+from appeal.lazy import attach as _attach
 
-# --- dense correspondence, texture transfer ---
-from stimulus_engine.correspondence import (
-    CorrespondParams,
-    Correspondences,
-    CorrespondenceResult,
-    SurfacePoints,
-    correspond,
-    deformed_mesh,
-    parse_pairs,
-    reorder_landmarks,
-)
-from stimulus_engine.correspondence.texture_transfer import transfer_texture
-
-# --- characters and their expressions ---
-from stimulus_engine.characters import (
-    EXPRESSIONS,
-    FaceRig,
-    MeshCharacter,
-    apply_expression,
-    correspond_rig,
-    deformation_transfer,
-    expression_weights,
-    front_region,
-    load_ict_rig,
-    procedural_head,
-    rig_albedo,
-    rig_detail_maps,
-)
-from stimulus_engine.geometry.ict_topology import ict_regions
-from stimulus_engine.parts import eye_texture, eyeball_uv
-
-# --- stylisation: shape, material, morphs, neoteny ---
-from stimulus_engine.stylisation import (
-    MATERIAL_LEVELS,
-    StyliseParams,
-    blend_images,
-    blend_vertices,
-    neoteny_measures,
-    neoteny_table,
-    partial_blend,
-    stylise,
-    stylise_albedo,
-    stylise_map,
-    stylise_rig,
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["audit", "characters", "correspondence", "data", "faces2d", "geometry", "grid", "morphpca",
+                "parts", "render", "stylisation"],
+    submod_attrs={
+        "geometry": ["load_mesh", "load_parts", "mesh_uv_layout", "save_mesh", "select_region", "texture_image"],
+        "correspondence": ["CorrespondParams", "CorrespondenceResult", "Correspondences", "SurfacePoints",
+            "correspond", "deformed_mesh", "parse_pairs", "reorder_landmarks"],
+        "correspondence.texture_transfer": ["transfer_texture"],
+        "characters": ["EXPRESSIONS", "FaceRig", "MeshCharacter", "apply_expression", "correspond_rig",
+            "deformation_transfer", "expression_weights", "front_region", "load_ict_rig", "procedural_head",
+            "rig_albedo", "rig_detail_maps"],
+        "geometry.ict_topology": ["ict_regions"],
+        "parts": ["eye_texture", "eyeball_uv"],
+        "stylisation": ["MATERIAL_LEVELS", "StyliseParams", "blend_images", "blend_vertices", "neoteny_measures",
+            "neoteny_table", "partial_blend", "stylise", "stylise_albedo", "stylise_map", "stylise_rig"],
+        "grid": ["run_grid"],
+        "morphpca": ["MorphModel", "Reconstructor", "build_avatar", "build_model", "load_model",
+            "project_expression"],
+    },
 )
 
-# --- stimulus grids (the renderer, stimulus_engine.render, loads OpenGL: imported on use) ---
-from stimulus_engine.grid import run_grid
 
-# --- 2D morph-space PCA face models; full API in stimulus_engine.morphpca ---
-from stimulus_engine.morphpca import (
-    MorphModel,
-    Reconstructor,
-    build_avatar,
-    build_model,
-    load_model,
-    project_expression,
-)
 
 from stimulus_engine._moved import install as _install_moved_paths
 

@@ -5,6 +5,16 @@ factor: means per level, their range against a threshold, a test across the item
 :mod:`~analysis.confounds.report` draws and writes it up (``report.md``/``report.html``).
 """
 
-from analysis.confounds.design_tests import DEFAULT_THRESHOLDS, design_tests, flagged, level_means, parse_thresholds
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["design_tests", "report"],
+    submod_attrs={
+        "design_tests": ["DEFAULT_THRESHOLDS", "design_tests", "flagged", "level_means", "parse_thresholds"],
+    },
+)
 
 __all__ = ["DEFAULT_THRESHOLDS", "design_tests", "flagged", "level_means", "parse_thresholds"]

@@ -4,14 +4,26 @@ amplitudes, rm-ANOVAs with linear vs quadratic contrasts, figures and source-spa
 Thesis ch. 7 (§7.3-7.4) is the reference design; see docs/erp.md.
 """
 
-from analysis.erp.channels import biosemi128_map, nearest_channel_table, resolve_cluster
-from analysis.erp.config import EventMap, event_map, find_recordings, load_erp_config, read_protocol_codes
-from analysis.erp.io import find_trigger_events, read_recording
-from analysis.erp.measures import measure_cells, window_measures
-from analysis.erp.pipeline import ErpResult, SubjectResult, preprocess, process_subject, process_subjects, run_erp
-from analysis.erp.report import write_erp_outputs
-from analysis.erp.simulate import SimulationDesign, simulate_study
-from analysis.erp.source import contrast_clusters, template_head
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["atlas", "bdf", "brainvision_header", "channels", "config", "edf_header", "figures",
+                "file_checks", "fsaverage_head", "io", "measures", "pipeline", "preprocessing", "quality",
+                "report", "results", "simulate", "single_trials", "source", "stats"],
+    submod_attrs={
+        "channels": ["biosemi128_map", "nearest_channel_table", "resolve_cluster"],
+        "config": ["EventMap", "event_map", "find_recordings", "load_erp_config", "read_protocol_codes"],
+        "io": ["find_trigger_events", "read_recording"],
+        "measures": ["measure_cells", "window_measures"],
+        "pipeline": ["ErpResult", "SubjectResult", "preprocess", "process_subject", "process_subjects", "run_erp"],
+        "report": ["write_erp_outputs"],
+        "simulate": ["SimulationDesign", "simulate_study"],
+        "source": ["contrast_clusters", "template_head"],
+    },
+)
 
 __all__ = [
     "EventMap", "ErpResult", "SimulationDesign", "SubjectResult", "biosemi128_map",

@@ -13,9 +13,19 @@ re-exported here for the analyst.
   and the report.
 """
 
-from analysis.psychometric.fit import FitResult, fit_bayes, fit_ml, fit_table
-from analysis.psychometric.schema import PsychometricAnalysis
-from analysis.psychometric.study import PsychometricResult, analyze_psychometric_study, read_trials
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["figures", "fit", "planning", "priors", "schema", "study"],
+    submod_attrs={
+        "fit": ["FitResult", "fit_bayes", "fit_ml", "fit_table"],
+        "schema": ["PsychometricAnalysis"],
+        "study": ["PsychometricResult", "analyze_psychometric_study", "read_trials"],
+    },
+)
 from appeal.psychophysics import (FAMILIES, ConstantStimuli, PsiProcedure, SimulatedObserver, UpDownStaircase,
                                   constant_stimuli, psi, psi_inverse, run_procedure, sigmoid)
 

@@ -6,15 +6,28 @@ Cronbach's alpha, within-subject confidence intervals, mixed models for incomple
 designs, thesis-style reporting, figures and a simulated-rating generator.
 """
 
-from analysis.stats.anova import ANOVA_COLUMNS, anova_from_design, fit_design, rm_anova
-from analysis.stats.contrasts import compare_trends, contrasts_from_design, polynomial_contrasts
-from analysis.stats.intervals import within_ci, within_ci_from_design
-from analysis.stats.mixed import mixed_model_anova
-from analysis.stats.reliability import cronbach_alpha
-from analysis.stats.simulate import ScaleModel, exp2_design, simulate_ratings, write_bids
-from analysis.stats.design import Design, prepare_design, read_ratings, read_table
-from analysis.stats.posthoc import marginal_means, pairwise_comparisons, tukey_hsd
-from analysis.stats.reporting import anova_text, format_contrast, format_effect, format_p
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["anova", "clmm", "clmm_figures", "clmm_laplace", "contrasts", "covariates", "design", "formula",
+                "intervals", "kenward_roger", "lmm", "lmm_anova", "lmm_emmeans", "lmm_report", "mixed", "plots",
+                "posthoc", "random_structures", "records", "reference", "reliability", "reporting",
+                "satterthwaite", "simulate", "sphericity", "study"],
+    submod_attrs={
+        "anova": ["ANOVA_COLUMNS", "anova_from_design", "fit_design", "rm_anova"],
+        "contrasts": ["compare_trends", "contrasts_from_design", "polynomial_contrasts"],
+        "intervals": ["within_ci", "within_ci_from_design"],
+        "mixed": ["mixed_model_anova"],
+        "reliability": ["cronbach_alpha"],
+        "simulate": ["ScaleModel", "exp2_design", "simulate_ratings", "write_bids"],
+        "design": ["Design", "prepare_design", "read_ratings", "read_table"],
+        "posthoc": ["marginal_means", "pairwise_comparisons", "tukey_hsd"],
+        "reporting": ["anova_text", "format_contrast", "format_effect", "format_p"],
+    },
+)
 
 __all__ = ["ANOVA_COLUMNS", "Design", "ScaleModel", "anova_from_design", "anova_text", "compare_trends", "exp2_design", "contrasts_from_design", "cronbach_alpha",
            "fit_design", "format_contrast", "format_effect", "format_p", "marginal_means", "mixed_model_anova", "pairwise_comparisons",

@@ -15,18 +15,21 @@ match_luminance, match_histogram, match_spectrum, ssim_lightness
     ``stimulus_engine.audit.equalise.equalise`` (``appeal stimuli equalise``).
 """
 
-from stimulus_engine.audit.equalise import match_histogram, match_luminance, match_spectrum, ssim_lightness
-from stimulus_engine.audit.masks import landmark_face_mask, rendered_face_mask, whole_image_mask
-from stimulus_engine.audit.measures import (
-    band_energy,
-    colour_stats,
-    edge_density,
-    eye_positions,
-    face_area,
-    lab_image,
-    spectrum_slope,
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["equalise", "masks", "measures", "workflow"],
+    submod_attrs={
+        "equalise": ["match_histogram", "match_luminance", "match_spectrum", "ssim_lightness"],
+        "masks": ["landmark_face_mask", "rendered_face_mask", "whole_image_mask"],
+        "measures": ["band_energy", "colour_stats", "edge_density", "eye_positions", "face_area", "lab_image",
+            "spectrum_slope"],
+        "workflow": ["audit_manifest", "plot_audit", "read_audit_inputs", "run_audit"],
+    },
 )
-from stimulus_engine.audit.workflow import audit_manifest, plot_audit, read_audit_inputs, run_audit
 
 __all__ = [
     # workflow

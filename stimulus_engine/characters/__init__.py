@@ -44,48 +44,41 @@ seat_lashes
     Eyelashes kept rooted on the lids in every shape and pose (module ``lashes``).
 """
 
-from stimulus_engine.characters.blendshape_transfer import (
-    align_blendshapes,
-    range_of_motion,
-    transfer_blendshapes,
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["blendshape_transfer", "blendshape_weights", "design", "expressions", "gaze", "ict",
+                "incisor_display", "lashes", "markers", "mesh_character", "motion_files", "motion_similarity",
+                "photo_character", "photo_fit", "photo_texture", "procedural_head", "render_parts", "retarget",
+                "rig", "scan_cut", "scan_eyes", "scan_mouth", "scan_regions", "scan_surface", "skin_clearance",
+                "skin_maps", "synthetic_actor"],
+    submod_attrs={
+        "blendshape_transfer": ["align_blendshapes", "range_of_motion", "transfer_blendshapes"],
+        "design": ["Design", "correspond_design", "design_head"],
+        "expressions": ["EXPRESSIONS", "apply_expression", "deformation_transfer", "expression_weights",
+            "pose_weights"],
+        "gaze": ["aim_eyes", "lines_of_sight"],
+        "ict": ["ict_identity_basis", "load_ict_rig"],
+        "lashes": ["seat_lashes"],
+        "markers": ["marker_vertices"],
+        "mesh_character": ["MeshCharacter", "correspond_rig", "front_region"],
+        "motion_files": ["read_motion"],
+        "photo_character": ["PhotoCharacter", "photo_character", "write_photo_character"],
+        "photo_fit": ["OrthoCamera", "fit_landmarks"],
+        "procedural_head": ["procedural_head"],
+        "render_parts": ["SHADINGS", "hair_render_part", "rig_render_parts"],
+        "retarget": ["retarget_frames", "retarget_performance"],
+        "rig": ["FaceRig", "IBUG_LANDMARKS", "LANDMARK_NAMES"],
+        "scan_eyes": ["eye_geometry"],
+        "scan_mouth": ["cut_lips"],
+        "scan_regions": ["scan_masks"],
+        "scan_surface": ["ScanSurface", "bind_scan"],
+        "skin_maps": ["check_map", "rig_albedo", "rig_detail_maps"],
+    },
 )
-from stimulus_engine.characters.design import Design, correspond_design, design_head
-from stimulus_engine.characters.expressions import (
-    EXPRESSIONS,
-    apply_expression,
-    deformation_transfer,
-    expression_weights,
-    pose_weights,
-)
-from stimulus_engine.characters.gaze import aim_eyes, lines_of_sight
-from stimulus_engine.characters.ict import ict_identity_basis, load_ict_rig
-from stimulus_engine.characters.lashes import seat_lashes
-from stimulus_engine.characters.markers import marker_vertices
-from stimulus_engine.characters.mesh_character import (
-    MeshCharacter,
-    correspond_rig,
-    front_region,
-)
-from stimulus_engine.characters.motion_files import read_motion
-from stimulus_engine.characters.photo_character import (
-    PhotoCharacter,
-    photo_character,
-    write_photo_character,
-)
-from stimulus_engine.characters.photo_fit import OrthoCamera, fit_landmarks
-from stimulus_engine.characters.procedural_head import procedural_head
-from stimulus_engine.characters.render_parts import (
-    SHADINGS,
-    hair_render_part,
-    rig_render_parts,
-)
-from stimulus_engine.characters.retarget import retarget_frames, retarget_performance
-from stimulus_engine.characters.rig import IBUG_LANDMARKS, LANDMARK_NAMES, FaceRig
-from stimulus_engine.characters.scan_eyes import eye_geometry
-from stimulus_engine.characters.scan_mouth import cut_lips
-from stimulus_engine.characters.scan_regions import scan_masks
-from stimulus_engine.characters.scan_surface import ScanSurface, bind_scan
-from stimulus_engine.characters.skin_maps import check_map, rig_albedo, rig_detail_maps
 
 __all__ = [
     "EXPRESSIONS",

@@ -22,30 +22,26 @@ fit_metrics, flipped_triangles
     Distances and fold-overs.
 """
 
-from stimulus_engine.correspondence.alignment import Similarity, umeyama
-from stimulus_engine.correspondence.fairing import FairingResult, joint_fairing
-from stimulus_engine.correspondence.boundary import boundary_correspondences
-from stimulus_engine.correspondence.landmark_sets import (
-    LANDMARK_SUBSET_16,
-    landmark_orderings,
-    read_ljson,
-    reorder_landmarks,
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["alignment", "auto_landmarks", "boundary", "curves", "datasets", "fairing", "landmark_sets",
+                "laplacian", "metrics", "ordering", "pipeline", "points", "registration", "repair", "sheet",
+                "solve", "synthetic", "texture_transfer", "untangle", "workflow"],
+    submod_attrs={
+        "alignment": ["Similarity", "umeyama"],
+        "fairing": ["FairingResult", "joint_fairing"],
+        "boundary": ["boundary_correspondences"],
+        "landmark_sets": ["LANDMARK_SUBSET_16", "landmark_orderings", "read_ljson", "reorder_landmarks"],
+        "metrics": ["fit_metrics", "flipped_triangles"],
+        "pipeline": ["CorrespondParams", "CorrespondenceResult", "correspond", "deformed_mesh"],
+        "points": ["Correspondences", "SurfacePoints", "load_pairs_file", "parse_pairs", "parse_points"],
+        "registration": ["Pruning", "nonrigid_register"],
+    },
 )
-from stimulus_engine.correspondence.metrics import fit_metrics, flipped_triangles
-from stimulus_engine.correspondence.pipeline import (
-    CorrespondenceResult,
-    CorrespondParams,
-    correspond,
-    deformed_mesh,
-)
-from stimulus_engine.correspondence.points import (
-    Correspondences,
-    SurfacePoints,
-    load_pairs_file,
-    parse_pairs,
-    parse_points,
-)
-from stimulus_engine.correspondence.registration import Pruning, nonrigid_register
 
 __all__ = [
     "LANDMARK_SUBSET_16",

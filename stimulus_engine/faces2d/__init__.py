@@ -1,27 +1,36 @@
 """2-D face photographs, WebMorph-style: templates, alignment, composites, continua, transforms,
 caricatures, symmetry and masks, on landmarked images (``appeal faces``)."""
 
-from stimulus_engine.faces2d.template import Template, read_template, template_text, write_template
-from stimulus_engine.faces2d.warp import warp_to_points
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["align", "caricature", "composite", "continuum", "mask", "outputs", "pyramid", "symmetry",
+                "template", "transform", "warp"],
+    submod_attrs={
+        "template": ["Template", "read_template", "template_text", "write_template"],
+        "warp": ["warp_to_points"],
+        "align": ["Face", "align_face", "default_eyes", "eye_points", "load_faces", "read_face"],
+        "composite": ["average_faces", "composite_ghosting", "pixel_average"],
+        "continuum": ["continuum", "morph"],
+        "mask": ["apply_mask", "face_mask"],
+        "outputs": ["FaceOutput", "write_outputs"],
+        "caricature": ["caricature", "caricature_points"],
+        "symmetry": ["DLIB_68_MIRROR", "FRL_189_MIRROR", "derive_mirror_map", "mirror_map", "mirror_template",
+            "symmetric_points", "symmetrise"],
+        "transform": ["face_region", "transform"],
+    },
+)
 
 __all__ = ["Template", "read_template", "template_text", "write_template", "warp_to_points"]
 
-# align, average, continuum, mask (issue 33)
-from stimulus_engine.faces2d.align import Face, align_face, default_eyes, eye_points, load_faces, read_face
-from stimulus_engine.faces2d.composite import average_faces, composite_ghosting, pixel_average
-from stimulus_engine.faces2d.continuum import continuum, morph
-from stimulus_engine.faces2d.mask import apply_mask, face_mask
-from stimulus_engine.faces2d.outputs import FaceOutput, write_outputs
 
 __all__ += ["Face", "align_face", "default_eyes", "eye_points", "load_faces", "read_face", "average_faces",
             "composite_ghosting", "pixel_average", "continuum", "morph", "apply_mask", "face_mask", "FaceOutput",
             "write_outputs"]
 
-# transform, caricature, symmetrise (issue 33)
-from stimulus_engine.faces2d.caricature import caricature, caricature_points
-from stimulus_engine.faces2d.symmetry import (DLIB_68_MIRROR, FRL_189_MIRROR, derive_mirror_map, mirror_map,
-                                              mirror_template, symmetric_points, symmetrise)
-from stimulus_engine.faces2d.transform import face_region, transform
 
 __all__ += ["caricature", "caricature_points", "DLIB_68_MIRROR", "FRL_189_MIRROR", "derive_mirror_map", "mirror_map",
             "mirror_template", "symmetric_points", "symmetrise", "face_region", "transform"]

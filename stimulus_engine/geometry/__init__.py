@@ -27,21 +27,26 @@ smoothstep
     A smooth 0-to-1 ramp for fading weights (module ``ramps``).
 """
 
-from stimulus_engine.geometry.closest import SurfaceIndex
-from stimulus_engine.geometry.ict_topology import ICT_GEOMETRY_RANGES, ict_regions
-from stimulus_engine.geometry.mesh_io import load_mesh, load_parts, mesh_uv_layout, save_mesh, select_region, texture_image
-from stimulus_engine.geometry.mesh_ops import (
-    boundary_loops,
-    face_normals,
-    grow_rings,
-    vertex_adjacency,
-    vertex_normals,
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["closest", "ict_topology", "mesh_io", "mesh_ops", "obj_format", "polyline2d", "ramps",
+                "rotation", "sampling", "triangle_bvh", "uv_raster"],
+    submod_attrs={
+        "closest": ["SurfaceIndex"],
+        "ict_topology": ["ICT_GEOMETRY_RANGES", "ict_regions"],
+        "mesh_io": ["load_mesh", "load_parts", "mesh_uv_layout", "save_mesh", "select_region", "texture_image"],
+        "mesh_ops": ["boundary_loops", "face_normals", "grow_rings", "vertex_adjacency", "vertex_normals"],
+        "polyline2d": ["catmull_rom", "closest_on_polygon", "inside_polygon"],
+        "ramps": ["smoothstep"],
+        "rotation": ["rotation_onto"],
+        "sampling": ["sample_bilinear", "sample_points"],
+        "uv_raster": ["rasterize_uv"],
+    },
 )
-from stimulus_engine.geometry.polyline2d import catmull_rom, closest_on_polygon, inside_polygon
-from stimulus_engine.geometry.ramps import smoothstep
-from stimulus_engine.geometry.rotation import rotation_onto
-from stimulus_engine.geometry.sampling import sample_bilinear, sample_points
-from stimulus_engine.geometry.uv_raster import rasterize_uv
 
 __all__ = [
     "ICT_GEOMETRY_RANGES",

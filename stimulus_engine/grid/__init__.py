@@ -58,12 +58,24 @@ The package, one step per module (each usable on its own):
     :func:`run_grid`, the workflow's one entry.
 """
 
-from stimulus_engine.grid.cache import GRID_VERSION
-from stimulus_engine.grid.plan import plan_images, plan_photos
-from stimulus_engine.grid.prepare import prepare_grid
-from stimulus_engine.grid.run import run_grid
-from stimulus_engine.grid.sheets import sheet_layout
-from stimulus_engine.grid.worker import RenderItem, render_item
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["animation", "cache", "characters", "continuum", "designs", "engine_sheet", "examples",
+                "expression_measures", "inputs", "photo_framing", "photo_sheet", "plan", "prepare", "run",
+                "schema", "sheets", "worker"],
+    submod_attrs={
+        "cache": ["GRID_VERSION"],
+        "plan": ["plan_images", "plan_photos"],
+        "prepare": ["prepare_grid"],
+        "run": ["run_grid"],
+        "sheets": ["sheet_layout"],
+        "worker": ["RenderItem", "render_item"],
+    },
+)
 
 __all__ = ["GRID_VERSION", "RenderItem", "plan_images", "plan_photos", "prepare_grid", "render_item", "run_grid",
            "sheet_layout"]

@@ -33,36 +33,36 @@ render_synthetic_face, synthetic_set, random_identity
     Synthetic faces with known expression weights (ground truth for tests and the demo).
 """
 
-from stimulus_engine.morphpca.avatar import Avatar, build_avatar, morph_average, unsharp_mask
-from stimulus_engine.morphpca.faceframe import align_image, faceframe_affine
-from stimulus_engine.morphpca.fit import image_fit_loadings
-from stimulus_engine.morphpca.flow import FLOW_BACKENDS, compute_flow, fix_foldovers, jacobian_det
-from stimulus_engine.morphpca.frame_source import read_frames
-from stimulus_engine.morphpca.ghosting import ghosting_index
-from stimulus_engine.morphpca.io import load_model, read_images, register_faces, save_image, save_model
-from stimulus_engine.morphpca.keypoints import (
-    detect_faceframe,
-    detect_landmarks,
-    faceframe_from_tem,
-    read_keypoints_csv,
-    read_tem,
-    write_keypoints_csv,
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["avatar", "defaults", "faceframe", "fit", "flow", "frame_source", "ghosting", "io", "keypoints",
+                "landmark_warp", "metrics", "mimicry", "mimicry_run", "morph_video", "morphvec", "pca",
+                "project", "reconstruct", "synthetic", "workflow"],
+    submod_attrs={
+        "avatar": ["Avatar", "build_avatar", "morph_average", "unsharp_mask"],
+        "faceframe": ["align_image", "faceframe_affine"],
+        "fit": ["image_fit_loadings"],
+        "flow": ["FLOW_BACKENDS", "compute_flow", "fix_foldovers", "jacobian_det"],
+        "frame_source": ["read_frames"],
+        "ghosting": ["ghosting_index"],
+        "io": ["load_model", "read_images", "register_faces", "save_image", "save_model"],
+        "keypoints": ["detect_faceframe", "detect_landmarks", "faceframe_from_tem", "read_keypoints_csv",
+            "read_tem", "write_keypoints_csv"],
+        "landmark_warp": ["guided_flow", "tps_displacement"],
+        "metrics": ["psnr", "ssim"],
+        "mimicry": ["component_correlations", "mimicry_measures", "save_contact_sheet"],
+        "morph_video": ["morph_sequence", "read_video_frames"],
+        "morphvec": ["decompose", "deserialise", "serialise"],
+        "pca": ["MorphModel", "build_model", "pca"],
+        "project": ["Projection", "caricature_loadings", "caricature_vector", "naive_transfer", "project_expression"],
+        "reconstruct": ["Reconstructor", "reconstruct_image", "render_morph", "render_vectors"],
+        "synthetic": ["EXPRESSIONS", "random_identity", "render_synthetic_face", "synthetic_set"],
+    },
 )
-from stimulus_engine.morphpca.landmark_warp import guided_flow, tps_displacement
-from stimulus_engine.morphpca.metrics import psnr, ssim
-from stimulus_engine.morphpca.mimicry import component_correlations, mimicry_measures, save_contact_sheet
-from stimulus_engine.morphpca.morph_video import morph_sequence, read_video_frames
-from stimulus_engine.morphpca.morphvec import decompose, deserialise, serialise
-from stimulus_engine.morphpca.pca import MorphModel, build_model, pca
-from stimulus_engine.morphpca.project import (
-    Projection,
-    caricature_loadings,
-    caricature_vector,
-    naive_transfer,
-    project_expression,
-)
-from stimulus_engine.morphpca.reconstruct import Reconstructor, reconstruct_image, render_morph, render_vectors
-from stimulus_engine.morphpca.synthetic import EXPRESSIONS, random_identity, render_synthetic_face, synthetic_set
 
 __all__ = [
     "Avatar", "EXPRESSIONS", "FLOW_BACKENDS", "MorphModel", "Projection", "Reconstructor", "align_image",

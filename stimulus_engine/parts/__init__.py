@@ -18,18 +18,21 @@ Surround, surround_view
     ``surround``).
 """
 
-from stimulus_engine.parts.body import Body, bust_asset, fit_body, under_garment
-from stimulus_engine.parts.eyelashes import lash_strip, lash_texture
-from stimulus_engine.parts.eyes import (
-    eye_texture,
-    eyeball_asset,
-    eyeball_uv,
-    fit_sphere,
-    photographic_eye_texture,
-    tint_iris,
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["body", "eyelashes", "eyes", "hair", "stored", "surround"],
+    submod_attrs={
+        "body": ["Body", "bust_asset", "fit_body", "under_garment"],
+        "eyelashes": ["lash_strip", "lash_texture"],
+        "eyes": ["eye_texture", "eyeball_asset", "eyeball_uv", "fit_sphere", "photographic_eye_texture", "tint_iris"],
+        "hair": ["HAIR_STYLES", "Hair", "fit_hair", "hair_asset"],
+        "surround": ["Surround", "surround_view"],
+    },
 )
-from stimulus_engine.parts.hair import HAIR_STYLES, Hair, fit_hair, hair_asset
-from stimulus_engine.parts.surround import Surround, surround_view
 
 __all__ = [
     "HAIR_STYLES",

@@ -22,13 +22,25 @@ vertex_occlusion, light_visibility
 Import ``pyrender`` only through :mod:`stimulus_engine.render._pyrender`.
 """
 
-from stimulus_engine.render.camera import CameraSpec, face_camera, fit_camera
-from stimulus_engine.render.contact_sheet import contact_sheet, save_png
-from stimulus_engine.render.cycles import render_cycles
-from stimulus_engine.render.lighting import LIGHTING_PRESETS, LightSpec, lighting_preset
-from stimulus_engine.render.occlusion import light_visibility, vertex_occlusion
-from stimulus_engine.render.renderer import RenderPart, release_renderers, render_mesh
-from stimulus_engine.render.scene_export import export_scene
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["baked_shadows", "camera", "clip_video", "contact_sheet", "cycles", "cycles_worker",
+                "hair_strands", "light_shadows", "lighting", "occlusion", "renderer", "scene_export",
+                "skin_shader", "vignette"],
+    submod_attrs={
+        "camera": ["CameraSpec", "face_camera", "fit_camera"],
+        "contact_sheet": ["contact_sheet", "save_png"],
+        "cycles": ["render_cycles"],
+        "lighting": ["LIGHTING_PRESETS", "LightSpec", "lighting_preset"],
+        "occlusion": ["light_visibility", "vertex_occlusion"],
+        "renderer": ["RenderPart", "release_renderers", "render_mesh"],
+        "scene_export": ["export_scene"],
+    },
+)
 
 __all__ = [
     "CameraSpec",

@@ -24,15 +24,26 @@ ssim_distance, face_descriptor
     ``identity``).
 """
 
-from stimulus_engine.stylisation.designed_shape import designed_shape, model_identity, own_cartoon
-from stimulus_engine.stylisation.eyes import bold_lash_texture, stylised_eye_texture
-from stimulus_engine.stylisation.hair import hair_mass_texture
-from stimulus_engine.stylisation.identity import face_descriptor
-from stimulus_engine.stylisation.image_distance import ssim_distance
-from stimulus_engine.stylisation.materials import MATERIAL_LEVELS, stylise_albedo, stylise_map, stylise_material
-from stimulus_engine.stylisation.morph import blend_images, blend_meshes, blend_vertices, part_morph, partial_blend
-from stimulus_engine.stylisation.neoteny import neoteny_measures, neoteny_table
-from stimulus_engine.stylisation.shape import StyliseParams, stylise, stylise_rig
+from appeal.lazy import attach as _attach
+
+# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
+# package costs nothing until a name below is used
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["designed_shape", "eyes", "gradient_blend", "hair", "identity", "image_distance", "materials",
+                "morph", "morph_regions", "neoteny", "photo_match", "shape"],
+    submod_attrs={
+        "designed_shape": ["designed_shape", "model_identity", "own_cartoon"],
+        "eyes": ["bold_lash_texture", "stylised_eye_texture"],
+        "hair": ["hair_mass_texture"],
+        "identity": ["face_descriptor"],
+        "image_distance": ["ssim_distance"],
+        "materials": ["MATERIAL_LEVELS", "stylise_albedo", "stylise_map", "stylise_material"],
+        "morph": ["blend_images", "blend_meshes", "blend_vertices", "part_morph", "partial_blend"],
+        "neoteny": ["neoteny_measures", "neoteny_table"],
+        "shape": ["StyliseParams", "stylise", "stylise_rig"],
+    },
+)
 
 __all__ = [
     "MATERIAL_LEVELS",
