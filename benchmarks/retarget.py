@@ -3,8 +3,8 @@
     python benchmarks/retarget.py [--frames 2000] [--repeats 5] [--ict PATH]
 
 Retargeting: ``retarget_frames`` (Eq. 4.16, scale-free: fit + bending prior + L1 sparsity at the
-defaults, weights >= 0 by NNLS) of ``--frames`` marker frames (120 markers, the ICT rig's 31 blendshapes), all frames
-solved together; frames per second as the median of ``--repeats`` runs, with the ratio to the
+defaults, weights >= 0 by NNLS) of ``--frames`` marker frames (120 markers, the ICT rig's 31
+blendshapes), all frames solved together; frames per second as the median of ``--repeats`` runs, with the ratio to the
 thesis's 105 frames/s (its Maya C++ plug-in, §4.4; the issue asks for at least 100 on two
 cores). The thesis did not publish its code, so its number is the competitor.
 

@@ -18,11 +18,9 @@ The names below are the user-facing ones, grouped by what they do; each sub-pack
 ``__all__`` has the rest.
 """
 
-# --- meshes in and out ---
 from appeal.lazy import attach as _attach
 
-# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
-# package costs nothing until a name below is used
+# the modules load on first use (appeal.lazy: Scientific Python SPEC 1)
 __getattr__, __dir__, _ = _attach(
     __name__,
     submodules=["audit", "characters", "correspondence", "data", "faces2d", "geometry", "grid", "morphpca",
@@ -44,7 +42,6 @@ __getattr__, __dir__, _ = _attach(
             "project_expression"],
     },
 )
-
 
 
 from stimulus_engine._moved import install as _install_moved_paths

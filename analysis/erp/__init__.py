@@ -6,8 +6,7 @@ Thesis ch. 7 (§7.3-7.4) is the reference design; see docs/erp.md.
 
 from appeal.lazy import attach as _attach
 
-# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
-# package costs nothing until a name below is used
+# the modules load on first use (appeal.lazy: Scientific Python SPEC 1)
 __getattr__, __dir__, _ = _attach(
     __name__,
     submodules=["atlas", "bdf", "brainvision_header", "channels", "config", "edf_header", "figures",

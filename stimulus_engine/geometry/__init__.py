@@ -29,8 +29,7 @@ smoothstep
 
 from appeal.lazy import attach as _attach
 
-# the sub-modules load on first use (Scientific Python SPEC 1, as MNE-Python and SciPy do): importing the
-# package costs nothing until a name below is used
+# the modules load on first use (appeal.lazy: Scientific Python SPEC 1)
 __getattr__, __dir__, _ = _attach(
     __name__,
     submodules=["closest", "ict_topology", "mesh_io", "mesh_ops", "obj_format", "polyline2d", "ramps",
