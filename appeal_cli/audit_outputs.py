@@ -39,10 +39,12 @@ class AuditOutputs:
     def summary(self) -> str:
         """One line for the terminal."""
         n_warn = int((self.table["warning"].fillna("") != "").sum())
+        n_none = int((self.table["mask"] == "none").sum()) if "mask" in self.table else 0
         flags = (f"{self.n_flagged} factor x measure pairs differ beyond their thresholds" if not self.tests.empty
                  else "no factors to test")
         return (f"{len(self.table)} images audited: {self.folder / 'audit.csv'}; {flags}; report {self.report_html}"
-                + (f"; {n_warn} without eye positions (see the warning column)" if n_warn else ""))
+                + (f"; {n_none} without a face (whole-image measures only)" if n_none else "")
+                + (f"; {n_warn - n_none} without eye positions (see the warning column)" if n_warn > n_none else ""))
 
 
 def write_audit(job, out: Path, *, thresholds: Mapping[str, float] | None = None,

@@ -19,7 +19,8 @@ Examples:
   appeal stimuli audit stimuli/exp2 --out audit/exp2            # a grid's folder: its manifest.csv
   appeal stimuli audit photos/ --out audit/photos               # a folder of face photographs
   appeal stimuli audit photos.csv --factor expression --factor gender --item face_id --out audit/photos
-                                    # photographs listed in a CSV (file, expression, gender, face_id)""")
+                                    # photographs listed in a CSV (file, expression, gender, face_id)
+  appeal stimuli audit n170.csv --out audit/n170   # file, category (face | house): faces vs controls""")
 @click.argument("source", metavar="MANIFEST_OR_FOLDER", type=click.Path(path_type=Path))
 @click.option("--threshold", "thresholds", metavar="MEASURE=VALUE", multiple=True,
               help="Flag MEASURE when its level means span more than VALUE (its own units); repeat for "
@@ -38,9 +39,12 @@ def audit(source: Path, thresholds: tuple[str, ...], factor: tuple[str, ...], it
 
     \b
     MANIFEST_OR_FOLDER is a rendered grid's manifest.csv (or its folder; an animated grid's
-    clips are measured at their apex frame) or a folder of face photographs.
+    clips are measured at their apex frame), a folder of images or a CSV listing them
+    (file plus any factor columns, e.g. category: face | house).
     Face mask: a grid image's face oval (from grid.json's framing) minus the background
-    colour; a photograph's convex hull of its 68 dlib landmarks (no face: an error).
+    colour; a photograph's convex hull of its 68 dlib landmarks. An image without a face
+    (houses, objects, scrambled faces, noise) gets the whole-image measures and NaN face
+    measures; one warning line lists them.
 
     \b
     Measures (face_ = inside the mask, image_ = whole image):
@@ -53,7 +57,7 @@ def audit(source: Path, thresholds: tuple[str, ...], factor: tuple[str, ...], it
       energy_low/mid/high      spectral energy share below 8, 8-32, from 32 cycles/image
       face_area                mask pixels / image pixels
       eye_*_x/y, iod_px        dlib eye centres and their distance (NaN + warning
-                               when no face is found in a rendered image)
+                               when no face is found)
     \b
     Tested against the design: for every factor of the manifest (less one that only repeats
     another, e.g. the ERP grid's material paired with shape), each measure's mean per level and

@@ -30,24 +30,33 @@ def _parse_background(value: str) -> float | None:
     return b
 
 
-def _face_masks(folder: Path, images: list[np.ndarray], files: list[str]) -> tuple[list[np.ndarray], str]:
-    """Face masks and how they were made: a rendered grid's from ``folder/grid.json``
-    (:func:`stimulus_engine.audit.masks.rendered_face_mask`: the framing's face oval minus the
-    background), else photographs' from their dlib landmarks (the convex hull,
-    :func:`stimulus_engine.audit.masks.landmark_face_mask`), as ``appeal stimuli audit`` makes them."""
-    from stimulus_engine.audit.masks import find_landmarks, grid_render_settings, landmark_face_mask, rendered_face_mask
+def _face_masks(folder: Path, images: list[np.ndarray], files: list[str], region: str) -> tuple[list[np.ndarray], str]:
+    """The masks to equalise inside and how they were made: ``region == "image"``, every whole
+    image; else a rendered grid's from ``folder/grid.json`` (:func:`stimulus_engine.audit.masks.rendered_face_mask`:
+    the framing's face oval minus the background), else photographs' from their dlib landmarks
+    (the convex hull, :func:`stimulus_engine.audit.masks.landmark_face_mask`), as
+    ``appeal stimuli audit`` makes them; an image without a face (a house, an object, noise) is
+    matched as a whole, and one warning line lists those."""
+    from appeal.logs import logger
+    from stimulus_engine.audit.masks import (find_landmarks, grid_render_settings, landmark_face_mask,
+                                             rendered_face_mask, whole_image_mask)
 
+    if region == "image":
+        return [whole_image_mask(im.shape) for im in images], "whole images"
     render = grid_render_settings(folder)
     if render is None:
-        masks = []
+        masks, faceless = [], []
         for im, f in zip(images, files):
             try:
                 masks.append(landmark_face_mask(im.shape, find_landmarks(im, f)))
             except AppealInputError:
-                raise AppealInputError(f"{folder / f}: no face found by dlib, and no grid.json beside the manifest: "
-                                       "equalising needs a face mask (a rendered grid's grid.json, or a photograph "
-                                       "with a face the landmark detector finds)") from None
-        return masks, "landmarks"
+                masks.append(whole_image_mask(im.shape))
+                faceless.append(f)
+        if faceless:
+            shown = ", ".join(faceless[:8]) + (f" and {len(faceless) - 8} more" if len(faceless) > 8 else "")
+            logger.warning("%d of %d images without a face (dlib): matched as whole images: %s", len(faceless),
+                           len(files), shown)
+        return masks, "landmarks" + (f", {len(faceless)} whole images" if faceless else "")
     size = (int(render["height"]), int(render["width"]))
     return [rendered_face_mask(im, render["width"], render["height"], render["eye_row"], render["face_fraction"],
                                tuple(render["background"])) if im.shape[:2] == size
@@ -60,7 +69,8 @@ Examples:
   appeal stimuli equalise stimuli/exp2/manifest.csv --match luminance --out stimuli/exp2_lum
   appeal stimuli equalise stimuli/exp2/manifest.csv --match histogram --grey --out stimuli/exp2_hist
   appeal stimuli equalise stimuli/erp/manifest.csv --match spectrum --background keep --out stimuli/erp_spec
-  appeal stimuli equalise aligned/manifest.csv --match spectrum --grey --out aligned_spec   # photographs""")
+  appeal stimuli equalise aligned/manifest.csv --match spectrum --grey --out aligned_spec   # photographs
+  appeal stimuli equalise n170.csv --match luminance --region image --out n170_lum   # faces and houses, whole""")
 @click.argument("manifest", metavar="MANIFEST", type=click.Path(path_type=Path))
 @click.option("--match", "method", required=True, type=click.Choice(["luminance", "histogram", "spectrum"]),
               help="luminance: masked mean and SD of L*; histogram: exact masked L* histogram; "
@@ -68,15 +78,20 @@ Examples:
 @click.option("--grey", is_flag=True, help="Write grey images (exact 8-bit histograms); default: keep the colour.")
 @click.option("--background", "background", default="0.5", show_default=True, metavar="FRACTION|keep",
               help="Grey outside the face (0.5 = 8-bit 128), or 'keep' the original pixels.")
+@click.option("--region", type=click.Choice(["face", "image"]), default="face", show_default=True,
+              help="face: inside each face mask (an image without a face as a whole); image: every whole image.")
 @out_options()
-def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path, force: bool, resume: bool) -> None:
+def equalise(manifest: Path, method: str, grey: bool, background: str, region: str, out: Path, force: bool,
+             resume: bool) -> None:
     """Equalise the luminance of a stimulus set's faces (SHINE: lumMatch, histMatch, specMatch).
 
     \b
     Reads MANIFEST (a manifest.csv with a 'file' column; images relative to its folder) and,
     for a rendered grid, the grid.json beside it (the face mask: the framing oval, less the
     background pixels); without one (photographs, e.g. appeal faces outputs) each face's mask
-    is the convex hull of its dlib landmarks. Works on CIE L*
+    is the convex hull of its dlib landmarks, and an image without a face (the houses, objects
+    or scrambled faces of a control category) is matched as a whole image, listed in one
+    warning line; --region image matches every image as a whole. Works on CIE L*
     only, keeping a* and b* (or grey with --grey); see stimulus_engine.audit.equalise.
     Writes the equalised images under DIR with the same relative file names, DIR/manifest.csv
     (the same columns plus 'equalised' and 'ssim', the SSIM of each image's L* to its
@@ -110,7 +125,7 @@ def equalise(manifest: Path, method: str, grey: bool, background: str, out: Path
     from stimulus_engine.audit.workflow import read_rgb
 
     images = [read_rgb(folder / f) for f in files]
-    masks, mask_kind = _face_masks(folder, images, files)
+    masks, mask_kind = _face_masks(folder, images, files, region)
     results, ssims = run_equalise(images, masks, method, grey=grey, background=bg, names=files)
 
     label = f"{method} (grey)" if grey else method

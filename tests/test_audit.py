@@ -174,6 +174,95 @@ def test_photographs_get_landmark_masks_and_eye_positions(tmp_path, shared_data)
     assert set(audit_factors(table)) == {"file"} and not set(FACTOR_COLUMNS) & set(table.columns)
 
 
+# ------------------------------------------------------------------------------ images without a face
+def _grey_png(lstar: np.ndarray, path: Path) -> None:
+    """An L* image (0..100) written as the grey sRGB PNG nearest it."""
+    from stimulus_engine.audit.equalise import level_codes
+
+    code = level_codes(np.clip(lstar, 0, 100)).astype(np.uint8)
+    Image.fromarray(np.repeat(code[..., None], 3, axis=2)).save(path)
+
+
+def _noise_folder(folder: Path, alphas: list[float]) -> None:
+    folder.mkdir()
+    for i, alpha in enumerate(alphas):
+        z = _power_noise(alpha, 256, 256, seed=i)
+        _grey_png(50 + 12 * z / z.std(), folder / f"noise_{alpha:.1f}.png")
+
+
+def test_audit_of_noise_images_recovers_their_spectrum_slopes(tmp_path, capsys):
+    """1/f^alpha noise images (no face): whole-image measures, NaN face measures, one warning line
+    naming them, the tables and figures written; the slopes come back within 0.1."""
+    alphas = [0.6, 1.0, 1.4, 1.8, 2.0]  # steeper spectra flatten at 8 bits (quantisation noise is white)
+    _noise_folder(tmp_path / "noise", alphas)
+    out = tmp_path / "audit"
+    assert main(["stimuli", "audit", str(tmp_path / "noise"), "--out", str(out)]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "without a face" in line]
+    assert len(err) == 1 and "5 of 5 images" in err[0] and "noise_0.6.png" in err[0] and "noise_2.0.png" in err[0]
+    table = pd.read_csv(out / "audit.csv").set_index("file")
+    for alpha in alphas:
+        assert table.loc[f"noise_{alpha:.1f}.png", "spectrum_slope"] == pytest.approx(-alpha, abs=0.1)
+    assert set(table["mask"]) == {"none"} and table["warning"].str.contains("no face").all()
+    face_cols = [c for c in table.columns if c.startswith("face_")] + ["eye_left_x", "iod_px"]
+    assert table[face_cols].isna().all().all() and table["image_L_mean"].between(45, 55).all()
+    assert table["image_rms_contrast"].between(0.08, 0.16).all()
+    assert (out / "audit.png").stat().st_size > 10_000 and (out / "report.html").is_file()
+
+
+def _phase_scrambled(rgb: np.ndarray, seed: int) -> np.ndarray:
+    """The image's L* with its Fourier phases replaced by those of white noise: the same amplitude
+    spectrum, no face (the N170 studies' scrambled control)."""
+    from stimulus_engine.audit.equalise import lightness
+
+    lstar = lightness(rgb)
+    noise = np.fft.fft2(np.random.default_rng(seed).standard_normal(lstar.shape))
+    spec = np.fft.fft2(lstar - lstar.mean())
+    out = np.real(np.fft.ifft2(np.abs(spec) * np.exp(1j * np.angle(noise)))) + lstar.mean()
+    return out
+
+
+def test_faces_and_their_controls_are_tested_against_each_other(tmp_path, shared_data, capsys):
+    """A manifest of London photographs, their phase-scrambled versions and skimage's photographs
+    of objects: ``category`` is a factor, each image an item; faces keep their face measures."""
+    from skimage import data as skdata
+
+    from stimulus_engine.audit.equalise import lightness
+
+    photos = shared_data / "faces2d" / "london-frl" / "neutral_front"
+    rows = []
+    for i, name in enumerate(("001_03.jpg", "002_03.jpg", "003_03.jpg")):
+        rgb = np.asarray(Image.open(photos / name).convert("RGB").resize((450, 450)))
+        Image.fromarray(rgb).save(tmp_path / f"face_{i}.png")
+        _grey_png(_phase_scrambled(rgb, i), tmp_path / f"scrambled_{i}.png")
+        rows += [{"file": f"face_{i}.png", "category": "face"}, {"file": f"scrambled_{i}.png", "category": "scrambled"}]
+    for name in ("coffee", "rocket", "chelsea"):
+        Image.fromarray(getattr(skdata, name)()).save(tmp_path / f"object_{name}.png")
+        rows.append({"file": f"object_{name}.png", "category": "object"})
+    pd.DataFrame(rows).to_csv(tmp_path / "n170.csv", index=False)
+    out = tmp_path / "audit"
+    assert main(["stimuli", "audit", str(tmp_path / "n170.csv"), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "6 of 9 images without a face" in err and "face_0.png" not in err.split("without a face")[1]
+    table = pd.read_csv(out / "audit.csv")
+    faces = table["category"] == "face"
+    assert set(table.loc[faces, "mask"]) == {"landmarks"} and table.loc[faces, "face_L_mean"].notna().all()
+    assert table.loc[~faces, "face_L_mean"].isna().all() and table["image_L_mean"].notna().all()
+    # scrambling keeps the mean L* (and the unwindowed amplitude spectrum; the audit's slope is of the
+    # Hann-windowed image, whose scrambled version differs by up to ~0.1)
+    by_file = table.set_index("file")
+    for i in range(3):
+        face, scrambled = by_file.loc[f"face_{i}.png"], by_file.loc[f"scrambled_{i}.png"]
+        assert scrambled["image_L_mean"] == pytest.approx(face["image_L_mean"], abs=2.0)  # less what clips at white
+    assert table["spectrum_slope"].between(-2.2, -0.6).all()
+    assert lightness(np.asarray(Image.open(tmp_path / "scrambled_0.png"))).std() > 5
+    tests = pd.read_csv(out / "design_tests.csv").set_index(["factor", "measure"])
+    row = tests.loc[("category", "image_L_mean")]
+    assert row["test"] == "one-way ANOVA between 9 items" and (row["num_df"], row["den_df"]) == (2, 6)
+    assert tests.loc[("category", "face_L_mean"), "test"] == "none: one level has this measure"
+    assert set(pd.read_csv(out / "level_means.csv")["level"]) == {"face", "scrambled", "object"}
+    assert (out / "flags.png").is_file() and "category" in (out / "report.md").read_text()
+
+
 # ------------------------------------------------------------------------------ bad input
 def _one_line_error(args: list[str], capsys) -> str:
     assert main(args) == 2
@@ -193,11 +282,9 @@ def test_bad_inputs_are_one_line_errors(grid_dir, tmp_path, capsys):
     (empty / "notes.txt").write_text("no images")
     err = _one_line_error(["stimuli", "audit", str(empty), "--out", str(tmp_path / "o2")], capsys)
     assert "no images" in err
-    faceless = tmp_path / "faceless"
-    faceless.mkdir()
-    Image.fromarray(np.full((120, 160, 3), 128, np.uint8)).save(faceless / "grey.png")
-    err = _one_line_error(["stimuli", "audit", str(faceless), "--out", str(tmp_path / "o3")], capsys)
-    assert "grey.png" in err and "no face" in err and not (tmp_path / "o3").exists()
+    (empty / "broken.png").write_bytes(b"not a PNG")
+    err = _one_line_error(["stimuli", "audit", str(empty), "--out", str(tmp_path / "o3")], capsys)
+    assert "broken.png" in err and "not a readable image" in err and not (tmp_path / "o3").exists()
     with pytest.raises(AppealInputError, match="not found"):
         read_audit_inputs(tmp_path / "nothing.csv")
     (tmp_path / "plain.csv").write_text("a,b\n1,2\n")

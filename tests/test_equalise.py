@@ -168,15 +168,7 @@ def test_cli_errors_are_one_line_and_write_nothing(grid_dir, tmp_path, capsys):
     shutil.copytree(grid_dir / "images", bare / "images")
     shutil.copy(grid_dir / "manifest.csv", bare / "manifest.csv")
     out = tmp_path / "eq"
-    # no grid.json and an image without a face: no face mask obtainable
-    faceless = pd.read_csv(bare / "manifest.csv")["file"][0]
-    Image.fromarray(np.full((72, 96, 3), 128, np.uint8)).save(bare / faceless)
-    assert main(["stimuli", "equalise", str(bare / "manifest.csv"), "--match", "luminance", "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and faceless in err[0] and "grid.json" in err[0] and "face mask" in err[0], err
-    assert not out.exists()
     shutil.copy(grid_dir / "grid.json", bare / "grid.json")
-    shutil.copy(grid_dir / faceless, bare / faceless)
     first = pd.read_csv(bare / "manifest.csv")["file"][1]
     Image.fromarray(np.zeros((48, 64, 3), np.uint8)).save(bare / first)
     assert main(["stimuli", "equalise", str(bare / "manifest.csv"), "--match", "spectrum", "--out", str(out)]) == 2
@@ -227,3 +219,44 @@ def test_cli_equalises_photographs_inside_their_landmark_masks(shared_data, tmp_
     assert E.spectrum_agreement(images) <= 0.01
     assert all(np.mean(np.all(im == 128, axis=2)) > 0.8 for im in images)  # grey outside the faces
     assert json.loads((out / "provenance.json").read_text())["face_masks"] == "landmarks"
+
+
+def test_cli_matches_faces_and_images_without_a_face(shared_data, tmp_path, capsys):
+    """Photographs and objects (no face: matched as whole images, listed in one warning line); with
+    --region image every image as a whole. Luminance matching gives every mask the same mean and SD."""
+    from skimage import data as skdata
+
+    from appeal_cli import main
+
+    folder = tmp_path / "n170"
+    folder.mkdir()
+    rows = []
+    for f in sorted((shared_data / "faces2d" / "london-frl" / "neutral_front").glob("*.jpg"))[:2]:
+        Image.open(f).convert("RGB").resize((400, 400), Image.LANCZOS).save(folder / f"{f.stem}.png")
+        rows.append({"file": f"{f.stem}.png", "category": "face"})
+    for name in ("coffee", "chelsea"):
+        Image.fromarray(getattr(skdata, name)()).resize((400, 400), Image.LANCZOS).save(folder / f"{name}.png")
+        rows.append({"file": f"{name}.png", "category": "object"})
+    pd.DataFrame(rows).to_csv(folder / "manifest.csv", index=False)
+    for region in ("face", "image"):
+        out = tmp_path / f"eq_{region}"
+        assert main(["stimuli", "equalise", str(folder / "manifest.csv"), "--match", "luminance", "--grey",
+                     "--region", region, "--out", str(out)]) == 0
+        warned = [line for line in capsys.readouterr().err.splitlines() if "without a face" in line]
+        assert (warned and "2 of 4" in warned[0] and "coffee.png, chelsea.png" in warned[0]) if region == "face" \
+            else not warned
+        images = [np.asarray(Image.open(out / r["file"]).convert("RGB")) for r in rows]
+        if region == "face":
+            from stimulus_engine.audit.masks import find_landmarks, landmark_face_mask
+
+            originals = [np.asarray(Image.open(folder / r["file"]).convert("RGB")) for r in rows]
+            masks = [landmark_face_mask(o.shape, find_landmarks(o, "face")) for o in originals[:2]]
+            masks += [np.ones((400, 400), bool)] * 2
+            assert all(np.mean(np.all(im == 128, axis=2)) > 0.8 for im in images[:2])  # grey around the faces
+        else:
+            masks = [np.ones((400, 400), bool)] * 4
+        stats = np.array([E.masked_stats(im, m) for im, m in zip(images, masks)])
+        # equal within 8-bit rounding and what clips at black or white (the audit flags 2 L*, 0.02 contrast)
+        assert np.ptp(stats[:, 0]) < 0.3 and np.ptp(stats[:, 1]) < 1.0, stats
+        face_masks = json.loads((out / "provenance.json").read_text())["face_masks"]
+        assert face_masks == ("landmarks, 2 whole images" if region == "face" else "whole images")

@@ -11,7 +11,8 @@ measures) is tested factor by factor. For a factor F and a measure m:
   crossed with F (for Exp. 2's shape: character × material × expression, 50 items seen at 5 shape
   levels each; a grid's photograph material, found at the photograph level only, is not crossed
   with shape and is averaged within the items), or the column(s) the user names as item (the
-  other factors then averaged within an item).
+  other factors then averaged within an item). A factor that is the only one (faces against
+  houses, say) has the images themselves as items.
   Items seen at every level of F: a one-way repeated-measures ANOVA with the items as subjects
   (:func:`analysis.stats.rm_anova`, Greenhouse–Geisser p beside the uncorrected one). Items each
   seen at one level: a one-way between-items ANOVA (:func:`scipy.stats.f_oneway`). Anything else
@@ -104,8 +105,10 @@ def _item_ids(table: pd.DataFrame, factor: str, factors: Sequence[str], item: Se
         cols = list(item)
     else:
         cols = [f for f in factors if f != factor and _crossed(table, factor, f)]
-    if not cols:
+    if not cols and [f for f in factors if f != factor]:
         return pd.Series(["all"] * len(table), index=table.index)
+    if not cols:  # the only factor (faces vs houses, say): each image is an item
+        return table["file"].astype(str) if "file" in table else pd.Series(table.index.astype(str), index=table.index)
     return table[cols].astype(str).agg(" / ".join, axis=1)
 
 
@@ -150,9 +153,10 @@ def _test(table: pd.DataFrame, factor: str, measure: str, items: pd.Series) -> d
         return {**_rm_test(cells, factor, n_items), "n_items": n_items}
     if (per_item == 1).all() and (per_level >= 2).all() and n_items > n_levels:
         return {**_between_test(cells, factor, n_items), "n_items": n_items}
-    if n_items < 2:
-        why = ("one image per level" if (data.groupby(factor).size() == 1).all()
-               else "one item (no other factor crossed with it; name the items)")
+    if (data.groupby(factor).size() == 1).all():
+        why = "one image per level"
+    elif n_items < 2:
+        why = "one item (no other factor crossed with it; name the items)"
     elif (per_item == 1).all():
         why = "a level with one item"
     else:

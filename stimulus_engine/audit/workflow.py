@@ -7,8 +7,13 @@ and the whole image; :func:`audit_manifest` does both; :func:`plot_audit` draws 
 measure's mean per level of every factor.
 
 An animated grid's rows point to ``.mp4`` clips: their apex frame (``frames/frame_XXXXX.png``
-at the row's ``apex_frame``) is audited. Rows with ``shape == photograph`` and every image of a
-plain folder are photographs: their face mask is the convex hull of the 68 dlib landmarks.
+at the row's ``apex_frame``) is audited. Rows with ``shape == photograph``, every image of a
+plain folder and every image of a manifest without a grid's ``grid.json`` are photographs: their
+face mask is the convex hull of the 68 dlib landmarks. An image in which dlib finds no face (the
+houses, objects or scrambled faces of a control category, noise images) gets the whole-image
+measures and NaN face measures (mask ``none``), and one warning line lists them all; a manifest
+column such as ``category`` (face | house) is a factor like the grid's own, so faces and their
+controls are tested against each other.
 """
 
 from __future__ import annotations
@@ -21,21 +26,28 @@ import numpy as np
 import pandas as pd
 
 from appeal.errors import AppealInputError
+from appeal.logs import logger
 from stimulus_engine.audit import masks as M
 from stimulus_engine.audit import measures as X
 
-__all__ = ["IMAGE_SUFFIXES", "FACTOR_COLUMNS", "MAIN_MEASURES", "AuditItem", "AuditJob", "read_audit_inputs", "read_rgb",
+__all__ = ["IMAGE_SUFFIXES", "FACTOR_COLUMNS", "MAIN_MEASURES", "WHOLE_IMAGE_MEASURES", "NO_FACE_WARNING", "AuditItem",
+           "AuditJob", "read_audit_inputs", "read_rgb",
            "measure_image", "run_audit", "audit_manifest", "paired_factors", "declared_factors", "audit_factors",
            "plot_audit"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 #: A grid manifest's factor columns (those present are kept and plotted).
-FACTOR_COLUMNS = ("character", "shape", "stylisation", "material", "expression", "emotion", "lighting", "shading")
+FACTOR_COLUMNS = ("category", "character", "shape", "stylisation", "material", "expression", "emotion", "lighting",
+                  "shading")
 #: The measures drawn by :func:`plot_audit`, with their axis labels.
 MAIN_MEASURES = {"face_L_mean": "face L*", "face_rms_contrast": "face RMS contrast (sd L*/100)",
                  "spectrum_slope": "spectrum slope", "energy_high": "energy share >= 32 c/img",
                  "face_edge_density": "face edge density", "face_area": "face area (share)", "iod_px": "IOD (px)",
                  "eye_left_y": "left eye y (px from top)"}
+#: Drawn as well when some images have no face: what faces and their controls are matched on.
+WHOLE_IMAGE_MEASURES = {"image_L_mean": "image L*", "image_rms_contrast": "image RMS contrast"}
+#: The ``warning`` of an image without a face.
+NO_FACE_WARNING = "no face found by dlib: face measures NaN"
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,17 +58,34 @@ class AuditItem:
     file: str
     image: Path
     row: dict[str, Any] = field(default_factory=dict)
-    mask: str = "landmarks"  # "rendered" (face oval minus background) or "landmarks" (convex hull)
+    #: "rendered" (face oval minus background), "landmarks" (convex hull) or "none" (no face found)
+    mask: str = "landmarks"
     landmarks: np.ndarray | None = None
 
 
+def _found(item: AuditItem) -> AuditItem:
+    """``item`` with its landmarks, or with mask ``none`` when dlib finds no face in it (an unreadable
+    image stays an input error)."""
+    rgb = read_rgb(item.image)
+    try:
+        return AuditItem(item.file, item.image, item.row, item.mask, M.find_landmarks(rgb, str(item.image)))
+    except AppealInputError:
+        return AuditItem(item.file, item.image, item.row, "none", None)
+
+
 def _with_landmarks(items: list[AuditItem]) -> list[AuditItem]:
-    """Find every photograph's landmarks now, so that a faceless one is an input error before any output."""
+    """Find every photograph's landmarks now (an unreadable image is an input error before any output);
+    one warning line names the images without a face."""
     from appeal.progress import progress
 
-    return [AuditItem(it.file, it.image, it.row, it.mask, M.find_landmarks(read_rgb(it.image), str(it.image)))
-            if it.mask == "landmarks" else it
-            for it in progress(items, total=len(items), desc="landmarks", unit="image")]
+    found = [_found(it) if it.mask == "landmarks" else it
+             for it in progress(items, total=len(items), desc="landmarks", unit="image")]
+    faceless = [it.file for it in found if it.mask == "none"]
+    if faceless:
+        shown = ", ".join(faceless[:8]) + (f" and {len(faceless) - 8} more" if len(faceless) > 8 else "")
+        logger.warning("%d of %d images without a face (dlib): whole-image measures only, face measures NaN: %s",
+                       len(faceless), len(found), shown)
+    return found
 
 
 @dataclass(frozen=True)
@@ -116,7 +145,8 @@ def read_audit_inputs(source: Path) -> AuditJob:
     AppealInputError
         One line: the path does not exist, is neither a CSV nor a folder, a manifest lacks its
         ``file`` column or some of its images, a folder holds no images, an image is not
-        readable, a photograph has no face (photographs' landmarks are found here, once).
+        readable (photographs' landmarks are found here, once; those without a face are listed
+        in one warning line and get mask ``none``).
     """
     source = Path(source)
     if not source.exists():
@@ -148,9 +178,10 @@ def _prefixed(prefix: str, values: dict[str, float]) -> dict[str, float]:
     return {f"{prefix}_{k}": v for k, v in values.items()}
 
 
-def measure_image(rgb: np.ndarray, face: np.ndarray, landmarks: np.ndarray | None) -> dict[str, float]:
+def measure_image(rgb: np.ndarray, face: np.ndarray | None, landmarks: np.ndarray | None) -> dict[str, float]:
     """Every measure of one image: colour, contrast and edges inside ``face`` and the whole image,
     the spectrum of the whole image, the face area and (with ``landmarks``, else NaN) the eyes.
+    ``face=None`` (no face in the image): every ``face_`` measure and the face area are NaN.
 
     Columns: ``face_/image_`` + ``L_mean, a_mean, b_mean, rms_contrast, edge_density``;
     ``spectrum_slope``; ``energy_low, energy_mid, energy_high``; ``face_area``;
@@ -160,12 +191,13 @@ def measure_image(rgb: np.ndarray, face: np.ndarray, landmarks: np.ndarray | Non
     lum = lab[..., 0] / 100.0
     whole = M.whole_image_mask(rgb.shape)
     out: dict[str, float] = {}
-    for prefix, mask in (("face", face), ("image", whole)):
+    nowhere = np.zeros(rgb.shape[:2], bool)  # an empty mask: NaN colour and edge measures
+    for prefix, mask in (("face", nowhere if face is None else face), ("image", whole)):
         out.update(_prefixed(prefix, X.colour_stats(lab, mask)))
         out[f"{prefix}_edge_density"] = X.edge_density(lum, mask)
     out["spectrum_slope"] = X.spectrum_slope(lab[..., 0])
     out.update(_prefixed("energy", X.band_energy(lab[..., 0])))
-    out["face_area"] = X.face_area(face)
+    out["face_area"] = float("nan") if face is None else X.face_area(face)
     if landmarks is not None:
         out.update(X.eye_positions(landmarks))
     else:
@@ -176,7 +208,10 @@ def measure_image(rgb: np.ndarray, face: np.ndarray, landmarks: np.ndarray | Non
 def _audit_item(item: AuditItem, render: dict[str, Any] | None) -> dict[str, Any]:
     rgb = read_rgb(item.image)
     warning = ""
-    if item.mask == "rendered" and render is not None:
+    face: np.ndarray | None
+    if item.mask == "none":
+        face, landmarks, warning = None, None, NO_FACE_WARNING
+    elif item.mask == "rendered" and render is not None:
         face = M.rendered_face_mask(rgb, render["width"], render["height"], render["eye_row"],
                                     render["face_fraction"], tuple(render["background"]))
         try:
@@ -193,7 +228,7 @@ def _audit_item(item: AuditItem, render: dict[str, Any] | None) -> dict[str, Any
 
 def run_audit(job: AuditJob) -> pd.DataFrame:
     """One row per image of ``job``: its manifest columns, ``image_file`` (what was read),
-    ``mask`` (rendered | landmarks), its size, the measures of :func:`measure_image` and ``warning``."""
+    ``mask`` (rendered | landmarks | none), its size, the measures of :func:`measure_image` and ``warning``."""
     from appeal.progress import progress
 
     rows = [_audit_item(it, job.render) for it in progress(job.items, total=len(job.items), desc="audit",
@@ -253,7 +288,8 @@ def plot_audit(table: pd.DataFrame, path: Path, factors: list[str] | None = None
     from appeal.levels import sort_levels
 
     factors = factors or audit_factors(table)
-    measures = [m for m in MAIN_MEASURES if m in table.columns and table[m].notna().any()]
+    labels = {**MAIN_MEASURES, **(WHOLE_IMAGE_MEASURES if "mask" in table and (table["mask"] == "none").any() else {})}
+    measures = [m for m in labels if m in table.columns and table[m].notna().any()]
     per_image = factors == ["file"]  # no factors: one point per image, no line between them
     width = min(16.0, max(6.0, 0.22 * len(table) + 1.5)) if per_image else 2.6 * len(factors) + 0.8
     fig, axes = plt.subplots(len(measures), len(factors), figsize=(width, 1.55 * len(measures) + 0.8),
@@ -276,7 +312,7 @@ def plot_audit(table: pd.DataFrame, path: Path, factors: list[str] | None = None
             ax.tick_params(axis="y", labelsize=7)
             ax.grid(axis="y", color="0.9", lw=0.6)
             if j == 0:
-                ax.set_ylabel(MAIN_MEASURES[measure], fontsize=7.5)
+                ax.set_ylabel(labels[measure], fontsize=7.5)
             if i == 0:
                 ax.set_title(factor, fontsize=9)
     what = "each image" if per_image else "mean per level (black), each image (grey)"
