@@ -6,6 +6,7 @@ re-exported here for the analyst.
 
 * :mod:`~analysis.psychometric.fit` – maximum-likelihood and psignifit-style Bayesian fits, a tidy
   table.
+* :mod:`~analysis.psychometric.map_search` – the MAP polish: a bounded, restarted simplex with a budget.
 * :mod:`~analysis.psychometric.priors` – psignifit 4's default priors.
 * :mod:`~analysis.psychometric.schema` – the ``kind: psychometric`` analysis file.
 * :mod:`~analysis.psychometric.study` – ``appeal analyze psychometric``: fits per participant and
@@ -18,7 +19,7 @@ from appeal.lazy import attach as _attach
 # the modules load on first use (appeal.lazy: Scientific Python SPEC 1)
 __getattr__, __dir__, _ = _attach(
     __name__,
-    submodules=["figures", "fit", "planning", "priors", "schema", "study"],
+    submodules=["figures", "fit", "map_search", "planning", "priors", "schema", "study"],
     submod_attrs={
         "fit": ["FitResult", "fit_bayes", "fit_ml", "fit_table"],
         "schema": ["PsychometricAnalysis"],

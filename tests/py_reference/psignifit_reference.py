@@ -1,12 +1,12 @@
 """psignifit 4's MAP threshold and width on the simulated data sets of tests/test_psychometric.py.
 
-psignifit (PyPI, GPL-3) is not a dependency of Appeal Lab; this script is run by hand where it is
-installed (`pip install psignifit==4.3`) and its output is committed beside it:
+psignifit (PyPI, GPL-3) is a test dependency of Appeal Lab only (never imported by the package);
+this script is run by hand and its output is committed beside it:
 
     python tests/py_reference/psignifit_reference.py > tests/py_reference/psignifit_reference.out
 
-The tests compare our fits with these numbers (reading them with tests/r_reference_numbers.py's
-literal reader), so the agreement is checked on every run without psignifit.
+The tests compare our fits with these numbers, so the agreement is checked on every run even
+where psignifit is missing; psignifit_agreement.py adds its posterior's true mode and intervals.
 """
 
 from __future__ import annotations
