@@ -49,7 +49,7 @@ from appeal.lazy import attach as _attach
 # the modules load on first use (appeal.lazy: Scientific Python SPEC 1)
 __getattr__, __dir__, _ = _attach(
     __name__,
-    submodules=["blendshape_transfer", "blendshape_weights", "design", "expressions", "gaze", "ict",
+    submodules=["au_poses", "blendshape_transfer", "blendshape_weights", "design", "expressions", "gaze", "ict",
                 "incisor_display", "lashes", "markers", "mesh_character", "motion_files", "motion_similarity",
                 "photo_character", "photo_fit", "photo_texture", "procedural_head", "render_parts", "retarget",
                 "rig", "scan_cut", "scan_eyes", "scan_mouth", "scan_regions", "scan_surface", "skin_clearance",

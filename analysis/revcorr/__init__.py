@@ -1,0 +1,19 @@
+"""Reverse-correlation analysis (issue 53): each participant's AU model of each expression.
+
+* :mod:`~analysis.revcorr.models` – mutual information between AU presence and the answer, its
+  permutation test corrected across AUs, the logistic classification image, recovery of known models.
+* :mod:`~analysis.revcorr.planning` – trials needed: recovery of simulated participants' known models
+  as the number of trials grows.
+"""
+
+from appeal.lazy import attach as _attach
+
+# the modules load on first use (appeal.lazy: Scientific Python SPEC 1)
+__getattr__, __dir__, _ = _attach(
+    __name__,
+    submodules=["models", "planning"],
+    submod_attrs={
+        "models": ["au_models", "logistic_image", "mi_permutation_test", "model_recovery", "mutual_information"],
+        "planning": ["expected_models", "recovery_table", "simulate_participant"],
+    },
+)

@@ -1,0 +1,67 @@
+"""Reverse-correlation trials on a rig: the grammar's AU amplitudes as blendshape weights.
+
+The grammar (:mod:`appeal.revcorr.grammar`) speaks FACS action units; a rig speaks blendshapes.
+Each AU moves the blendshapes the FACS recipe file gives it (``stimulus_engine/data/facs_recipes.yaml``,
+:func:`~stimulus_engine.characters.expressions.facs_recipes`), all at the AU's amplitude; a
+lateralised AU (``AU12_L``) moves only the blendshapes of its side (``mouthSmile_L``).
+:func:`trial_frame_weights` gives a trial's weights frame by frame, the input of the clip path
+(:mod:`stimulus_engine.grid.animation`), and :func:`apex_weights` those of its apex frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from appeal.errors import AppealInputError
+from appeal.revcorr.grammar import Trial, trial_curves
+from stimulus_engine.characters.expressions import facs_recipes
+
+__all__ = ["au_blendshapes", "au_weights", "trial_frame_weights", "apex_weights"]
+
+
+def au_blendshapes(au: str) -> tuple[str, ...]:
+    """The blendshapes an AU moves (``AU12`` both sides, ``AU12_L`` the left one).
+
+    Examples
+    --------
+    >>> au_blendshapes("AU12"), au_blendshapes("AU12_R")
+    (('mouthSmile_L', 'mouthSmile_R'), ('mouthSmile_R',))
+    """
+    base, _, side = au.partition("_")
+    table = facs_recipes()["action_units"]
+    if base not in table:
+        raise AppealInputError(f"revcorr: action unit '{au}': not in the FACS recipes (expected one of: "
+                               f"{', '.join(table)})")
+    shapes = tuple(table[base])
+    if side:
+        if side not in ("L", "R"):
+            raise AppealInputError(f"revcorr: action unit '{au}': a side is _L or _R")
+        shapes = tuple(s for s in shapes if s.endswith(f"_{side}"))
+        if not shapes:
+            raise AppealInputError(f"revcorr: action unit '{au}': {base} has no {side} blendshape")
+    return shapes
+
+
+def au_weights(amplitudes: Mapping[str, float]) -> dict[str, float]:
+    """Blendshape weights of AU amplitudes; AUs that share a blendshape add (clipped to 1)."""
+    out: dict[str, float] = {}
+    for au, a in amplitudes.items():
+        for shape in au_blendshapes(au):
+            out[shape] = min(1.0, out.get(shape, 0.0) + float(a))
+    return out
+
+
+def trial_frame_weights(trial: Trial, n_frames: int) -> list[dict[str, float]]:
+    """The trial's blendshape weights at each of ``n_frames`` frames (1.25 s at 30 fps: 38)."""
+    curves = trial_curves(trial, n_frames)
+    return [au_weights({au: float(c[k]) for au, c in curves.items()}) for k in range(n_frames)]
+
+
+def apex_weights(trial: Trial, n_frames: int = 38) -> tuple[int, dict[str, float]]:
+    """The frame where the trial's summed amplitude peaks, and its weights (a static apex image)."""
+    curves = trial_curves(trial, n_frames)
+    total = np.sum(list(curves.values()), axis=0)
+    k = int(np.argmax(total))
+    return k, au_weights({au: float(c[k]) for au, c in curves.items()})
