@@ -6,6 +6,7 @@ from __future__ import annotations
 import doctest
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from analysis.revcorr import models as M
@@ -140,3 +141,71 @@ def test_every_grammar_au_poses_the_rig_through_its_own_blendshapes(shared_data)
     assert all(v == 0 for v in frames[0].values()) and all(v == 0 for v in frames[-1].values())
     with pytest.raises(AppealInputError, match="AU26_L"):
         au_poses.au_blendshapes("AU26_L")
+
+
+# ------------------------------------------------------------------------------ appeal analyze revcorr
+def _two_level_trials(n_trials: int = 2400) -> pd.DataFrame:
+    """Two simulated participants; at the stylised level their happy has the jaw (AU26) too and their
+    surprise lost it: the analysis must find the change."""
+    from analysis.revcorr.trials import simulated_table
+
+    styl = dict(PROTOTYPES, happy=("AU6", "AU12", "AU26"), surprise=("AU1", "AU2", "AU5"))
+    real = {f"P{i}": TemplateObserver(seed=i) for i in range(2)}
+    stylised = {f"P{i}": TemplateObserver(templates=styl, seed=10 + i) for i in range(2)}
+    return simulated_table(real, n_trials, seed=3, levels={"realistic": real, "stylised": stylised})
+
+
+def test_cli_finds_each_participants_models_per_level_from_bids_files(tmp_path):
+    from appeal_cli import main
+
+    table = _two_level_trials().rename(columns={"level": "shape"})
+    for pid, sub in table.groupby("participant_id"):  # the runner's layout: one file per session, n/a for none
+        folder = tmp_path / "data" / f"sub-{pid}" / "ses-1" / "beh"
+        folder.mkdir(parents=True)
+        sub = sub.drop(columns="participant_id").astype(object)
+        sub.loc[sub.index[:5], "response"] = "n/a"
+        sub.to_csv(folder / f"sub-{pid}_ses-1_task-revcorr_beh.tsv", sep="\t", index=False, na_rep="n/a")
+    out = tmp_path / "out"
+    assert main(["analyze", "revcorr", str(tmp_path / "data" / "sub-*" / "ses-*" / "beh" / "*_beh.tsv"),
+                 "--level", "shape", "--permutations", "300", "--out", str(out)]) == 0
+    models = pd.read_csv(out / "models.csv", dtype={"participant_id": str})
+    assert len(models) == 2 * 2 * 6 * 16 and set(models["n_trials"]) == {2395, 2400}  # 5 unanswered, realistic
+
+    def model(shape, emotion):
+        sub = models[(models["shape"] == shape) & (models["emotion"] == emotion) & models["in_model"]]
+        return {pid: set(g["au"]) for pid, g in sub.groupby("participant_id")}
+
+    for pid in ("P0", "P1"):
+        assert "AU26" in model("stylised", "happy")[pid] and "AU26" not in model("realistic", "happy")[pid]
+        assert "AU26" in model("realistic", "surprise")[pid] and "AU26" not in model("stylised", "surprise")[pid]
+        assert {"AU6", "AU12"} <= model("realistic", "happy")[pid]
+    temporal = pd.read_csv(out / "temporal.csv", dtype={"participant_id": str})
+    smile = temporal[(temporal["emotion"] == "happy") & (temporal["au"] == "AU12")]
+    assert len(smile) == 4 and (smile["intensity_rho"] > 0.2).all()  # stronger smiles, stronger happiness
+    assert (smile["peak_amplitude"] > smile["peak_amplitude_all"]).all()  # happy answers follow larger smiles
+    consensus = pd.read_csv(out / "consensus.csv")
+    row = consensus[(consensus["shape"] == "stylised") & (consensus["emotion"] == "happy") & (consensus["au"] == "AU26")]
+    assert row["share"].item() == 1.0
+    agreement = pd.read_csv(out / "agreement.csv")
+    assert set(agreement.columns) >= {"shape", "emotion", "participants", "mean_hamming"} and len(agreement) == 12
+    assert len(list((out / "figures").glob("sub-*_models.png"))) == 4 and (out / "consensus_shape-stylised.png").is_file()
+    assert "happy (shape stylised): AUs in at least half of the models: AU6, AU12, AU26" in (out / "report.md").read_text()
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda t: t.assign(response=t["response"].where(t.index != 7, "joy")), "row 8: response 'joy': expected one of"),
+    (lambda t: t.drop(columns="revcorr_seed"), "no column 'revcorr_seed'"),
+    (lambda t: t.assign(revcorr_trial=t["revcorr_trial"].where(t.index != 3, -1)), "revcorr_trial -1: expected a whole"),
+    (lambda t: t.assign(intensity=t["intensity"].where(t.index != 0, 9)), "intensity 9"),
+    (lambda t: t.assign(response="n/a"), "no answered trials"),
+])
+def test_cli_bad_trials_are_one_line_errors_and_write_nothing(tmp_path, capsys, change, message):
+    from appeal_cli import main
+
+    table = change(_two_level_trials(40).query("level == 'realistic'").reset_index(drop=True))
+    table.to_csv(tmp_path / "trials.csv", index=False)
+    out = tmp_path / "out"
+    assert main(["analyze", "revcorr", str(tmp_path / "trials.csv"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and "trials.csv" in err[0], err
+    assert not out.exists()

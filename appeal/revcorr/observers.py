@@ -5,8 +5,10 @@ weighs, for every emotion, the peak amplitudes of the template's AUs that moved 
 template), less ``antagonism`` times the amplitude of the moving AUs outside the template (their
 sum over the template's size), plus Gaussian noise of SD ``noise``; it names the emotion with the
 most evidence, or "don't know" when that evidence is below ``criterion``; with probability
-``lapse`` it answers at random among the emotions and "don't know". The intensity (1-5) is
-``1 + round(4 x clip(evidence, 0, 1))``. The analysis must recover the templates from its answers
+``lapse`` it answers at random among the emotions and "don't know". The intensity (1-5) follows
+how strongly the named emotion's AUs moved: ``1 + round(4 x clip((a - 0.2) / 0.8 + e, 0, 1))`` with
+``a`` the mean peak amplitude of its template's AUs that moved (0 when none did) and ``e`` Gaussian
+noise of SD ``noise``. The analysis must recover the templates from its answers
 (:mod:`analysis.revcorr`).
 """
 
@@ -109,6 +111,11 @@ class TemplateObserver:
         choice = np.where(top >= self.criterion, best, len(self.emotions))
         lapses = self.rng.random(len(a)) < self.lapse
         choice = np.where(lapses, self.rng.integers(0, len(self.emotions) + 1, len(a)), choice)
-        intensity = 1 + np.rint(4 * np.clip(top, 0.0, 1.0)).astype(int)
+        t = self.template_matrix()
+        named = t[:, np.minimum(choice, len(self.emotions) - 1)].T  # (n_trials, n_aus): the named template
+        moved = (a > 0) * named
+        mean_amp = np.where(moved.sum(axis=1) > 0, (a * moved).sum(axis=1) / np.maximum(moved.sum(axis=1), 1), 0.2)
+        strength = (mean_amp - 0.2) / 0.8 + self.rng.normal(0.0, self.noise, len(a))
+        intensity = 1 + np.rint(4 * np.clip(strength, 0.0, 1.0)).astype(int)
         intensity = np.where(choice == len(self.emotions), 0, intensity)
         return names[choice], intensity
