@@ -134,10 +134,11 @@ def test_every_grammar_au_poses_the_rig_through_its_own_blendshapes(shared_data)
     assert all(len(au_poses.au_blendshapes(au)) == 1 for au in G.action_units(lateralised=True) if "_" in au)
     rig = load_ict_rig(shared_data / "meshes" / "ict-facekit", "identity000", textures=False)
     trial = G.draw_trial(2, 5)
-    frames = au_poses.trial_frame_weights(trial, 38)
-    assert len(frames) == 38 and all(set(f) <= set(rig.blendshapes) for f in frames)
-    k, apex = au_poses.apex_weights(trial, 38)
-    assert 0 < k < 37 and max(apex.values()) > 0.1
+    n = au_poses.clip_frames(1.25, 30)
+    frames = au_poses.trial_frame_weights(trial, n)
+    assert n == 39 and len(frames) == 39 and all(set(f) <= set(rig.blendshapes) for f in frames)
+    k, apex = au_poses.apex_weights(trial, n)
+    assert 0 < k < 38 and max(apex.values()) > 0.1
     assert all(v == 0 for v in frames[0].values()) and all(v == 0 for v in frames[-1].values())
     with pytest.raises(AppealInputError, match="AU26_L"):
         au_poses.au_blendshapes("AU26_L")
@@ -209,3 +210,34 @@ def test_cli_bad_trials_are_one_line_errors_and_write_nothing(tmp_path, capsys, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and "trials.csv" in err[0], err
     assert not out.exists()
+
+
+def test_a_trial_plays_as_a_clip_through_a_grids_performance(tmp_path):
+    """A trial written as a performance plays in a grid (the procedural head, both shape levels): 39
+    frames, the first and last the neutral still, the apex frame the trial's apex pose."""
+    import json
+
+    from PIL import Image
+
+    from appeal.studyfile import load_study_file
+    from grid_fixtures import TINY_GRID
+    from stimulus_engine.characters.au_poses import write_trial_performance
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid.animation import frame_file
+    from stimulus_engine.grid.schema import GridFile
+
+    trial = next(t for t in G.draw_trials(21, 50) if {"AU12", "AU26"} & set(t.aus))
+    perf = write_trial_performance(trial, tmp_path / "trial_00000.csv", fps=30)
+    meta = json.loads(perf.with_suffix(".json").read_text())
+    assert meta["n_frames"] == 39 and [m["au"] for m in meta["motions"]] == list(trial.aus)
+    # the grid's one expression names its cells (a recipe name, here neutral: the still); the clip plays the trial
+    text = TINY_GRID.replace("name: still", "name: revcorr").replace("expressions: [neutral, happy]",
+                                                                    "expressions: [neutral]")
+    (tmp_path / "g.yaml").write_text(text + f"animation: {{fps: 30, performance: {perf}}}\n")
+    manifest, _ = run_grid(load_study_file(tmp_path / "g.yaml", GridFile), tmp_path / "out", n_jobs=1)
+    assert (manifest["status"] == "rendered").all() and (manifest["n_frames"] == 39).all()
+    for r in manifest.itertuples():
+        folder = tmp_path / "out" / r.frames
+        first, last = (np.asarray(Image.open(folder / frame_file(k)).convert("RGB")) for k in (0, 38))
+        apex = np.asarray(Image.open(folder / frame_file(meta["apex_frame"])).convert("RGB"))
+        assert np.array_equal(first, last) and not np.array_equal(first, apex)
