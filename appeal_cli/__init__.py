@@ -22,9 +22,13 @@ __all__ = ["cli", "main"]
 _GLOBAL_FLAGS = {"-v": "--verbose", "--verbose": "--verbose", "-q": "--quiet", "--quiet": "--quiet"}
 
 
+#: Modules of the package that hold no command (helpers the commands import when they run).
+_NOT_COMMANDS = ("groups", "options", "kinds", "audit_outputs", "demo_stages")
+
+
 def _load_commands() -> None:
     for mod in pkgutil.iter_modules(__path__):
-        if not mod.name.startswith("_") and mod.name not in ("groups", "options"):
+        if not mod.name.startswith("_") and mod.name not in _NOT_COMMANDS:
             importlib.import_module(f"{__name__}.{mod.name}")
 
 

@@ -8,7 +8,6 @@ import tempfile
 from pathlib import Path
 
 import click
-import numpy as np
 
 from appeal.cells import write_table
 from appeal.errors import AppealInputError
@@ -30,13 +29,15 @@ def _parse_background(value: str) -> float | None:
     return b
 
 
-def _face_masks(folder: Path, images: list[np.ndarray], files: list[str], region: str) -> tuple[list[np.ndarray], str]:
+def _face_masks(folder: Path, images: list, files: list[str], region: str) -> tuple[list, str]:
     """The masks to equalise inside and how they were made: ``region == "image"``, every whole
     image; else a rendered grid's from ``folder/grid.json`` (:func:`stimulus_engine.audit.masks.rendered_face_mask`:
     the framing's face oval minus the background), else photographs' from their dlib landmarks
     (the convex hull, :func:`stimulus_engine.audit.masks.landmark_face_mask`), as
     ``appeal stimuli audit`` makes them; an image without a face (a house, an object, noise) is
     matched as a whole, and one warning line lists those."""
+    import numpy as np
+
     from appeal.logs import logger
     from stimulus_engine.audit.masks import (find_landmarks, grid_render_settings, landmark_face_mask,
                                              rendered_face_mask, whole_image_mask)
@@ -99,6 +100,7 @@ def equalise(manifest: Path, method: str, grey: bool, background: str, region: s
     (pixels do not move: appeal stimuli audit DIR measures the equalised set inside the same
     face masks). Nothing is written when an input is bad.
     """
+    import numpy as np
     import pandas as pd
 
     from appeal.outputs import output_run

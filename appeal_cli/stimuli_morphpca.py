@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 
 import click
-import numpy as np
 
 from appeal.atomic import atomic_write_text
 from appeal_cli.groups import CONTEXT, stimuli
@@ -134,8 +133,9 @@ def pair(neutral, expressive, out, force, resume, n_frames, size, json_path) -> 
         t0 = time.perf_counter()
         model, frames, _, _ = pair_expression_model(files[0], files[1], run.out, size=shape, n_frames=n_frames)
         rec = model.reconstruct(model.loadings)
+        psnrs = [psnr(a, b) for a, b in zip(rec, frames)]
         metrics = {"frames": n_frames, "n_components": model.n_components,
-                   "train_psnr_db": float(np.mean([psnr(a, b) for a, b in zip(rec, frames)])),
+                   "train_psnr_db": float(sum(psnrs) / len(psnrs)),
                    "seconds": time.perf_counter() - t0}
         _write_metrics(run, metrics, json_path)
     click.echo(f"{run.out / 'model.npz'}: {n_frames} frames, {model.n_components} components")

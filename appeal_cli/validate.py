@@ -7,7 +7,6 @@ from pathlib import Path
 import click
 
 from appeal_cli.groups import CONTEXT, cli
-from appeal_cli.kinds import input_problems, load_any_study_file
 from appeal.errors import AppealInputError
 
 
@@ -28,6 +27,8 @@ def validate(files: tuple[Path, ...], schema_only: bool) -> None:
     including inputs produced by an earlier stage, such as a protocol's stimulus manifest and
     images (skip those with --schema-only). Exits 2 if any file has a problem.
     """
+    from appeal_cli.kinds import input_problems, load_any_study_file  # pydantic and the schemas: when it runs
+
     problems: list[str] = []
     for f in files:
         try:
