@@ -37,6 +37,14 @@ def test_help_imports_nothing_heavy(args):
     assert not own, f"appeal {' '.join(args)} imported {own[:8]}"
 
 
+@pytest.mark.parametrize("args", [("--help",), ("analyze", "revcorr", "--help"), ("validate", "--help")])
+def test_help_of_the_command_line_imports_neither_numpy_nor_pydantic(args):
+    """Finding the commands imports the command modules only (not their helpers), and they import
+    NumPy, pandas and the study-file schemas when they run."""
+    mods = set(_imported(*args))
+    assert not {"numpy", "pandas", "pydantic", "appeal.studyfile"} & mods, sorted(mods)[:20]
+
+
 def test_public_names_still_load_on_first_use():
     import stimulus_engine
     from stimulus_engine import characters
