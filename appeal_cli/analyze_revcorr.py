@@ -43,8 +43,10 @@ def revcorr(data: str, subject: str, levels: tuple[str, ...], permutations: int,
     the model (AUs at p < alpha that make the answer likelier) and a logistic classification
     image; for the model's AUs their temporal parameters on the trials so answered and the
     correlation of their amplitude with the intensity; across participants the share whose
-    model holds each AU and the models' pairwise Hamming distance. Writes models.csv,
-    logistic.csv, temporal.csv, consensus.csv, agreement.csv, consensus*.png, one figure per
+    model holds each AU and the models' pairwise Hamming distance; with one --level column,
+    a mixed model per emotion x AU of whether the level changes MI, and each participant's
+    changes between levels. Writes models.csv, logistic.csv, temporal.csv, consensus.csv,
+    agreement.csv, level_effects.csv, level_agreement.csv, consensus*.png, a figure per
     participant under figures/, report.md and index.html in DIR (docs/revcorr.md).
     """
     from analysis.revcorr.study import analyze_revcorr

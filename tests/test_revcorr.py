@@ -191,6 +191,14 @@ def test_cli_finds_each_participants_models_per_level_from_bids_files(tmp_path):
     assert set(agreement.columns) >= {"shape", "emotion", "participants", "mean_hamming"} and len(agreement) == 12
     assert len(list((out / "figures").glob("sub-*_models.png"))) == 4 and (out / "consensus_shape-stylised.png").is_file()
     assert "happy (shape stylised): AUs in at least half of the models: AU6, AU12, AU26" in (out / "report.md").read_text()
+    changes = pd.read_csv(out / "level_agreement.csv", dtype={"participant_id": str}).fillna("")
+    for pid in ("P0", "P1"):
+        row = changes[(changes["participant_id"] == pid) & (changes["emotion"] == "happy")].iloc[0]
+        assert (row["level_a"], row["level_b"], row["only_b"]) == ("realistic", "stylised", "AU26")
+    effects = pd.read_csv(out / "level_effects.csv").set_index(["emotion", "au"])
+    assert len(effects) == 6 * 16 and {"F", "p", "q", "mi_realistic", "share_stylised"} <= set(effects.columns)
+    jaw = effects.loc[("happy", "AU26")]
+    assert jaw["share_stylised"] == 1.0 and jaw["share_realistic"] == 0.0 and jaw["mi_stylised"] > jaw["mi_realistic"]
 
 
 @pytest.mark.parametrize("change, message", [

@@ -7,7 +7,9 @@ model, :func:`temporal_profiles` averages the six temporal parameters over the t
 that emotion on which the AU moved (beside the same average over every trial it moved on) and
 correlates its peak amplitude with the intensity rating (Spearman). Across participants,
 :func:`consensus` is the share of participants whose model holds each AU and the mean pairwise
-Hamming distance between their models (AUs in one model and not the other).
+Hamming distance between their models (AUs in one model and not the other). With one level column
+and two participants or more, :mod:`analysis.revcorr.levels` tests whether the level changes the
+models (a mixed model of MI per emotion x AU) and lists each participant's changes.
 """
 
 from __future__ import annotations
@@ -38,6 +40,8 @@ class RevcorrResult:
     temporal: pd.DataFrame
     consensus: pd.DataFrame
     agreement: pd.DataFrame
+    level_effects: pd.DataFrame | None = None
+    level_agreement: pd.DataFrame | None = None
     files: list[Path] = field(default_factory=list)
     figures: list[Path] = field(default_factory=list)
     index_html: Path | None = None
@@ -154,10 +158,16 @@ def analyze_revcorr(data: RevcorrTrials, out: Path, *, subject: str = "participa
     models, logistic = order(pd.concat(model_rows, ignore_index=True)), order(pd.concat(logit_rows, ignore_index=True))
     temporal = order(pd.concat(temporal_rows, ignore_index=True))
     share, agreement = consensus(models, subject, data.levels)
-    files = []
-    for name, df in (("models", models), ("logistic", logistic), ("temporal", temporal), ("consensus", share),
-                     ("agreement", agreement)):
-        files.append(write_table(df, out / f"{name}.csv"))
+    effects = changes = None
+    tables = [("models", models), ("logistic", logistic), ("temporal", temporal), ("consensus", share),
+              ("agreement", agreement)]
+    if len(data.levels) == 1 and models[subject].nunique() >= 2:
+        from analysis.revcorr.levels import level_agreement, level_effects
+
+        effects = level_effects(models, subject, data.levels[0])
+        changes = level_agreement(models, subject, data.levels[0])
+        tables += [("level_effects", effects), ("level_agreement", changes)]
+    files = [write_table(df, out / f"{name}.csv") for name, df in tables]
     group_figs = []
     for key, sub in (share.groupby(list(data.levels), sort=True) if data.levels else [((), share)]):
         key = key if isinstance(key, tuple) else (key,)
@@ -176,9 +186,19 @@ def analyze_revcorr(data: RevcorrTrials, out: Path, *, subject: str = "participa
         text.append(f"- {row['emotion']}{' (' + lv + ')' if lv else ''}: AUs in at least half of the models: "
                     f"{', '.join(held) or 'none'}; mean model size {row['mean_model_size']:.1f}, "
                     f"mean pairwise Hamming distance {row['mean_hamming']:.1f}")
+    if effects is not None:
+        hits = effects[effects["q"] < 0.05]
+        text.append(f"\nDoes {data.levels[0]} change the models? Mixed model of MI per emotion x AU "
+                    "(mi ~ level + (1 | participant), Satterthwaite), Benjamini-Hochberg q over all tests: "
+                    + (", ".join(f"{r.emotion} {r.au} (F {r.F:.1f}, q {r.q:.3g})" for r in hits.itertuples())
+                       if len(hits) else "none at q < 0.05") + ".")
+        moved = changes[changes["hamming"] > 0]
+        text.append(f"Participants' models that differ between levels: {len(moved)} of {len(changes)} "
+                    "(participant x emotion x pair of levels; level_agreement.csv says which AUs).")
     sections = [ReportSection("Models", "\n".join(text), group_figs, files[:1] + files[3:]),
                 ReportSection("Participants", "Mutual information of each AU with each answer, per participant.",
                               figures, files[1:3])]
     (out / "report.md").write_text("# Reverse correlation\n\n" + "\n".join(text) + "\n", encoding="utf-8")
     html = write_index_html(out / "index.html", "Reverse correlation: AU models of the expressions", sections)
-    return RevcorrResult(models, logistic, temporal, share, agreement, files, group_figs + figures, html)
+    return RevcorrResult(models, logistic, temporal, share, agreement, effects, changes, files, group_figs + figures,
+                         html)
