@@ -50,11 +50,12 @@ def lmm(data, formula, factors, ddf, ml, emm, json_out):
 
     from analysis.stats.formula import FormulaError
     from analysis.stats.lmm import fit_lmm
-    from analysis.stats.lmm_anova import inference, lmm_anova
-    from analysis.stats.lmm_emmeans import emm_pairs, emmeans
-    from analysis.stats.lmm_report import coefficient_table
-    from analysis.stats.study import json_records
+    from analysis.stats.lmm_anova import coefficient_table, inference, lmm_anova
+    from analysis.stats.records import json_records
     from appeal.atomic import atomic_write_text
+
+    if emm:  # scipy.stats (the studentized range) loads only for the marginal means
+        from analysis.stats.lmm_emmeans import emm_pairs, emmeans
 
     table = _load(data)
     source = table.attrs.get("source", data)

@@ -115,3 +115,16 @@ def inference(fit: LmmFit, ddf: str = "satterthwaite"):
         return kenward_roger(fit)
     raise ValueError(f"ddf must be 'satterthwaite' or 'kenward-roger', not {ddf!r}")
 
+
+def coefficient_table(fit: LmmFit, tests) -> pd.DataFrame:
+    """Fixed effects with SE, df, t and p (``summary(lmerTest::lmer(...))$coefficients``); ``tests``
+    is :func:`inference`'s df machinery. The two-sided p is ``2 * stdtr(df, -|t|)``
+    (:func:`scipy.special.stdtr`, the t distribution's CDF, without loading scipy.stats)."""
+    from scipy import special
+
+    eye = np.eye(len(fit.beta))
+    se = np.sqrt(np.diag(tests.vcov))
+    df = np.array([tests.ddf(e) for e in eye])
+    t = fit.beta / se
+    return pd.DataFrame({"term": fit.mm.columns, "estimate": fit.beta, "se": se, "df": df, "t": t,
+                         "p": 2 * special.stdtr(df, -np.abs(t))})

@@ -15,11 +15,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from analysis.stats.covariates import MIXED_HINT, check_estimable
 from analysis.stats.lmm import LmmFit
-from analysis.stats.lmm_anova import inference, lmm_anova
+from analysis.stats.lmm_anova import coefficient_table, inference, lmm_anova
 from analysis.stats.lmm_emmeans import emm_pairs, emmeans
 from analysis.stats.plots import interaction_plot
 from analysis.stats.random_structures import fit_with_fallback, structure_table
@@ -54,16 +53,6 @@ def covariate_text(coefs: pd.DataFrame, covariates: Sequence[str], means: Mappin
              for c in covariates]
     return ("Covariates (stimulus audit measures, centred at their grand mean, so the factor tests and EMMs hold at "
             "the mean covariate): " + "; ".join(parts) + ".")
-
-
-def coefficient_table(fit: LmmFit, tests) -> pd.DataFrame:
-    """Fixed effects with SE, df, t and p (``summary(lmerTest::lmer(...))$coefficients``)."""
-    eye = np.eye(len(fit.beta))
-    se = np.sqrt(np.diag(tests.vcov))
-    df = np.array([tests.ddf(e) for e in eye])
-    t = fit.beta / se
-    return pd.DataFrame({"term": fit.mm.columns, "estimate": fit.beta, "se": se, "df": df, "t": t,
-                         "p": 2 * stats.t.sf(np.abs(t), df)})
 
 
 def lmm_section(data: pd.DataFrame, response: str, label: str, factors: Sequence[str], groups: Sequence[str],
