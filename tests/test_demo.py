@@ -70,7 +70,7 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     assert "This stage failed" not in page
     names = [s.name for s in discover_stages()]
     assert {"environment", "grid", "design", "photo", "correspond", "part_morph", "avatar", "faces2d", "experiment",
-            "psychophysics", "ratings", "erp"} <= set(names)
+            "psychophysics", "ratings", "erp", "revcorr"} <= set(names)
     links = set(re.findall(r"(?:src|href)='([^'#]+)'", page))
     assert len(links) > 20
     missing = [link for link in links if not (out / link).exists()]
@@ -110,6 +110,10 @@ def test_whole_demo_every_stage_succeeds(tmp_path):
     photo = pd.read_csv(out / "photo" / "manifest.csv")
     assert len(photo) == 5 * 2 * 2 + 2 and (photo.status == "rendered").all()
     assert set(photo["gender"]) == {"female"} and "photo/contact_sheet.png" in links
+    # reverse correlation: simulated participants' AU models, the stylised level's jaw in happiness found
+    assert {"revcorr/analysis/index.html", "revcorr/analysis/consensus_shape-stylised.png"} <= links
+    changes = pd.read_csv(out / "revcorr" / "analysis" / "level_agreement.csv").fillna("")
+    assert changes[changes["emotion"] == "happy"]["only_b"].str.contains("AU26").all()
 
 
 def test_report_page_fits_a_laptop_screen(tmp_path):
