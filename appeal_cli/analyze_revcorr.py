@@ -54,9 +54,9 @@ def revcorr(data: str, subject: str, levels: tuple[str, ...], permutations: int,
     from appeal.outputs import output_run
 
     trials = read_revcorr_trials(data, subject, levels)  # every problem a one-line error before DIR exists
-    if permutations and permutations < int(1 / alpha) - 1:
+    if permutations and 1 / (1 + permutations) >= alpha:
         raise AppealInputError(f"--permutations {permutations}: too few for alpha {alpha} (the smallest p is "
-                               f"1 / (1 + shuffles); expected at least {int(1 / alpha)})")
+                               f"1 / (1 + shuffles); expected more than {1 / alpha - 1:g})")
     with output_run(out, force=force, resume=resume, seed=seed) as run:
         run.add_inputs(sorted(set(trials.table["source_file"])))
         run.extra.update({"participants": int(trials.table[subject].nunique()), "trials": len(trials.table),

@@ -38,9 +38,8 @@ def _face_masks(folder: Path, images: list, files: list[str], region: str) -> tu
     matched as a whole, and one warning line lists those."""
     import numpy as np
 
-    from appeal.logs import logger
-    from stimulus_engine.audit.masks import (find_landmarks, grid_render_settings, landmark_face_mask,
-                                             rendered_face_mask, whole_image_mask)
+    from stimulus_engine.audit.masks import (grid_render_settings, landmark_face_mask, landmarks_or_none,
+                                             rendered_face_mask, warn_faceless, whole_image_mask)
 
     if region == "image":
         return [whole_image_mask(im.shape) for im in images], "whole images"
@@ -48,15 +47,11 @@ def _face_masks(folder: Path, images: list, files: list[str], region: str) -> tu
     if render is None:
         masks, faceless = [], []
         for im, f in zip(images, files):
-            try:
-                masks.append(landmark_face_mask(im.shape, find_landmarks(im, f)))
-            except AppealInputError:
-                masks.append(whole_image_mask(im.shape))
+            landmarks = landmarks_or_none(im, f)
+            masks.append(whole_image_mask(im.shape) if landmarks is None else landmark_face_mask(im.shape, landmarks))
+            if landmarks is None:
                 faceless.append(f)
-        if faceless:
-            shown = ", ".join(faceless[:8]) + (f" and {len(faceless) - 8} more" if len(faceless) > 8 else "")
-            logger.warning("%d of %d images without a face (dlib): matched as whole images: %s", len(faceless),
-                           len(files), shown)
+        warn_faceless(faceless, len(files), "matched as whole images")
         return masks, "landmarks" + (f", {len(faceless)} whole images" if faceless else "")
     size = (int(render["height"]), int(render["width"]))
     return [rendered_face_mask(im, render["width"], render["height"], render["eye_row"], render["face_fraction"],

@@ -105,11 +105,12 @@ def _item_ids(table: pd.DataFrame, factor: str, factors: Sequence[str], item: Se
         cols = list(item)
     else:
         cols = [f for f in factors if f != factor and _crossed(table, factor, f)]
-    if not cols and [f for f in factors if f != factor]:
+    if cols:
+        return table[cols].astype(str).agg(" / ".join, axis=1)
+    if any(f != factor for f in factors):
         return pd.Series(["all"] * len(table), index=table.index)
-    if not cols:  # the only factor (faces vs houses, say): each image is an item
-        return table["file"].astype(str) if "file" in table else pd.Series(table.index.astype(str), index=table.index)
-    return table[cols].astype(str).agg(" / ".join, axis=1)
+    # the only factor (faces vs houses, say): each image is an item
+    return table["file"].astype(str) if "file" in table else pd.Series(table.index.astype(str), index=table.index)
 
 
 def _rm_test(data: pd.DataFrame, factor: str, n_items: int) -> dict:

@@ -112,19 +112,17 @@ def simulated_table(observers: dict[str, object], n_trials: int, seed: int = 0,
     """The trials table simulated participants would leave: ``observers`` maps a participant id to
     a :class:`~appeal.revcorr.observers.TemplateObserver`, or, with ``levels`` (``{level value:
     {participant: observer}}``, a column ``level``), one observer per participant and level."""
-    from appeal.revcorr.grammar import draw_trials
-    from appeal.revcorr.observers import amplitude_matrix
+    from analysis.revcorr.planning import simulate_participant
 
     plan = {None: observers} if levels is None else levels
     frames = []
     for k, (level, group) in enumerate(plan.items()):
         for j, (pid, obs) in enumerate(group.items()):
             s = seed + 1000 * j + k
-            trials = draw_trials(s, n_trials, aus=obs.aus)
-            answers, intensity = obs.respond(amplitude_matrix(trials, obs.aus))
+            session = simulate_participant(obs, n_trials, s)
             df = pd.DataFrame({"participant_id": pid, "trial": np.arange(n_trials), "revcorr_seed": s,
-                               "revcorr_trial": np.arange(n_trials), "response": answers,
-                               "intensity": np.where(intensity > 0, intensity.astype(float), np.nan)})
+                               "revcorr_trial": np.arange(n_trials), "response": session.answers,
+                               "intensity": np.where(session.intensity > 0, session.intensity.astype(float), np.nan)})
             if level is not None:
                 df.insert(1, "level", level)
             frames.append(df)

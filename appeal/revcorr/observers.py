@@ -96,22 +96,23 @@ class TemplateObserver:
 
     def evidence(self, amplitudes: NDArray) -> NDArray:
         """Noise-free evidence ``(n_trials, n_emotions)`` for each emotion."""
-        t = self.template_matrix()
-        size = t.sum(axis=0)
-        return (amplitudes @ t - self.antagonism * amplitudes @ (1 - t)) / size
+        return self._evidence(np.asarray(amplitudes, float), self.template_matrix())
+
+    def _evidence(self, a: NDArray, t: NDArray) -> NDArray:
+        return (a @ t - self.antagonism * a @ (1 - t)) / t.sum(axis=0)
 
     def respond(self, amplitudes: NDArray) -> tuple[NDArray, NDArray]:
         """Answers (emotion names or :data:`DONT_KNOW`) and intensities (1-5; 0 for "don't know")
         to trials with these AU amplitudes (:func:`amplitude_matrix`)."""
         a = np.atleast_2d(np.asarray(amplitudes, float))
-        ev = self.evidence(a) + self.rng.normal(0.0, self.noise, (len(a), len(self.templates)))
+        t = self.template_matrix()
+        ev = self._evidence(a, t) + self.rng.normal(0.0, self.noise, (len(a), len(self.templates)))
         best = ev.argmax(axis=1)
         top = ev[np.arange(len(a)), best]
         names = np.array([*self.emotions, DONT_KNOW], dtype=object)
         choice = np.where(top >= self.criterion, best, len(self.emotions))
         lapses = self.rng.random(len(a)) < self.lapse
         choice = np.where(lapses, self.rng.integers(0, len(self.emotions) + 1, len(a)), choice)
-        t = self.template_matrix()
         named = t[:, np.minimum(choice, len(self.emotions) - 1)].T  # (n_trials, n_aus): the named template
         moved = (a > 0) * named
         mean_amp = np.where(moved.sum(axis=1) > 0, (a * moved).sum(axis=1) / np.maximum(moved.sum(axis=1), 1), 0.2)

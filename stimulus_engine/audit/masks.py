@@ -20,6 +20,7 @@ import numpy as np
 from appeal.errors import AppealInputError
 
 __all__ = ["BACKGROUND_TOLERANCE", "oval_mask", "background_mask", "rendered_face_mask", "find_landmarks",
+           "landmarks_or_none", "warn_faceless",
            "grid_render_settings", "landmark_face_mask", "whole_image_mask"]
 
 #: A pixel is background when every channel is within this many 8-bit levels of the background colour.
@@ -91,6 +92,24 @@ def find_landmarks(image: np.ndarray, name: str) -> np.ndarray:
     except AppealInputError:
         raise AppealInputError(f"{name}: no face found by the dlib landmark detector (expected a frontal "
                                "face photograph)") from None
+
+
+def landmarks_or_none(image: np.ndarray, name: str) -> np.ndarray | None:
+    """:func:`find_landmarks`, or None when dlib finds no face (a house, an object, noise)."""
+    try:
+        return find_landmarks(image, name)
+    except AppealInputError:
+        return None
+
+
+def warn_faceless(names: list[str], total: int, treatment: str) -> None:
+    """One warning line: how many of ``total`` images have no face, what is done with them
+    (``treatment``) and their names (the first eight, then a count)."""
+    from appeal.logs import logger
+
+    if names:
+        shown = ", ".join(names[:8]) + (f" and {len(names) - 8} more" if len(names) > 8 else "")
+        logger.warning("%d of %d images without a face (dlib): %s: %s", len(names), total, treatment, shown)
 
 
 def landmark_face_mask(shape: tuple[int, int], landmarks: np.ndarray) -> np.ndarray:

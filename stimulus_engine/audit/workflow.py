@@ -26,7 +26,6 @@ import numpy as np
 import pandas as pd
 
 from appeal.errors import AppealInputError
-from appeal.logs import logger
 from stimulus_engine.audit import masks as M
 from stimulus_engine.audit import measures as X
 
@@ -66,11 +65,8 @@ class AuditItem:
 def _found(item: AuditItem) -> AuditItem:
     """``item`` with its landmarks, or with mask ``none`` when dlib finds no face in it (an unreadable
     image stays an input error)."""
-    rgb = read_rgb(item.image)
-    try:
-        return AuditItem(item.file, item.image, item.row, item.mask, M.find_landmarks(rgb, str(item.image)))
-    except AppealInputError:
-        return AuditItem(item.file, item.image, item.row, "none", None)
+    landmarks = M.landmarks_or_none(read_rgb(item.image), str(item.image))
+    return AuditItem(item.file, item.image, item.row, item.mask if landmarks is not None else "none", landmarks)
 
 
 def _with_landmarks(items: list[AuditItem]) -> list[AuditItem]:
@@ -80,11 +76,8 @@ def _with_landmarks(items: list[AuditItem]) -> list[AuditItem]:
 
     found = [_found(it) if it.mask == "landmarks" else it
              for it in progress(items, total=len(items), desc="landmarks", unit="image")]
-    faceless = [it.file for it in found if it.mask == "none"]
-    if faceless:
-        shown = ", ".join(faceless[:8]) + (f" and {len(faceless) - 8} more" if len(faceless) > 8 else "")
-        logger.warning("%d of %d images without a face (dlib): whole-image measures only, face measures NaN: %s",
-                       len(faceless), len(found), shown)
+    M.warn_faceless([it.file for it in found if it.mask == "none"], len(found),
+                    "whole-image measures only, face measures NaN")
     return found
 
 
@@ -214,10 +207,8 @@ def _audit_item(item: AuditItem, render: dict[str, Any] | None) -> dict[str, Any
     elif item.mask == "rendered" and render is not None:
         face = M.rendered_face_mask(rgb, render["width"], render["height"], render["eye_row"],
                                     render["face_fraction"], tuple(render["background"]))
-        try:
-            landmarks: np.ndarray | None = M.find_landmarks(rgb, str(item.image))
-        except AppealInputError:
-            landmarks, warning = None, "no face found by dlib: eye positions NaN"
+        landmarks = M.landmarks_or_none(rgb, str(item.image))
+        warning = "" if landmarks is not None else "no face found by dlib: eye positions NaN"
     else:
         landmarks = item.landmarks if item.landmarks is not None else M.find_landmarks(rgb, str(item.image))
         face = M.landmark_face_mask(rgb.shape, landmarks)
