@@ -52,13 +52,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from appeal.revcorr.grammar import Trial
 from stimulus_engine.grid.cache import GRID_VERSION, file_sha, sha
 from stimulus_engine.grid.schema import AnimationSpec
 from stimulus_engine.grid.worker import RenderItem, render_image
 
 __all__ = ["EASINGS", "ClipItem", "apex_view", "clip_checksums", "clip_columns", "clip_frame_weights", "clip_geometry",
            "cosine", "clip_frames", "curve_text", "ease_out", "frame_file", "frame_keys", "frame_weights",
-           "frames_digest", "linear", "performance_curve", "performance_weights", "prepare_clip", "render_clip",
+           "frames_curve", "frames_digest", "linear", "performance_curve", "revcorr_clip", "revcorr_trial_table", "performance_weights", "prepare_clip", "render_clip",
            "smoothstep", "timeline", "weight_curve"]
 
 
@@ -134,12 +135,13 @@ def weight_curve(spec: AnimationSpec) -> np.ndarray:
     return w
 
 
-def timeline(spec: AnimationSpec) -> tuple[int, int, int]:
-    """``(n_frames, onset_frame, apex_frame)`` of a clip: the spec's, or a performance's (its rows;
-    the last frame before its activation first passes 5 % of its largest; the frame of the largest)."""
-    if spec.performance is None:
+def timeline(spec: AnimationSpec, curve: np.ndarray | None = None) -> tuple[int, int, int]:
+    """``(n_frames, onset_frame, apex_frame)`` of a clip: the spec's, or a performance's or a
+    reverse-correlation trial's (``curve``, its activation: the last frame before it first passes
+    5 % of its largest; the frame of the largest)."""
+    if spec.performance is None and curve is None:
         return spec.n_frames, spec.onset_frame, spec.apex_frame
-    curve = weight_curve(spec)
+    curve = weight_curve(spec) if curve is None else curve
     moving = np.flatnonzero(curve > 0.05)
     return len(curve), max(int(moving[0]) - 1, 0) if len(moving) else 0, int(np.argmax(curve))
 
@@ -201,6 +203,37 @@ def clip_frame_weights(spec: AnimationSpec, apex: dict[str, float]) -> list[dict
         return [frame_weights(apex, float(w)) for w in weight_curve(spec)]
     names, w = performance_weights(spec.performance, spec.fps)
     return [{n: float(x) for n, x in zip(names, row) if x != 0.0} for row in w]
+
+
+def revcorr_clip(spec: AnimationSpec, index: int) -> tuple[Trial, list[dict[str, float]]]:
+    """Trial ``index`` of ``spec.revcorr``'s pool (:func:`appeal.revcorr.grammar.draw_trial`) and its
+    frames' blendshape weights (``spec.revcorr.seconds`` at ``spec.fps``, both ends shown)."""
+    from appeal.revcorr.grammar import action_units, draw_trial
+    from stimulus_engine.characters.au_poses import clip_frames, trial_frame_weights
+
+    pool = spec.revcorr
+    trial = draw_trial(pool.seed, index, aus=action_units(pool.lateralised))
+    return trial, trial_frame_weights(trial, clip_frames(pool.seconds, spec.fps))
+
+
+def revcorr_trial_table(spec: AnimationSpec) -> pd.DataFrame:
+    """``revcorr_trials.csv`` of a pool: one row per trial and AU, the AU's six temporal parameters
+    (fractions of the clip; ``peak_amplitude`` of the AU), with the pool's seed, the clip's
+    ``seconds`` and ``fps``."""
+    from appeal.revcorr.grammar import action_units, draw_trial
+
+    pool = spec.revcorr
+    aus = action_units(pool.lateralised)
+    rows = [{"revcorr_seed": pool.seed, "revcorr_trial": i, "revcorr_lateralised": int(pool.lateralised),
+             **m.as_dict(), "seconds": pool.seconds, "fps": spec.fps}
+            for i in range(pool.first, pool.first + pool.trials) for m in draw_trial(pool.seed, i, aus=aus).motions]
+    return pd.DataFrame(rows)
+
+
+def frames_curve(frames: list[dict[str, float]]) -> np.ndarray:
+    """The activation of a clip given by its frames' weights (:func:`performance_curve` of them)."""
+    names = sorted({n for f in frames for n in f})
+    return performance_curve(np.array([[f.get(n, 0.0) for n in names] for f in frames]).reshape(len(frames), -1))
 
 
 def frame_keys(frames: list[dict[str, float]]) -> tuple[int, ...]:
@@ -279,6 +312,9 @@ class ClipItem:
     fps: int
     weights: tuple[float, ...]
     keys: tuple[int, ...]
+    #: the frames at rest (no blendshape moved): drawn once per process for every clip of the cell
+    #: (a reverse-correlation pool's clips start and end at rest)
+    rest: tuple[int, ...] = ()
 
     @property
     def file(self) -> str:
@@ -332,35 +368,46 @@ def clip_geometry(path: Path, frames: list[dict[str, float]], pose: Callable[[di
     return path
 
 
-def clip_columns(spec: AnimationSpec, stem: str) -> dict[str, object]:
-    """The manifest's clip columns of the cell ``stem`` (but its checksums, :func:`clip_checksums`)."""
-    n, onset, apex = timeline(spec)
+def clip_columns(spec: AnimationSpec, stem: str, curve: np.ndarray | None = None) -> dict[str, object]:
+    """The manifest's clip columns of the cell ``stem`` (but its checksums, :func:`clip_checksums`);
+    ``curve``: a reverse-correlation trial's activation (:func:`frames_curve`)."""
+    n, onset, apex = timeline(spec, curve)
     return {"file": f"clips/{stem}.mp4", "frames": f"clips/{stem}", "n_frames": n, "fps": spec.fps,
-            "onset_frame": onset, "apex_frame": apex, "weight_curve": curve_text(weight_curve(spec))}
+            "onset_frame": onset, "apex_frame": apex,
+            "weight_curve": curve_text(weight_curve(spec) if curve is None else curve)}
 
 
 def prepare_clip(still: RenderItem, row: dict, spec: AnimationSpec, cache: Path, frames: list[dict[str, float]],
-                 pose: Callable[[dict[str, float]], np.ndarray]) -> tuple[ClipItem, dict]:
+                 pose: Callable[[dict[str, float]], np.ndarray], trial: Trial | None = None) -> tuple[ClipItem, dict]:
     """A prepared still cell (its render item and manifest row) as a clip: its ``frames``' geometry
     (each frame's blendshape weights, :func:`clip_frame_weights`; ``pose``: weights -> the drawn
-    vertices) in ``cache/clips``, its render item and its row.
+    vertices) in ``cache/clips``, its render item and its row; ``trial``: the reverse-correlation
+    trial the frames play (:func:`revcorr_clip`; the row's file then ends in ``_rc<seed>-<trial>``).
 
     The clip's ``geometry_hash`` is that of the still's drawn geometry (everything deciding the
-    apex) with the curve (and a performance's content); its ``input_hash`` adds that to the
-    still's and the video settings.
+    apex) with the curve (and a performance's content or a trial's frames); its ``input_hash`` adds
+    that to the still's and the video settings.
     """
     from stimulus_engine.render.clip_video import VIDEO_SETTINGS
 
-    curve = weight_curve(spec)
+    curve = weight_curve(spec) if trial is None else frames_curve(frames)
     text = curve_text(curve)
-    played = () if spec.performance is None else ("performance", file_sha(spec.performance))
+    played = (() if spec.performance is None else ("performance", file_sha(spec.performance))) + (
+        () if trial is None else ("revcorr", sha(*(sorted(f.items()) for f in frames))))
     gh = sha(GRID_VERSION, "clip", Path(still.geometry_npy).stem, row["expression"], text, *played)
     path = clip_geometry(Path(cache) / "clips" / f"{gh}.npy", frames, pose)
-    cols = clip_columns(spec, Path(row["file"]).stem)
-    item = ClipItem(dataclasses.replace(still, file=str(cols["file"]), geometry_npy=str(path)), str(cols["frames"]),
-                    spec.fps, tuple(curve.tolist()), frame_keys(frames))
-    ih = sha(row["input_hash"], "clip", gh, spec.fps, VIDEO_SETTINGS)
-    return item, {**row, **cols, "geometry_hash": gh, "input_hash": ih}
+    stem = Path(row["file"]).stem + ("" if trial is None else f"_rc{trial.seed}-{trial.index:05d}")
+    cols = clip_columns(spec, stem, None if trial is None else curve)
+    blend = () if spec.occlusion == "frame" else (int(cols["apex_frame"]),)
+    item = ClipItem(dataclasses.replace(still, file=str(cols["file"]), geometry_npy=str(path), occlusion_blend=blend),
+                    str(cols["frames"]), spec.fps, tuple(curve.tolist()), frame_keys(frames),
+                    tuple(k for k, f in enumerate(frames) if not f) if trial is not None else ())
+    ih = sha(row["input_hash"], "clip", gh, spec.fps, VIDEO_SETTINGS, *(("occlusion", *blend) if blend else ()))
+    out = {**row, **cols, "geometry_hash": gh, "input_hash": ih}
+    if trial is not None:
+        out.update(revcorr_seed=trial.seed, revcorr_trial=trial.index,
+                   revcorr_lateralised=int(spec.revcorr.lateralised), revcorr_aus=";".join(trial.aus))
+    return item, out
 
 
 # ---------------------------------------------------------------------------------- rendering
@@ -372,9 +419,28 @@ def clip_frames(item: ClipItem, folder: Path) -> Iterator[np.ndarray]:
     last, image = None, None
     for k, key in enumerate(item.keys):
         if key != last:
-            image, last = render_image(dataclasses.replace(item.still, frame=k)), key
+            image, last = _frame_image(item, k), key
         save_png(image, folder / frame_file(k))
         yield image
+
+
+#: Rendered rest frames by their cell (:attr:`ClipItem.rest`), a few kept per worker process.
+_REST_IMAGES: dict[str, np.ndarray] = {}
+
+
+def _frame_image(item: ClipItem, k: int) -> np.ndarray:
+    """Frame ``k`` of ``item`` rendered, or the cell's rest frame drawn before (same rig, look and
+    camera, no blendshape moved: the same pixels)."""
+    frame = dataclasses.replace(item.still, frame=k)
+    if k not in item.rest:
+        return render_image(frame)
+    key = sha(dataclasses.replace(item.still, file="", geometry_npy="", occlusion_blend=()),
+              np.asarray(frame.geometry(), np.float32).tobytes())
+    if key not in _REST_IMAGES:
+        if len(_REST_IMAGES) >= 8:
+            _REST_IMAGES.pop(next(iter(_REST_IMAGES)))
+        _REST_IMAGES[key] = render_image(frame)
+    return _REST_IMAGES[key]
 
 
 def _fresh_folder(final: Path) -> Path:

@@ -357,25 +357,39 @@ def _geometry(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
     return gp, gh
 
 
-def _as_clip(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFile, target: np.ndarray | None,
-             teeth: dict[str, np.ndarray], cache: Path, source: str, still: RenderItem,
-             row: dict) -> tuple[ClipItem, dict]:
-    """The prepared still cell ``still``/``row`` as a clip of ``grid.animation``
-    (:func:`stimulus_engine.grid.animation.prepare_clip`): every frame its apex weights times the
-    curve's (or a performance's row), through :func:`cell_vertices` like the still."""
+def _as_clips(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFile, target: np.ndarray | None,
+              teeth: dict[str, np.ndarray], cache: Path, source: str, still: RenderItem,
+              row: dict) -> list[tuple[ClipItem, dict]]:
+    """The prepared still cell ``still``/``row`` as the clips of ``grid.animation``
+    (:func:`stimulus_engine.grid.animation.prepare_clip`): one whose every frame is its apex
+    weights times the curve's (or a performance's row), or with ``animation.revcorr`` one per trial
+    of the pool (:func:`stimulus_engine.grid.animation.revcorr_clip`), each frame through
+    :func:`cell_vertices` like the still."""
     from stimulus_engine.characters.expressions import expression_weights
-    from stimulus_engine.grid.animation import clip_frame_weights, prepare_clip
+    from stimulus_engine.grid.animation import clip_frame_weights, prepare_clip, revcorr_clip
 
-    apex = expression_weights(im.expression, grid.render.intensity)
-    frames = clip_frame_weights(grid.animation, apex)
-    perf = grid.animation.performance
-    unknown = sorted({n for f in frames for n in f} - set(ch.expression_rig.blendshapes))
-    if perf is not None and unknown:
-        raise AppealInputError(f"{perf}: column '{unknown[0]}' is not a blendshape of character '{im.character}' "
-                               f"(expected frame, time or one of: {', '.join(sorted(ch.expression_rig.blendshapes))})")
+    anim = grid.animation
     what = (f"{source}: characters.{im.character}", im.expression)
-    return prepare_clip(still, row, grid.animation, cache, frames, lambda w: cell_vertices(
-        ch, im.shape, shape_v, w, grid, target, teeth, what))
+
+    def pose(w: dict[str, float]) -> np.ndarray:
+        return cell_vertices(ch, im.shape, shape_v, w, grid, target, teeth, what)
+
+    if anim.revcorr is not None:
+        pool = anim.revcorr
+        played = [revcorr_clip(anim, i) for i in range(pool.first, pool.first + pool.trials)]
+        missing = sorted({n for _, frames in played for f in frames for n in f} - set(ch.expression_rig.blendshapes))
+        if missing:
+            raise AppealInputError(f"{source}: animation.revcorr: character '{im.character}' has no blendshape "
+                                   f"'{missing[0]}' (its rig cannot play the grammar's action units)")
+        return [prepare_clip(still, row, anim, cache, frames, pose, trial) for trial, frames in played]
+    apex = expression_weights(im.expression, grid.render.intensity)
+    frames = clip_frame_weights(anim, apex)
+    unknown = sorted({n for f in frames for n in f} - set(ch.expression_rig.blendshapes))
+    if anim.performance is not None and unknown:
+        raise AppealInputError(f"{anim.performance}: column '{unknown[0]}' is not a blendshape of character "
+                               f"'{im.character}' (expected frame, time or one of: "
+                               f"{', '.join(sorted(ch.expression_rig.blendshapes))})")
+    return [prepare_clip(still, row, anim, cache, frames, pose)]
 
 
 def _eye_style(grid: GridFile, im: PlannedImage) -> tuple[float, float] | tuple[()]:
@@ -570,8 +584,9 @@ def prepare_grid(grid: GridFile, out: Path, *, source: str = "grid", cache: Path
                      "shading": im.shading, "geometry_hash": gh, "albedo_hash": look.albedo_hash,
                      "maps_hash": look.maps_hash, "input_hash": ih, "camera": _camera_text(cam),
                      "width": r.width, "height": r.height})
-        if grid.animation is not None:  # the cell as a clip
-            items[-1], rows[-1] = _as_clip(ch, im, shape_v, grid, target, uppers, cache, source, items[-1], rows[-1])
+        if grid.animation is not None:  # the cell as a clip (a reverse-correlation pool's: a clip per trial)
+            clips = _as_clips(ch, im, shape_v, grid, target, uppers, cache, source, items[-1], rows[-1])
+            items[-1:], rows[-1:] = [c[0] for c in clips], [c[1] for c in clips]
     for p in plan_photos(grid):
         rows.append({"file": p.file, "character": p.character, "shape": "photograph", "shape_label": "photograph",
                      "stylisation": len(grid.shape_levels()), "material": "photograph",

@@ -14,7 +14,7 @@ import pandas as pd
 from appeal.atomic import atomic_write_text
 from appeal.cells import write_table
 from appeal.logs import logger
-from stimulus_engine.grid.animation import apex_view, clip_checksums, render_clip
+from stimulus_engine.grid.animation import apex_view, clip_checksums, render_clip, revcorr_trial_table
 from stimulus_engine.grid.designs import grid_characters
 from stimulus_engine.grid.continuum import continuum_table, write_continuum
 from stimulus_engine.grid.expression_measures import write_expression_measures
@@ -116,16 +116,26 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     manifest = manifest.drop(columns=[c for c in manifest.columns if c.startswith("_")])
     if animated:
         manifest = clip_checksums(out, manifest)
-    stills = apex_view(manifest)  # a clip shown by its apex frame
+    shown = manifest
+    if animated and grid.animation.revcorr is not None:  # a pool: its trials' parameters, its first trial shown
+        pool = grid.animation.revcorr
+        write_table(revcorr_trial_table(grid.animation), out / "revcorr_trials.csv")
+        shown = manifest[manifest["revcorr_trial"] == pool.first].reset_index(drop=True)
+    stills = apex_view(shown)  # a clip shown by its apex frame
     continuum = continuum_table(out, stills, grid, landmarks)
     if not continuum.empty:  # each measured image's identity distance to its character's realistic level
-        manifest["identity_to_realistic"] = stills["file"].map(
-            continuum.drop_duplicates("file").set_index("file")["identity_to_realistic"])
+        distance = stills["file"].map(continuum.drop_duplicates("file").set_index("file")["identity_to_realistic"])
+        if shown is manifest:
+            manifest["identity_to_realistic"] = distance
+        else:  # a pool's clips of one cell share its first trial's measure
+            cells = ["character", "shape", "material"]
+            per_cell = dict(zip(map(tuple, shown[cells].to_numpy()), distance))
+            manifest["identity_to_realistic"] = [per_cell.get(tuple(k)) for k in manifest[cells].to_numpy()]
     write_table(manifest, out / "manifest.csv")
     write_table(landmarks, out / "landmarks.csv")
     atomic_write_text(out / "grid.json", json.dumps(grid.model_dump(mode="json"), indent=2))
     manifest.attrs["grid"] = grid
-    sheets = (write_sheets(out, stills, grid) + (write_filmstrips(out, manifest, grid) if animated else [])
+    sheets = (write_sheets(out, stills, grid) + (write_filmstrips(out, shown, grid) if animated else [])
               + write_continuum(out, continuum, grid)[1:])
     sheets += write_expression_measures(out, landmarks, grid)[2:]  # how far each expression moves the face, per level
     if res.failures:

@@ -55,6 +55,7 @@ PHOTO_DEFAULTS = {"ict": "data:ict-facekit", "identity_model": "data:ict-facekit
 __all__ = [
     "PHOTO_DEFAULTS",
     "AnimationSpec",
+    "RevcorrPoolSpec",
     "CharacterSpec",
     "DesignSpec",
     "GridFile",
@@ -539,6 +540,33 @@ def frame_at(seconds: float, fps: int) -> int:
     return int(math.floor(seconds * fps + 0.5 + 1e-9))
 
 
+class RevcorrPoolSpec(StudyModel):
+    """``animation.revcorr``: a reverse-correlation pool (issue 53, :mod:`appeal.revcorr.grammar`).
+
+    Every cell becomes ``trials`` clips, trial ``i`` of the grammar drawn from ``SeedSequence([seed,
+    i])`` (``first`` .. ``first + trials - 1``) and played on the cell for ``seconds`` at the grid's
+    ``fps`` (both ends shown: 1.25 s at 30 fps is 39 frames); each AU moves its FACS recipe's
+    blendshapes (:func:`stimulus_engine.characters.au_poses.trial_frame_weights`). Every level of
+    the grid plays the same trials, so a participant's answers on two levels are answers to the
+    same facial movements. The manifest names each clip's ``revcorr_seed``, ``revcorr_trial``,
+    ``revcorr_lateralised`` and ``revcorr_aus``; ``revcorr_trials.csv`` beside it holds every
+    trial's AUs with their six temporal parameters.
+    """
+
+    seed: int = Field(ge=0, le=2 ** 31 - 1, description="the pool's seed (trial i is drawn from SeedSequence([seed, i]))")
+    trials: int = Field(ge=1, le=100_000, description="clips per cell")
+    first: int = Field(0, ge=0, le=100_000, description="the first trial's index (pools made in parts)")
+    seconds: float = Field(1.25, gt=0, le=10.0, description="a clip's length (Jack et al.: 1.25 s)")
+    lateralised: bool = Field(False, description="draw each side of a bilateral AU as its own AU (31 AUs, not 16)")
+
+    @model_validator(mode="after")
+    def _range(self) -> RevcorrPoolSpec:
+        if self.first + self.trials > 100_000:
+            raise ValueError(f"first + trials: {self.first + self.trials} (expected trial numbers 0..100000, as "
+                             "'appeal analyze revcorr' reads them)")
+        return self
+
+
 class AnimationSpec(StudyModel):
     """``animation:``: every cell rendered as a short clip from neutral to its apex, all cells
     sharing one weight curve w(t) in [0, 1] (:func:`stimulus_engine.grid.animation.weight_curve`).
@@ -574,6 +602,13 @@ class AnimationSpec(StudyModel):
         None, description="a CSV of blendshape weights per frame (frame, optional time in s, one column per "
                           "blendshape: what 'appeal stimuli retarget' writes, or a face tracker's ARKit "
                           "coefficients), played in every cell instead of the curve; one row per frame at fps")
+    revcorr: RevcorrPoolSpec | None = Field(
+        None, description="a reverse-correlation pool: every cell as 'trials' clips of random action units "
+                          "(appeal.revcorr.grammar), the same trials on every level")
+    occlusion: Literal["frame", "blend"] = Field(
+        "frame", description="ambient occlusion of a clip's frames: baked for every frame, or baked at the first "
+                             "frame and the apex and blended per vertex by how far it has moved towards the apex "
+                             "(a third of a frame's time here; measured by benchmarks/revcorr_clips.py)")
 
     @field_validator("expression")
     @classmethod
@@ -737,6 +772,11 @@ class GridFile(StudyModel):
         if anim.performance is not None and (anim.expression != "cell" or len(self.expressions) != 1):
             raise ValueError("animation.performance plays one performance in every cell: expected expression: cell "
                              f"and one entry in 'expressions', its name (got {len(self.expressions)})")
+        if anim.revcorr is not None and (anim.performance is not None or anim.expression != "cell"
+                                         or len(self.expressions) != 1):
+            raise ValueError("animation.revcorr plays the grammar's random action units in every cell: expected no "
+                             "performance, expression: cell and one entry in 'expressions' (the neutral face they "
+                             f"start from; got {len(self.expressions)})")
         if anim.expression != "cell" and len(self.expressions) != 1:
             raise ValueError(f"animation.expression '{anim.expression}' animates every cell alike: expected one "
                              f"entry in 'expressions' (got {len(self.expressions)}), or expression: cell")

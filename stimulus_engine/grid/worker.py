@@ -53,6 +53,9 @@ class RenderItem:
     frame: int = -1
     #: a photo character's surround stylised with the material ("": none, or the rig's own)
     surround_png: str = ""
+    #: a clip frame's ambient occlusion: () baked for the frame; (apex,) blended between frame 0's and
+    #: frame ``apex``'s (:func:`blended_occlusion`; ``animation.occlusion: blend``)
+    occlusion_blend: tuple = ()
 
     def outputs(self) -> list[str]:
         """The files the render writes, relative to ``out_dir``."""
@@ -133,6 +136,38 @@ def _occlusion(rig, vertices: np.ndarray, geometry_npy: str, inside_only: bool =
     return occ
 
 
+def blend_fraction(v: np.ndarray, v0: np.ndarray, apex: np.ndarray, floor: float = 1e-4) -> np.ndarray:
+    """Per vertex, how far ``v`` has moved from ``v0`` towards ``apex``: ``|v - v0| / |apex - v0|``
+    clipped to [0, 1] (1 where the apex does not move the vertex but ``v`` does; 0 where neither
+    moves more than ``floor``).
+
+    Examples
+    --------
+    >>> v0 = np.zeros((3, 3)); apex = np.array([[1.0, 0, 0], [0, 0, 0], [0, 2.0, 0]])
+    >>> blend_fraction(np.array([[0.5, 0, 0], [0, 0.3, 0], [0, 3.0, 0]]), v0, apex).tolist()
+    [0.5, 1.0, 1.0]
+    """
+    moved = np.linalg.norm(v - v0, axis=1)
+    full = np.linalg.norm(apex - v0, axis=1)
+    return np.where(moved <= floor, 0.0, np.clip(moved / np.maximum(full, floor), 0.0, 1.0))
+
+
+def blended_occlusion(rig, item: RenderItem, inside_only: bool) -> np.ndarray:
+    """A clip frame's ambient visibility blended from the baked visibility of the clip's first frame
+    and of its apex (``item.occlusion_blend``), per vertex by :func:`blend_fraction`: a third of a
+    frame's time saved where a clip's frames would each be baked (benchmarks/revcorr_clips.py
+    measures the images' difference)."""
+    from stimulus_engine.grid.cache import sha
+
+    (apex,) = item.occlusion_blend
+    ends = [dataclasses.replace(item, frame=k, occlusion_blend=()).geometry() for k in (0, apex)]
+    folder = Path(item.geometry_npy).parent
+    # kept by the geometry's content: the neutral first frame of every clip of a cell is baked once
+    o0, oa = (_occlusion(rig, v, str(folder / f"{sha(v.tobytes())}.npy"), inside_only) for v in ends)
+    a = blend_fraction(item.geometry(), *ends)
+    return (o0 + (oa - o0) * a).astype(np.float32)
+
+
 def item_scene(item: RenderItem) -> tuple[list, object]:
     """The render parts and the camera of ``item`` (the scene both engines draw)."""
     from stimulus_engine.characters.render_parts import (
@@ -150,7 +185,10 @@ def item_scene(item: RenderItem) -> tuple[list, object]:
     # baked ambient visibility: skin (and toon) shading's ambient light, and a mouth's inside in every shading
     inside_only = item.shading not in SKIN_LIKE
     wanted = not inside_only or any(p in rig.part_names for p in INSIDE_PARTS)
-    occlusion = _occlusion(rig, v, item.geometry_key(), inside_only) if wanted and item.engine == "pyrender" else None
+    occlusion = None
+    if wanted and item.engine == "pyrender":
+        occlusion = (blended_occlusion(rig, item, inside_only) if item.occlusion_blend and item.frame >= 0
+                     else _occlusion(rig, v, item.geometry_key(), inside_only))
     parts = rig_render_parts(rig, v, _image(item.albedo_png), shading=item.shading,
                              normal_map=_map_image(item.normal_png, "normal"),
                              specular_map=_map_image(item.specular_png, "specular"), occlusion=occlusion,
