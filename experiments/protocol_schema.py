@@ -21,7 +21,7 @@ from appeal.triggers import trigger_table
 __all__ = [
     "Protocol", "StimulusSource", "Selection", "ScreenSpec", "TimingSpec", "OrderSpec", "BreakSpec",
     "LikertSpec", "ClassificationSpec", "ChoiceSpec", "ExtraTrialsSpec", "TriggerSpec",
-    "DemographicItem", "PsychophysicsSpec", "ProcedureSpec", "PAIR_CHOICES",
+    "DemographicItem", "PsychophysicsSpec", "ProcedureSpec", "PAIR_CHOICES", "RevcorrSpec", "REVCORR_COLUMNS",
 ]
 
 Name = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)]
@@ -386,6 +386,29 @@ class PsychophysicsSpec(StudyModel):
         return PAIR_CHOICES[(self.task, self.presentation)]
 
 
+#: The pool columns a ``revcorr:`` protocol records with every trial (added to ``stimuli.factors``).
+REVCORR_COLUMNS: tuple[str, ...] = ("revcorr_seed", "revcorr_trial", "revcorr_lateralised")
+
+
+class RevcorrSpec(StudyModel):
+    """``revcorr:``: a reverse-correlation session (Jack et al. 2012; docs/revcorr.md).
+
+    The stimuli are a pool of clips of random action units, rendered by a grid with
+    ``animation.revcorr`` (its manifest names each clip's ``revcorr_seed``, ``revcorr_trial`` and
+    ``revcorr_lateralised``); those columns are recorded with every trial (the protocol adds them
+    to ``stimuli.factors``), so ``appeal analyze revcorr`` draws every trial's AUs again from the
+    data file alone. The one response is a classification among the six basic emotions and "don't
+    know" (values ``happy``, ``surprise``, ``fear``, ``disgust``, ``anger``, ``sad``,
+    ``dont_know``) with a 5-point intensity scale. ``trials``: how many of the pool's trials each
+    participant sees at every level combination of the other factors, drawn by the participant's
+    seed (the same trials at every level: a participant's models on two levels answer the same
+    movements); default every trial of the pool.
+    """
+
+    trials: int | None = Field(None, ge=1, le=100_000,
+                               description="pool trials per participant at every level combination (default: all)")
+
+
 class Instructions(StudyModel):
     """Instruction pages shown before the first trial (Markdown-ish text, any language)."""
 
@@ -416,9 +439,13 @@ class Protocol(StudyModel):
     demographics: list[DemographicItem] = Field(default_factory=list)
     psychophysics: PsychophysicsSpec | None = Field(
         None, description="run a psychophysical procedure along a continuum (2AFC or same-different pairs)")
+    revcorr: RevcorrSpec | None = Field(
+        None, description="a reverse-correlation session on a pool of random action-unit clips (docs/revcorr.md)")
 
     @model_validator(mode="after")
     def _cross(self) -> Protocol:
+        if self.revcorr is not None:  # the pool's trial columns are recorded with every trial
+            self.stimuli.factors = [*self.stimuli.factors, *(c for c in REVCORR_COLUMNS if c not in self.stimuli.factors)]
         factors = set(self.stimuli.factors)
         problems = []
 
@@ -452,9 +479,34 @@ class Protocol(StudyModel):
             problems += self._psychophysics_problems(self.psychophysics)
             psy = self.psychophysics
             check("psychophysics", [psy.continuum, *psy.conditions, *psy.with_continuum, *(psy.items or [])])
+        if self.revcorr is not None:
+            problems += self._revcorr_problems()
         if problems:
             raise ValueError("; ".join(problems))
         return self
+
+    def _revcorr_problems(self) -> list[str]:
+        """What a revcorr protocol cannot have: anything but one emotion classification with a 1-5 intensity."""
+        from appeal.revcorr.observers import DONT_KNOW, EMOTIONS
+
+        want = sorted([*EMOTIONS, DONT_KNOW])
+        resp = self.responses
+        if len(resp) != 1 or not isinstance(resp[0], ClassificationSpec):
+            return [f"revcorr: expected exactly one classification response with the values {', '.join(want)} and a "
+                    f"5-point intensity (got {len(resp)} response(s))"]
+        spec, problems = resp[0], []
+        values = sorted(level_key(c.value) for c in spec.choices)
+        if values != want:
+            problems.append(f"responses.{spec.name}.choices: revcorr expects the values {', '.join(want)} (got "
+                            f"{', '.join(values)})")
+        if spec.intensity is None or spec.intensity.points != 5:
+            problems.append(f"responses.{spec.name}.intensity: revcorr expects a 5-point intensity scale (got "
+                            f"{'none' if spec.intensity is None else f'{spec.intensity.points} points'})")
+        if spec.factor is not None:
+            problems.append(f"responses.{spec.name}.factor: a revcorr answer has no correct value (expected no 'factor')")
+        if self.psychophysics is not None:
+            problems.append("revcorr: not used with psychophysics")
+        return problems
 
     def _psychophysics_problems(self, psy: PsychophysicsSpec) -> list[str]:
         """What a psychophysics protocol cannot have: one classification answering the pair, no more."""

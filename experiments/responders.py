@@ -52,7 +52,7 @@ class ModelResponder:
     def classify(self, spec: ClassificationSpec, factors: dict[str, str], show: ShowFn,
                  draw: Callable[[str | None], None] | None) -> tuple[str | None, float | None]:
         truth = factors.get(spec.factor) if spec.factor else None
-        value = self.p.classify(spec.name, spec.choices, truth)
+        value = self.p.classify(spec.name, spec.choices, truth, factors)
         frames, answered = self._timed()
         shown = show(spec.name, None if draw is None else (lambda: draw(value if answered else None)), frames)
         return (value, shown.frames / self.presenter.hz) if answered else (None, None)

@@ -17,6 +17,9 @@ an inverted U) or a YAML file::
       expression:
         p_correct: 0.85                          # where no confusion row is given
         confusion: {neutral: {neutral: 0.6, surprise: 0.3, sad: 0.1}}
+    revcorr:                       # reverse-correlation trials (revcorr: protocols)
+      templates: {happy: [AU6, AU12], ...}   # default: the EMFACS prototypes
+      by: {shape: {"1": {happy: [AU6, AU12, AU26]}}}   # templates replaced at a level
     psychometric:                  # pair trials (psychophysics): P(correct) along the difference
       threshold: 0.3               # psignifit's threshold (75 % correct in 2AFC without lapses)
       width: 0.4                   # 5 % -> 95 % of the sigmoid
@@ -39,7 +42,7 @@ from appeal.psychophysics.functions import psi
 from appeal.studyfile import StudyModel, load_study_file
 from experiments.protocol_schema import ChoiceSpec, ClassificationSpec, LikertSpec
 
-__all__ = ["ParticipantModel", "SimulatedParticipant", "load_participant_model", "DEFAULT_MODEL"]
+__all__ = ["ParticipantModel", "RevcorrModel", "SimulatedParticipant", "load_participant_model", "DEFAULT_MODEL"]
 
 
 class ScaleModel(StudyModel):
@@ -90,6 +93,20 @@ class PsychometricModel(StudyModel):
     by: dict[str, dict[str, ObserverChange]] = Field(default_factory=dict)
 
 
+class RevcorrModel(StudyModel):
+    """How reverse-correlation trials are answered (``revcorr:`` protocols): a
+    :class:`~appeal.revcorr.observers.TemplateObserver` per participant, its template of AUs per
+    emotion (default: the EMFACS prototypes), replaced at the levels ``by`` names
+    (``{factor: {level: {emotion: [AUs]}}}``)."""
+
+    templates: dict[str, list[str]] | None = Field(None, description="emotion -> AUs (default: the EMFACS prototypes)")
+    noise: float = Field(0.1, ge=0)
+    criterion: float = Field(0.25, description="evidence below which the answer is dont_know")
+    antagonism: float = Field(0.3, ge=0)
+    lapse: float = Field(0.02, ge=0, lt=1)
+    by: dict[str, dict[str, dict[str, list[str]]]] = Field(default_factory=dict)
+
+
 class ParticipantModel(StudyModel):
     """A simulated participant (``--simulate FILE.yaml``)."""
 
@@ -99,6 +116,7 @@ class ParticipantModel(StudyModel):
     ratings: dict[str, ScaleModel] = Field(default_factory=dict)
     classification: dict[str, ClassModel] = Field(default_factory=dict)
     psychometric: PsychometricModel = Field(default_factory=PsychometricModel)
+    revcorr: RevcorrModel = Field(default_factory=RevcorrModel)
 
 
 _APPEAL_LIKE = {"shape": (0.2, -0.9), "material": (-0.4, -0.5), "stylisation": (-0.2, -1.0)}
@@ -120,6 +138,9 @@ DEFAULT_MODEL = ParticipantModel(
     psychometric=PsychometricModel(threshold=0.3, width=0.4, lapse=0.02, participant_sd=0.04, by={
         "expression": {"happiness": ObserverChange(threshold=0.22), "anger": ObserverChange(threshold=0.38)},
         "emotion": {"happiness": ObserverChange(threshold=0.22), "anger": ObserverChange(threshold=0.38)}}),
+    # reverse correlation: at the most stylised shape the dropped jaw (AU26) joins happiness and leaves
+    # surprise (a made-up change for the demo and tests to find, not a finding)
+    revcorr=RevcorrModel(by={"shape": {"1": {"happy": ["AU6", "AU12", "AU26"], "surprise": ["AU1", "AU2", "AU5"]}}}),
 )
 
 
@@ -152,6 +173,36 @@ class SimulatedParticipant:
         self.rng = np.random.default_rng(seed)
         self.offset = float(self.rng.normal(0.0, model.participant_sd))
         self.threshold_offset = float(np.random.default_rng([seed, 31]).normal(0.0, model.psychometric.participant_sd))
+        self._seed = int(seed)
+        self._observers: dict[tuple, Any] = {}
+        self._revcorr: tuple[tuple, str, int] | None = None
+
+    def revcorr_answer(self, factors: Mapping[str, str]) -> tuple[str, int] | None:
+        """The answer and intensity (1-5) to a reverse-correlation trial (``factors`` with its
+        ``revcorr_seed``, ``revcorr_trial``, ``revcorr_lateralised``), or None for any other
+        stimulus; the same trial asked again (its intensity after its classification) gets the same."""
+        if "revcorr_trial" not in factors:
+            return None
+        key = tuple(sorted(factors.items()))
+        if self._revcorr is None or self._revcorr[0] != key:
+            from appeal.revcorr.grammar import action_units, draw_trial
+            from appeal.revcorr.observers import PROTOTYPES, TemplateObserver, amplitude_matrix
+
+            rm = self.model.revcorr
+            templates = {e: tuple(a) for e, a in (rm.templates or PROTOTYPES).items()}
+            for factor, changes in rm.by.items():
+                changed = {level_key(k): v for k, v in changes.items()}.get(level_key(factors.get(factor, "")), {})
+                templates.update({e: tuple(a) for e, a in changed.items()})
+            aus = action_units(lateralised=factors.get("revcorr_lateralised", "0") == "1")
+            okey = (tuple(sorted(templates.items())), aus)
+            if okey not in self._observers:
+                self._observers[okey] = TemplateObserver(templates=templates, noise=rm.noise, criterion=rm.criterion,
+                                                         antagonism=rm.antagonism, lapse=rm.lapse, aus=aus,
+                                                         seed=self._seed * 7919 + len(self._observers))
+            trial = draw_trial(int(factors["revcorr_seed"]), int(factors["revcorr_trial"]), aus=aus)
+            answer, intensity = self._observers[okey].respond(amplitude_matrix([trial], aus))
+            self._revcorr = (key, str(answer[0]), max(1, int(intensity[0])))
+        return self._revcorr[1], self._revcorr[2]
 
     def _x(self, factor: str, level: str) -> float:
         levels = self.levels.get(factor, [])
@@ -174,13 +225,21 @@ class SimulatedParticipant:
         return value
 
     def rate(self, scale: LikertSpec, factors: Mapping[str, str]) -> int:
-        """A rating 1..points."""
+        """A rating 1..points (a reverse-correlation trial's: its intensity, :meth:`revcorr_answer`)."""
+        answer = self.revcorr_answer(factors)
+        if answer is not None:
+            return min(answer[1], scale.points)
         sm = self.model.ratings.get(scale.name, ScaleModel())
         value = self.expected_rating(scale, factors) + self.rng.normal(0.0, sm.noise_sd)
         return int(np.clip(np.rint(value), 1, scale.points))
 
-    def classify(self, name: str, choices: Sequence[ChoiceSpec], true_level: str | None) -> str:
-        """The chosen value (as a level string) for a stimulus whose correct answer is ``true_level``."""
+    def classify(self, name: str, choices: Sequence[ChoiceSpec], true_level: str | None,
+                 factors: Mapping[str, str] | None = None) -> str:
+        """The chosen value (as a level string) for a stimulus whose correct answer is ``true_level``
+        (a reverse-correlation trial, ``factors`` naming its pool trial: :meth:`revcorr_answer`)."""
+        answer = self.revcorr_answer(factors or {})
+        if answer is not None:
+            return answer[0]
         values = [level_key(c.value) for c in choices]
         cm = self.model.classification.get(name, ClassModel())
         row = cm.confusion.get(true_level or "", None)

@@ -19,12 +19,12 @@ from appeal.levels import level_key
 from appeal.triggers import trigger_table
 from experiments.clips import ClipPlan, flips_per_frame, plan_clip, rate_problem
 from experiments.ordering import constrained_order
-from experiments.protocol_schema import ExtraTrialsSpec, Protocol, TimingSpec
+from experiments.protocol_schema import REVCORR_COLUMNS, ExtraTrialsSpec, Protocol, TimingSpec
 from experiments.psychophysics import PairPlan, PsychophysicsPlan
 from experiments.stimuli import StimulusSet, select_stimuli
 
 __all__ = ["Trial", "seconds_to_frames", "fixation_frame_range", "fixation_sampler", "build_trials",
-           "protocol_trigger_codes", "trials_frame", "insert_repeat", "pair_trial_maker"]
+           "protocol_trigger_codes", "trials_frame", "insert_repeat", "pair_trial_maker", "revcorr_subset"]
 
 
 @dataclass
@@ -180,6 +180,30 @@ def _extra(spec: ExtraTrialsSpec | None, phase: str, stimuli: StimulusSet, proto
     return rows
 
 
+def revcorr_subset(table: pd.DataFrame, protocol: Protocol, seed: int, source: str = "protocol") -> pd.DataFrame:
+    """The rows of a reverse-correlation pool a participant sees (``revcorr.trials`` of them at every
+    level combination of the other factors, the same trials at each, drawn by ``seed``); the whole
+    pool without ``revcorr.trials``.
+
+    Raises
+    ------
+    AppealInputError
+        When the pool holds fewer trials common to every level combination than asked for.
+    """
+    n = protocol.revcorr.trials
+    if n is None:
+        return table
+    key = table["revcorr_seed"] + ":" + table["revcorr_trial"]
+    levels = [f for f in protocol.stimuli.factors if f not in REVCORR_COLUMNS]
+    groups = [set(k) for _, k in key.groupby([table[f] for f in levels], sort=False)] if levels else [set(key)]
+    common = sorted(set.intersection(*groups), key=lambda k: tuple(int(x) for x in k.split(":")))
+    if len(common) < n:
+        raise AppealInputError(f"{source}: revcorr.trials: {n} trials asked for, but the pool holds {len(common)} "
+                               f"at every level combination of {', '.join(levels) or 'the stimuli'}")
+    chosen = set(np.random.default_rng([int(seed), 53]).choice(common, size=n, replace=False).tolist())
+    return table[key.isin(chosen)].reset_index(drop=True)
+
+
 def build_trials(protocol: Protocol, stimuli: StimulusSet, *, seed: int, refresh_hz: float,
                  source: str = "protocol", full_set: StimulusSet | None = None,
                  plan: PsychophysicsPlan | None = None) -> list[Trial]:
@@ -215,7 +239,7 @@ def build_trials(protocol: Protocol, stimuli: StimulusSet, *, seed: int, refresh
     ss = np.random.SeedSequence(seed)
     rng_order, rng_fix, rng_extra = (np.random.default_rng(s) for s in ss.spawn(3))
     full_set = full_set or stimuli
-    main = stimuli.table
+    main = stimuli.table if protocol.revcorr is None else revcorr_subset(stimuli.table, protocol, seed, source)
     factors = protocol.stimuli.factors
     attrs = {r["stimulus"]: {f: r[f] for f in factors} for r in main.to_dict("records")}
     rows_by_stim = {r["stimulus"]: r for r in main.to_dict("records")}

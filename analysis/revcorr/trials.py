@@ -63,7 +63,15 @@ def _integers(table: pd.DataFrame, column: str, lo: int, hi: int) -> np.ndarray:
 
 def check_revcorr_trials(table: pd.DataFrame, subject: str = "participant_id",
                          levels: Sequence[str] = ()) -> RevcorrTrials:
-    """Check a trials table and draw each trial's AUs again (see the module docstring)."""
+    """Check a trials table and draw each trial's AUs again (see the module docstring); a ``revcorr:``
+    session's data file (``response_emotion``, ``response_intensity``, ``phase``) reads as its main
+    trials' ``response`` and ``intensity``."""
+    if "response" not in table.columns and "response_emotion" in table.columns:
+        attrs = dict(table.attrs)
+        table = table.rename(columns={"response_emotion": "response", "response_intensity": "intensity"})
+        if "phase" in table.columns:
+            table = table[table["phase"].astype(str) == "main"]
+        table.attrs.update(attrs)
     for column in (subject, "response", "revcorr_seed", "revcorr_trial", *levels):
         if column not in table.columns:
             raise AppealInputError(f"{table.attrs.get('source', 'data')}: no column '{column}' (expected "

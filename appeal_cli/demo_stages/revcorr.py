@@ -1,7 +1,7 @@
 """Demo stage 340: reverse correlation of facial expressions — simulated participants' answers to
 random AU trials at a realistic and a stylised level, their AU models recovered by
-``appeal analyze revcorr`` (the runner's ``revcorr:`` protocol and the clips are not built yet:
-docs/revcorr.md)."""
+``appeal analyze revcorr`` (the answers are drawn directly from template observers; the shipped
+``revcorr:`` protocol runs them in the runner on a rendered pool: docs/revcorr.md)."""
 
 from __future__ import annotations
 
@@ -46,8 +46,8 @@ def _run(out: Path, seed: int) -> ReportSection:
             "permutation test corrected across AUs): AU26 is in the stylised happiness model and not the realistic "
             f"one for {len(happy)} of {N_PARTICIPANTS} participants; share of participants with AU12 in happiness: "
             f"realistic {share.get(('realistic', 'happy', 'AU12'), float('nan')):.2f}, stylised "
-            f"{share.get(('stylised', 'happy', 'AU12'), float('nan')):.2f}. The answers are simulated: the runner's "
-            "revcorr protocol and the rendered clips are not built yet. "
+            f"{share.get(('stylised', 'happy', 'AU12'), float('nan')):.2f}. The answers are simulated, drawn here without "
+            "clips; `protocols/revcorr_stylisation.yaml` runs the same observers in the runner on a rendered pool. "
             "Full report: [analysis/index.html](analysis/index.html).")
     figures = sorted((out / "analysis").glob("consensus_*.png")) + sorted((out / "analysis" / "figures").glob("*.png"))[:1]
     return ReportSection(title="Reverse correlation: AU models of the expressions (simulated participants)", text=text,
