@@ -89,7 +89,8 @@ def prepared(tmp_path_factory):
     for path in GRIDS:
         grid = load_study_file(path, GridFile)
         grid = grid.model_copy(update={"materials": grid.material_specs()[:1], "lighting": grid.lighting[:1],
-                                       "shading": grid.shading[:1], "photographs": [], "pair_materials_with_shapes": False})
+                                       "shading": grid.shading[:1], "photographs": [], "pair_materials_with_shapes": False,
+                                       "animation": None})  # an animated grid's cells as stills (a pool's rest face)
         manifest, items, _ = prepare_grid(grid, out, source=path.name)
         chars = {c.name: load_character(c, out / ".cache", path.name) for c in grid.characters}
         done.append((path.name, grid, manifest, items, chars))
