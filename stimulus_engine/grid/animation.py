@@ -59,7 +59,7 @@ from stimulus_engine.grid.worker import RenderItem, render_image
 
 __all__ = ["EASINGS", "ClipItem", "apex_view", "clip_checksums", "clip_columns", "clip_frame_weights", "clip_geometry",
            "cosine", "clip_frames", "curve_text", "ease_out", "frame_file", "frame_keys", "frame_weights",
-           "frames_curve", "frames_digest", "linear", "performance_curve", "revcorr_clip", "revcorr_trial_table", "performance_weights", "prepare_clip", "render_clip",
+           "frames_curve", "frames_digest", "linear", "performance_curve", "revcorr_clip", "revcorr_pool", "revcorr_trial_table", "performance_weights", "prepare_clip", "render_clip",
            "smoothstep", "timeline", "weight_curve"]
 
 
@@ -214,6 +214,23 @@ def revcorr_clip(spec: AnimationSpec, index: int) -> tuple[Trial, list[dict[str,
     pool = spec.revcorr
     trial = draw_trial(pool.seed, index, aus=action_units(pool.lateralised))
     return trial, trial_frame_weights(trial, clip_frames(pool.seconds, spec.fps))
+
+
+def revcorr_pool(spec: AnimationSpec) -> tuple[tuple[Trial, list[dict[str, float]]], ...]:
+    """Every trial of ``spec.revcorr``'s pool with its frames' weights (:func:`revcorr_clip`), drawn
+    once for all the grid's cells."""
+    pool = spec.revcorr
+    return _revcorr_pool(spec.fps, pool.seed, pool.first, pool.trials, pool.seconds, pool.lateralised)
+
+
+@functools.lru_cache(maxsize=2)
+def _revcorr_pool(fps: int, seed: int, first: int, trials: int, seconds: float,
+                  lateralised: bool) -> tuple[tuple[Trial, list[dict[str, float]]], ...]:
+    from stimulus_engine.grid.schema import RevcorrPoolSpec
+
+    spec = AnimationSpec(fps=fps, revcorr=RevcorrPoolSpec(seed=seed, trials=trials, first=first, seconds=seconds,
+                                                          lateralised=lateralised))
+    return tuple(revcorr_clip(spec, i) for i in range(first, first + trials))
 
 
 def revcorr_trial_table(spec: AnimationSpec) -> pd.DataFrame:

@@ -366,7 +366,7 @@ def _as_clips(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
     of the pool (:func:`stimulus_engine.grid.animation.revcorr_clip`), each frame through
     :func:`cell_vertices` like the still."""
     from stimulus_engine.characters.expressions import expression_weights
-    from stimulus_engine.grid.animation import clip_frame_weights, prepare_clip, revcorr_clip
+    from stimulus_engine.grid.animation import clip_frame_weights, prepare_clip, revcorr_pool
 
     anim = grid.animation
     what = (f"{source}: characters.{im.character}", im.expression)
@@ -376,7 +376,7 @@ def _as_clips(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
 
     if anim.revcorr is not None:
         pool = anim.revcorr
-        played = [revcorr_clip(anim, i) for i in range(pool.first, pool.first + pool.trials)]
+        played = revcorr_pool(anim)
         missing = sorted({n for _, frames in played for f in frames for n in f} - set(ch.expression_rig.blendshapes))
         if missing:
             raise AppealInputError(f"{source}: animation.revcorr: character '{im.character}' has no blendshape "
