@@ -360,6 +360,17 @@ def test_a_performance_plays_in_every_cell_and_its_frames_are_its_rows(tmp_path,
             assert np.array_equal(_png(folder / frame_file(k)), ref), (r.file, k)
         assert not np.array_equal(_png(folder / frame_file(3)), _png(folder / frame_file(0)))  # the jaw moved
         assert len(decode_frames(tmp_path / "out" / r.file)) == len(rows)
+    # how far each frame moves the face: the happy row measures as the happy still, the neutral rows nothing
+    frames = pd.read_csv(tmp_path / "out" / "performance_measures.csv")
+    stills = pd.read_csv(rendered["root"] / "still" / "expression_measures.csv")
+    for shape, g in frames.groupby("shape"):
+        happy = stills[(stills["shape"] == shape) & (stills["expression"] == "happiness")].set_index("measure")["value"]
+        at = g.set_index(["frame", "measure"])["value"]
+        assert np.allclose(at.loc[2].reindex(happy.index), happy, atol=1e-6), shape
+        assert np.allclose(at.loc[0], 0.0, atol=1e-9) and np.allclose(at.loc[4], 0.0, atol=1e-9)
+        assert np.allclose(at.loc[1].reindex(happy.index), 0.5 * happy, rtol=0.1, atol=2e-4)  # half the weights
+    agree = pd.read_csv(tmp_path / "out" / "performance_agreement.csv")
+    assert set(agree["shape"]) == {0.0, 1.0} and (agree.loc[agree["shape"] == 0.0, "gain"].dropna() == 1.0).all()
 
 
 @pytest.mark.parametrize("rows, fps, says", [

@@ -105,3 +105,64 @@ def test_retarget_command_defaults_on_a_noisy_capture(rigs, tmp_path, shared_dat
     assert rc == 0, capsys.readouterr()
     got = pd.read_csv(out)[act.names].to_numpy()
     assert recovery(got, act)["rms"] <= 0.10 and (got >= 0).all()
+
+
+def _performance_grid(tmp_path, shared_data, weights: np.ndarray, names: list[str], transfer: str):
+    from appeal.studyfile import load_study_file
+    from stimulus_engine.grid.schema import GridFile
+
+    take = pd.DataFrame(weights, columns=names)
+    take.insert(0, "frame", range(len(take)))
+    take.insert(1, "time", np.arange(len(take)) / 10)
+    take.to_csv(tmp_path / "take.csv", index=False)
+    (tmp_path / f"{transfer}.yaml").write_text(f"""kind: grid
+name: take
+characters:
+  - {{name: a, ict: {shared_data / 'meshes' / 'ict-facekit'}, identity: identity000, hair: none}}
+shapes: [0.0, 1.0]
+materials: [original]
+expressions: [happy]
+expression_transfer: {transfer}
+lighting: [flat]
+shading: [pbr]
+render: {{width: 96, height: 72}}
+animation: {{fps: 10, performance: {tmp_path / 'take.csv'}}}
+""")
+    return load_study_file(tmp_path / f"{transfer}.yaml", GridFile)
+
+
+@pytest.mark.timeout(1200)
+def test_a_retargeted_performance_moves_the_stylised_level_as_far_as_the_realistic_rig(rigs, tmp_path, shared_data):
+    """The whole chain of chapter 4: a noisy capture retargeted with the defaults, played by a grid on the
+    realistic rig and its cartoon (the analytic operator); the grid's per-frame measures
+    (performance_agreement.csv) give the cartoon the realistic level's movement, frame by frame, with the
+    aligned transfer; deformation transfer (the thesis's starting point) shrinks the cartoon's mouth."""
+    from stimulus_engine.characters.retarget import retarget_performance
+    from stimulus_engine.grid import run_grid
+    from stimulus_engine.grid.performance_measures import performance_agreement, performance_landmarks, \
+        performance_measures
+    from stimulus_engine.grid.prepare import prepare_grid
+
+    rig, actor = rigs
+    act = synthetic_actor(rig, actor.vertices, seed=5)
+    w = retarget_performance(rig, act.neutral, act.positions, act.markers)[act.test][:20]
+    manifest, sheets = run_grid(_performance_grid(tmp_path, shared_data, w, act.names, "aligned"), tmp_path / "al",
+                                n_jobs=1)
+    assert (manifest["status"] == "rendered").all() and (manifest["n_frames"] == 20).all()
+    assert tmp_path / "al" / "performance_measures.png" in sheets
+    agreement = pd.read_csv(tmp_path / "al" / "performance_agreement.csv")
+    cartoon = agreement[(agreement["shape"] == 1.0) & agreement["judged"]].set_index("measure")
+    print(agreement.round(3).to_string())
+    assert {"mouth_opening", "mouth_corner_raise", "total"} <= set(cartoon.index)
+    assert cartoon["gain"].between(0.85, 1.15).all() and (cartoon["correlation"] >= 0.98).all()
+    table = pd.read_csv(tmp_path / "al" / "performance_measures.csv")
+    assert len(table) == 2 * 20 * 6 and table["time"].max() == pytest.approx(1.9)
+
+    dt, _, _ = prepare_grid(_performance_grid(tmp_path, shared_data, w, act.names, "deformation_transfer"),
+                            tmp_path / "dt")
+    dt_cells = dt.rename(columns={"_frame_landmarks": "landmarks_file"})
+    dt_agree = performance_agreement(performance_measures(performance_landmarks(dt_cells)))
+    dt_cartoon = dt_agree[(dt_agree["shape"] == 1.0) & dt_agree["judged"]].set_index("measure")
+    print(dt_agree.round(3).to_string())
+    assert dt_cartoon.loc["mouth_opening", "gain"] < 0.85  # what the aligned transfer fixes
+    assert (abs(dt_cartoon["gain"] - 1) > abs(cartoon["gain"] - 1).reindex(dt_cartoon.index)).sum() >= 3

@@ -28,6 +28,10 @@ is given), and writes:
     With a neutral and another expression at more than one shape level: how far each expression
     moves the face at each level in face lengths, and how far the levels agree
     (:mod:`~stimulus_engine.grid.expression_measures`).
+``DIR/performance_measures.csv``, ``performance_agreement.csv``, ``performance_measures.png``
+    With ``animation: {performance: ...}`` at more than one shape level: every frame's measures
+    per level and how far each level performs the realistic one's movement
+    (:mod:`~stimulus_engine.grid.performance_measures`).
 ``DIR/clips/<stem>/frame_00000.png`` ..., ``DIR/clips/<stem>.mp4``, ``DIR/filmstrip_<character>.png``
     With ``animation:`` every cell is a clip from neutral to its apex instead of an image: its
     lossless PNG frames and an H.264 MP4, one manifest row per clip (its ``file`` the MP4, with
@@ -64,7 +68,7 @@ from appeal.lazy import attach as _attach
 __getattr__, __dir__, _ = _attach(
     __name__,
     submodules=["animation", "cache", "characters", "continuum", "designs", "engine_sheet", "examples",
-                "expression_measures", "inputs", "photo_framing", "photo_sheet", "plan", "prepare", "run",
+                "expression_measures", "inputs", "performance_measures", "photo_framing", "photo_sheet", "plan", "prepare", "run",
                 "schema", "sheets", "worker"],
     submod_attrs={
         "cache": ["GRID_VERSION"],

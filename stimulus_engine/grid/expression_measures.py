@@ -65,7 +65,7 @@ from appeal.errors import AppealInputError
 if TYPE_CHECKING:
     from stimulus_engine.grid.schema import GridFile
 
-__all__ = ["EYEBALL_LANDMARKS", "JUDGED_FRACTION", "MEASURES", "expression_measures", "expression_spread",
+__all__ = ["EYEBALL_LANDMARKS", "JUDGED_FRACTION", "MEASURES", "expression_measures", "expression_spread", "face_measures",
            "level_agreement", "plot_expression_measures", "write_expression_measures"]
 
 logger = logging.getLogger(__name__)
@@ -146,8 +146,9 @@ def _face_coords(points: dict[str, np.ndarray], axes: np.ndarray, length: float)
     return {k: axes @ (p - centre) / length for k, p in points.items()}
 
 
-def _level_measures(neutral: dict[str, np.ndarray], posed: dict[str, np.ndarray], where: str) -> dict[str, float]:
-    """The measures of one expression (``posed``) against its level's ``neutral`` (module docstring)."""
+def face_measures(neutral: dict[str, np.ndarray], posed: dict[str, np.ndarray], where: str) -> dict[str, float]:
+    """The measures of one posed geometry (``posed``: landmark name -> point) against its level's
+    ``neutral`` (:data:`MEASURES`, module docstring); ``where`` names the level in errors."""
     axes, length = _frame(neutral, where)
     fn, fe = _face_coords(neutral, axes, length), _face_coords(posed, axes, length)
     out: dict[str, float] = {}
@@ -215,7 +216,7 @@ def expression_measures(landmarks: pd.DataFrame) -> pd.DataFrame:
             if set(posed) != set(neutral):
                 raise AppealInputError(f"landmarks of {ch} at shape {shape}: '{expr}' lists other landmarks than "
                                        "its neutral (expected the same set)")
-            values = _level_measures(neutral, posed, f"{ch} at shape {shape}")
+            values = face_measures(neutral, posed, f"{ch} at shape {shape}")
             stylisation = g["stylisation"].iloc[0]
             rows += [{"character": ch, "shape": shape, "stylisation": stylisation, "expression": expr,
                       "measure": m, "value": v} for m, v in values.items()]

@@ -389,7 +389,16 @@ def _as_clips(ch: Character, im: PlannedImage, shape_v: np.ndarray, grid: GridFi
         raise AppealInputError(f"{anim.performance}: column '{unknown[0]}' is not a blendshape of character "
                                f"'{im.character}' (expected frame, time or one of: "
                                f"{', '.join(sorted(ch.expression_rig.blendshapes))})")
-    return [prepare_clip(still, row, anim, cache, frames, pose)]
+    clip, clip_row = prepare_clip(still, row, anim, cache, frames, pose)
+    if anim.performance is not None:  # how far each frame moves the face (performance_measures.csv)
+        from stimulus_engine.grid.performance_measures import frame_landmarks
+
+        def landmarks(w: dict[str, float]) -> dict[str, np.ndarray]:
+            return ch.rig.landmark_points(rig_geometry(ch, im.shape, shape_v, w, grid, target, what).astype(np.float64))
+
+        clip_row["_frame_landmarks"] = str(frame_landmarks(Path(clip.still.geometry_npy).with_suffix(".landmarks.npz"),
+                                                           frames, landmarks))
+    return [(clip, clip_row)]
 
 
 def _eye_style(grid: GridFile, im: PlannedImage) -> tuple[float, float] | tuple[()]:

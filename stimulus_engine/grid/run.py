@@ -18,6 +18,7 @@ from stimulus_engine.grid.animation import apex_view, clip_checksums, render_cli
 from stimulus_engine.grid.designs import grid_characters
 from stimulus_engine.grid.continuum import continuum_table, write_continuum
 from stimulus_engine.grid.expression_measures import write_expression_measures
+from stimulus_engine.grid.performance_measures import write_performance_measures
 from stimulus_engine.grid.prepare import measured_grid, prepare_grid
 from stimulus_engine.grid.sheets import write_filmstrips, write_sheets
 from stimulus_engine.grid.worker import place_photo, render_item
@@ -35,6 +36,17 @@ def _framing_reference(manifest: pd.DataFrame, character: str, out: Path) -> str
     if rendered.empty:
         return None
     return str(out / realistic_images(rendered).iloc[0]["file"])
+
+
+def _performance_landmarks(manifest: pd.DataFrame) -> pd.DataFrame:
+    """A performance grid's per-frame landmarks (:func:`~stimulus_engine.grid.performance_measures.performance_landmarks`;
+    empty for any other grid)."""
+    from stimulus_engine.grid.performance_measures import performance_landmarks
+
+    if "_frame_landmarks" not in manifest.columns:
+        return pd.DataFrame()
+    cells = manifest.dropna(subset=["_frame_landmarks"]).rename(columns={"_frame_landmarks": "landmarks_file"})
+    return performance_landmarks(cells)
 
 
 def previous_hashes(out: Path) -> dict[str, str]:
@@ -113,6 +125,7 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
         status[f] = ("rendered", time.perf_counter() - t0)
     manifest["seconds"] = [round(status[f][1], 4) for f in manifest["file"]]
     manifest["status"] = [status[f][0] for f in manifest["file"]]
+    performance = _performance_landmarks(manifest)
     manifest = manifest.drop(columns=[c for c in manifest.columns if c.startswith("_")])
     if animated:
         manifest = clip_checksums(out, manifest)
@@ -138,6 +151,7 @@ def run_grid(grid: GridFile, out: Path, *, n_jobs: int | None = None, scheduler:
     sheets = (write_sheets(out, stills, grid) + (write_filmstrips(out, shown, grid) if animated else [])
               + write_continuum(out, continuum, grid)[1:])
     sheets += write_expression_measures(out, landmarks, grid)[2:]  # how far each expression moves the face, per level
+    sheets += write_performance_measures(out, performance, grid.animation.fps if animated else None)[2:]
     if res.failures:
         logger.warning(res.summary())
     return manifest, sheets
