@@ -6,8 +6,6 @@ import sys
 from collections.abc import Iterable, Iterator
 from typing import TypeVar
 
-from tqdm.auto import tqdm
-
 __all__ = ["progress", "set_quiet", "is_quiet", "progress_enabled"]
 
 T = TypeVar("T")
@@ -49,5 +47,7 @@ def progress(iterable: Iterable[T], *, total: int | None = None, desc: str | Non
     object
         The items of ``iterable``.
     """
+    from tqdm.auto import tqdm  # loaded with the first bar: every command imports this module at start-up
+
     yield from tqdm(iterable, total=total, desc=desc, unit=unit, disable=not progress_enabled(),
                     file=sys.stderr, dynamic_ncols=True, leave=False)

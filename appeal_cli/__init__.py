@@ -14,6 +14,7 @@ import traceback
 
 import click
 
+from appeal.allocator import keep_heap_pad
 from appeal.errors import AppealInputError
 from appeal_cli.groups import cli
 
@@ -51,6 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``appeal`` with ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
     args = _hoist_global_flags(list(sys.argv[1:] if argv is None else argv))
     verbose = "--verbose" in args
+    keep_heap_pad()  # large arrays made and dropped in loops reuse their pages (appeal.allocator)
     try:
         _load_commands()
         rv = cli.main(args=args, prog_name="appeal", standalone_mode=False)

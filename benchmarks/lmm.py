@@ -1,7 +1,7 @@
 """Benchmark: a crossed linear mixed model (40 participants × 250 stimuli, by-participant random
 slopes) fitted and tested (type-III table with Satterthwaite dfs), ours vs lme4 + lmerTest.
 
-    python benchmarks/lmm.py [--repeats 5] [--mixedlm]
+    python benchmarks/lmm.py [--repeats 5] [--mixedlm] [--command]
 
 Two designs, both 10,000 rows, ``rating ~ shape + (1 + shape | participant) + (1 | stimulus)``
 (shape: 3 levels, a property of each stimulus): *typical* (well-separated variance components)
@@ -11,7 +11,9 @@ near zero — what makes lme4 slow). Ours: :func:`analysis.stats.lmm.fit_lmm` +
 ``lmerTest::lmer`` (which also prepares the Satterthwaite derivatives) + ``anova(m, type = 3)``
 on the same CSV, timed inside R with ``system.time``. Medians over the repeats and the ratio
 ours / R are printed; the target is ≤ 0.5. ``--mixedlm`` also times the Rust-core ``mixedlm``
-package (``lmer`` + ``anova(type=3)``), when installed.
+package (``lmer`` + ``anova(type=3)``), when installed. ``--command`` also times the whole
+``appeal analyze lmm`` command as a fresh process (imports, reading the CSV, fit, tables) beside
+``Rscript`` doing the same with lmerTest, interleaved, medians.
 """
 
 from __future__ import annotations
@@ -85,15 +87,46 @@ def with_mixedlm(d: pd.DataFrame) -> float:
     return time.perf_counter() - t
 
 
+def whole_command(csv: Path, repeats: int, rscript: str | None) -> None:
+    """Time ``appeal analyze lmm`` as a user runs it (a fresh process: imports, reading, fit, tables), and
+    ``Rscript`` doing the same with lmerTest when R is there; medians of ``repeats`` runs, interleaved."""
+    appeal = str(Path(sys.executable).with_name("appeal"))
+    ours_cmd = [appeal, "analyze", "lmm", str(csv), "--formula", FORMULA, "--factors", "shape"]
+    r_cmd = [rscript, "-e", "suppressPackageStartupMessages(library(lmerTest)); options(contrasts = c('contr.sum', "
+             f"'contr.poly')); d <- read.csv('{csv}'); for (f in c('participant', 'stimulus', 'shape')) "
+             f"d[[f]] <- factor(d[[f]]); m <- lmer({FORMULA}, data = d); print(anova(m, type = 3)); "
+             "print(summary(m))"] if rscript else None
+    times: dict[str, list[float]] = {"appeal analyze lmm": [], "Rscript lmerTest": []}
+    for _ in range(repeats):
+        for name, cmd in (("appeal analyze lmm", ours_cmd), ("Rscript lmerTest", r_cmd)):
+            if cmd is None:
+                continue
+            t = time.perf_counter()
+            subprocess.run(cmd, capture_output=True, check=True)
+            times[name].append(time.perf_counter() - t)
+    med = {k: statistics.median(v) for k, v in times.items() if v}
+    print("  whole command, median of %d: %s (runs %s)" % (
+        repeats, ", ".join(f"{k} {v:.2f} s" for k, v in med.items()),
+        "; ".join(f"{k}: " + " ".join(f"{x:.2f}" for x in v) for k, v in times.items() if v)))
+    if len(med) == 2:
+        print(f"  ratio ours / R = {med['appeal analyze lmm'] / med['Rscript lmerTest']:.2f}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--mixedlm", action="store_true", help="also time the mixedlm package")
+    ap.add_argument("--command", action="store_true",
+                    help="also time the whole `appeal analyze lmm` command as a process (issue 52: <= 1.5 s)")
     args = ap.parse_args()
     rscript = shutil.which("Rscript")
     ok = True
     for kind in ("typical", "near-singular"):
         d = simulate(kind)
+        if args.command:
+            with tempfile.TemporaryDirectory() as tmp:
+                d.to_csv(Path(tmp) / "d.csv", index=False)
+                whole_command(Path(tmp) / "d.csv", args.repeats, rscript)
         runs = [ours(d) for _ in range(args.repeats)]
         t_ours = statistics.median(r[0] for r in runs)
         res = runs[-1][1]

@@ -42,7 +42,18 @@ def test_help_of_the_command_line_imports_neither_numpy_nor_pydantic(args):
     """Finding the commands imports the command modules only (not their helpers), and they import
     NumPy, pandas and the study-file schemas when they run."""
     mods = set(_imported(*args))
-    assert not {"numpy", "pandas", "pydantic", "appeal.studyfile"} & mods, sorted(mods)[:20]
+    assert not {"numpy", "pandas", "pydantic", "appeal.studyfile", "tqdm"} & mods, sorted(mods)[:20]
+
+
+def test_the_command_keeps_freed_heap_unless_the_user_set_it(monkeypatch):
+    """appeal.allocator: glibc's top pad set through mallopt (what MALLOC_TOP_PAD_ does), left alone
+    when the user chose one."""
+    from appeal.allocator import keep_heap_pad
+
+    monkeypatch.delenv("MALLOC_TOP_PAD_", raising=False)
+    assert keep_heap_pad(64) is True  # the machines this project runs on use glibc
+    monkeypatch.setenv("MALLOC_TOP_PAD_", "0")
+    assert keep_heap_pad(64) is False
 
 
 def test_public_names_still_load_on_first_use():

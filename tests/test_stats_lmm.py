@@ -84,6 +84,19 @@ def test_satterthwaite_dfs_equal_lmertest(fits, name):
 
 
 @pytest.mark.parametrize("name", DESIGNS)
+def test_exact_vcov_jacobian_equals_the_numerical_one(fits, name):
+    """Satterthwaite's J = dCov(beta)/d(theta, sigma) in closed form equals lmerTest's way (Richardson
+    differences of Cov(beta)), for REML and ML fits and at a point away from the optimum."""
+    from analysis.stats.satterthwaite import richardson_jacobian
+
+    for fit in fits[name][:2]:
+        for vp in (fit.varpar, fit.varpar * 1.3 + 0.05):
+            exact, numeric = fit.vcov_vp_jacobian(vp), richardson_jacobian(fit.vcov_vp, vp)
+            assert exact.shape == numeric.shape == (len(fit.beta), len(fit.beta), len(vp))
+            assert np.abs(exact - numeric).max() <= 1e-7 * np.abs(numeric).max()
+
+
+@pytest.mark.parametrize("name", DESIGNS)
 def test_type3_anova_equals_afex_mixed(fits, name):
     r, (m, _, sat) = R[name], fits[name]
     table = lmm_anova(m, tests=sat)

@@ -95,8 +95,10 @@ class LmmProblem:
         out = np.empty_like(M)
         for blk, off, T in zip(self.mm.blocks, self.offsets, Ts):
             sl = slice(off, off + blk.n_levels * blk.k)
-            sub = M[:, sl].reshape(M.shape[0], blk.n_levels, blk.k)
-            out[:, sl] = (sub @ T).reshape(M.shape[0], -1)
+            if blk.k == 1:  # a scalar factor: one multiplication, no small matrix products
+                np.multiply(M[:, sl], T[0, 0], out=out[:, sl])
+            else:  # one (rows x levels, k) @ (k, k) product rather than a stack of small ones
+                out[:, sl] = (M[:, sl].reshape(-1, blk.k) @ T).reshape(M.shape[0], -1)
         return out
 
     def lambda_times(self, v: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -105,6 +107,14 @@ class LmmProblem:
         for blk, off, T in zip(self.mm.blocks, self.offsets, self.factors(theta)):
             sl = slice(off, off + blk.n_levels * blk.k)
             out[sl] = (v[sl].reshape(blk.n_levels, blk.k) @ T.T).ravel()
+        return out
+
+    def lambda_times_matrix(self, M: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """``Λ M`` for ``M`` with q rows (``lambda_times`` of each column)."""
+        out = np.empty_like(M)
+        for blk, off, T in zip(self.mm.blocks, self.offsets, self.factors(theta)):
+            sl = slice(off, off + blk.n_levels * blk.k)
+            out[sl] = np.einsum("ij,ljm->lim", T, M[sl].reshape(blk.n_levels, blk.k, -1)).reshape(-1, M.shape[1])
         return out
 
     def system(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
@@ -214,23 +224,34 @@ def _lambda_pattern(prob: LmmProblem) -> list[tuple[np.ndarray, np.ndarray]]:
     return out
 
 
+def _cholesky_inverse(chol: np.ndarray) -> np.ndarray:
+    """The symmetric inverse of ``chol @ chol.T`` from its lower Cholesky factor (LAPACK potri:
+    a third of the work of solving for as many right-hand sides as it has rows)."""
+    inv, info = linalg.lapack.dpotri(chol, lower=1)
+    if info != 0:
+        raise linalg.LinAlgError(f"potri failed ({info})")
+    return np.tril(inv) + np.tril(inv, -1).T
+
+
 def _gradient_parts(prob: LmmProblem, theta: np.ndarray, s: _Solution, reml: bool) -> tuple[np.ndarray, np.ndarray]:
-    """d(log det M or log det A)/dθ and d(prss)/dθ."""
+    """d(log det M or log det A)/dθ and d(prss)/dθ.
+
+    With ``G = [Λ'Z'Z; X'Z]``, ``d log det M / dθ_k = 2 Σ (M⁻¹[:q] G)[c, r]`` over Λ's entries
+    ``(r, c)`` that θ_k fills (REML; ML: ``A = M[:q, :q]`` and ``Λ'Z'Z``): only those entries of the
+    product are formed, from ``M⁻¹`` (:func:`_cholesky_inverse`), not the whole q × q product.
+    """
     q = prob.q
-    Ts = prob.factors(theta)
-    # G = [Λ'Z'Z; X'Z] ; d log det M = 2 Σ (M⁻¹[:q] G)[c, r] over Λ's entries (r, c) of θ_k
-    LZtZ = prob.times_lambda(prob.ZtZ, theta, Ts).T
-    G = np.vstack([LZtZ, prob.ZtX.T])
-    if reml:
-        PG = linalg.cho_solve((s.chol, True), G, check_finite=False)[:q]  # (M⁻¹G)[:q] = M⁻¹[:q] G
-    else:
-        La = s.chol[:q, :q]
-        PG = linalg.cho_solve((La, True), LZtZ, check_finite=False)
+    ZtZL = prob.times_lambda(prob.ZtZ, theta)  # G' = [Z'ZΛ, Z'X]: its rows are G's columns
+    W = _cholesky_inverse(s.chol if reml else np.ascontiguousarray(s.chol[:q, :q]))
     b = prob.lambda_times(s.u, theta)
     rZ = prob.Zty - prob.ZtZ @ b - prob.ZtX @ s.beta
     dld, dprss = [], []
     for rows, cols in _lambda_pattern(prob):
-        dld.append(2 * PG[cols, rows].sum())
+        Wc = W[cols]
+        tr = np.einsum("lm,lm->", Wc[:, :q], ZtZL[rows])
+        if reml:
+            tr += np.einsum("lm,lm->", Wc[:, q:], prob.ZtX[rows])
+        dld.append(2 * float(tr))
         dprss.append(-2 * float(rZ[rows] @ s.u[cols]))
     return np.array(dld), np.array(dprss)
 
@@ -352,6 +373,30 @@ class LmmFit:
         s = _solve(self.problem, np.asarray(varpar[:-1], float))
         return float(varpar[-1]) ** 2 * _schur_inverse(s.chol, self.problem.q)
 
+    def vcov_vp_jacobian(self, varpar: np.ndarray) -> np.ndarray:
+        """The exact Jacobian of :meth:`vcov_vp`, p × p × len(varpar) (lmerTest differentiates
+        ``get_covbeta`` numerically; this is its closed form).
+
+        ``Cov(β̂) = σ² S⁻¹`` with ``S = X'X − P'A⁻¹P``, ``P = Λ'Z'X``, ``A = Λ'Z'ZΛ + I``; with
+        ``E_k = ∂Λ/∂θ_k``, ``B = A⁻¹P`` and ``R = Z'X − Z'ZΛB``:
+        ``∂S/∂θ_k = −(R'E_kB + B'E_k'R)``, so ``∂Cov/∂θ_k = σ² S⁻¹ (R'E_kB + B'E_k'R) S⁻¹`` and
+        ``∂Cov/∂σ = 2σ S⁻¹``.
+        """
+        prob = self.problem
+        theta, sigma = np.asarray(varpar[:-1], float), float(varpar[-1])
+        s = _solve(prob, theta)
+        q = prob.q
+        Sinv = _schur_inverse(s.chol, q)
+        P = prob.times_lambda(prob.ZtX.T.copy(), theta).T  # Λ'Z'X
+        B = linalg.cho_solve((np.ascontiguousarray(s.chol[:q, :q]), True), P, check_finite=False)
+        R = prob.ZtX - prob.ZtZ @ prob.lambda_times_matrix(B, theta)
+        out = np.empty(Sinv.shape + (len(varpar),))
+        for k, (rows, cols) in enumerate(_lambda_pattern(prob)):
+            REB = R[rows].T @ B[cols]
+            out[..., k] = sigma ** 2 * Sinv @ (REB + REB.T) @ Sinv
+        out[..., -1] = 2 * sigma * Sinv
+        return out
+
     @property
     def varpar(self) -> np.ndarray:
         return np.concatenate([self.theta, [self.sigma]])
@@ -423,7 +468,7 @@ def fit_lmm(formula: str | Formula | ModelMatrices, data: pd.DataFrame | None = 
     bounds = None
     f = _objective(prob, reml)
     with blas_threads(prob.q + prob.p):
-        options = {"maxiter": max_iter, "ftol": 1e-15, "gtol": tol, "maxcor": 30}
+        options = {"maxiter": max_iter, "ftol": 1e-10, "gtol": tol, "maxcor": 30}
         res = optimize.minimize(f, theta0, jac=True, method="L-BFGS-B", bounds=bounds, options=options)
         for _ in range(5):  # a diagonal θ at 0 is a stationary point: probe off the bound, restart if better
             better = _off_bound(f, res.x, res.fun, lower)

@@ -6,8 +6,10 @@ are (θ, σ); their asymptotic covariance is ``A = 2 H⁻¹`` with ``H`` the Hes
 profiled out), and ``J_k = ∂ Cov(β̂)/∂ varpar_k``. For a contrast ``l``,
 ``ν = 2 (l'Cl)² / (g'Ag)`` with ``g_k = l'J_k l``; an F test of a matrix ``L`` of rank q uses
 the eigen-decomposition of ``L C L'`` (one ν per direction) and combines them as lmerTest's
-``get_Fstat_ddf``. The Hessian is the central difference of the exact gradient, and ``J`` a
-central difference of ``Cov(β̂)``, both Richardson-extrapolated (errors ~1e-10 relative).
+``get_Fstat_ddf``. The Hessian is the central difference of the exact gradient,
+Richardson-extrapolated (errors ~1e-10 relative); ``J`` is exact
+(:meth:`~analysis.stats.lmm.LmmFit.vcov_vp_jacobian`; lmerTest differences it numerically, and so
+did this module: the two agree to ~1e-9, ``tests/test_stats_lmm.py``).
 """
 
 from __future__ import annotations
@@ -108,7 +110,7 @@ def satterthwaite(fit: LmmFit) -> Satterthwaite:
     vp = fit.varpar
     with blas_threads(fit.problem.q + fit.problem.p):
         H = richardson_jacobian(fit.deviance_vp_grad, vp)
-        J = richardson_jacobian(fit.vcov_vp, vp)
+        J = fit.vcov_vp_jacobian(vp)
     H = (H + H.T) / 2
     try:
         A = 2 * np.linalg.inv(H)
