@@ -117,3 +117,28 @@ def test_manifest_columns_only_for_photo_characters():
 
     m = pd.DataFrame({"character": ["x"]})
     assert list(_with_people(m, G()).columns) == ["character"]
+
+
+def test_render_vs_photo_refines_the_landmark_alignment_by_a_sub_pixel_shift():
+    """A 'render' that is the photograph moved by a fraction of a pixel (and a little darker): the
+    landmark alignment leaves it out of register, the intensity refinement finds the shift, and the
+    SSIM reaches what the images share; a shift beyond MAX_REFINE_PX is not taken."""
+    import cv2
+
+    from stimulus_engine.morphpca.keypoints import detect_landmarks
+    from stimulus_engine.stylisation.photo_match import MAX_REFINE_PX, render_vs_photo
+
+    photo = np.asarray(Image.open(FACES / "002_03.jpg").convert("RGB"))
+    h, w = photo.shape[:2]
+    moved = cv2.warpAffine(photo, np.float32([[1, 0, 0.7], [0, 1, -0.5]]), (w, h), flags=cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_REPLICATE)
+    render = np.clip(moved.astype(float) * 0.9, 0, 255).astype(np.uint8)
+    points = detect_landmarks(photo)  # the same points on both: the landmark alignment misses the shift
+    m = render_vs_photo(render, photo, render_points=points, photo_points=points)
+    print(m.ssim, m.ssim_landmarks, m.shift_px)
+    assert m.shift_px == pytest.approx(np.hypot(0.7, 0.5), abs=0.1)
+    assert m.ssim > m.ssim_landmarks + 0.02 and m.ssim > 0.98
+    far = cv2.warpAffine(photo, np.float32([[1, 0, 0.0], [0, 1, 6.0]]), (w, h), borderMode=cv2.BORDER_REPLICATE)
+    kept = render_vs_photo(far, photo, render_points=points, photo_points=points)
+    assert kept.shift_px == 0.0 and kept.ssim == kept.ssim_landmarks  # beyond MAX_REFINE_PX: left as aligned
+    assert MAX_REFINE_PX < 6.0

@@ -30,6 +30,7 @@ __all__ = [
     "smooth_fill",
     "surround_corners",
     "surround_image",
+    "wide_blur",
 ]
 
 
@@ -225,6 +226,26 @@ def surround_image(photo: np.ndarray, face_mask: np.ndarray, *, grow: int = 6, w
     return np.rint(full * big + (1 - full) * photo[..., :3]).astype(np.uint8)
 
 
+def wide_blur(image: np.ndarray, sigma: float, step: float = 4.0) -> np.ndarray:
+    """A Gaussian blur of ``sigma`` pixels computed at a resolution where it is ``step`` pixels wide,
+    then resized back: OpenCV's direct blur of a 2048-pixel frame at sigma 164 took 21 s here, this
+    0.05 s, within 2 grey levels of it (mean 0.2; the frame is mirrored first, as the direct blur
+    reads past its edges)."""
+    import cv2
+
+    f = max(1, int(sigma // step))
+    if f == 1:
+        return cv2.GaussianBlur(image, (0, 0), sigma)
+    h, w = image.shape[:2]
+    m = f * int(np.ceil(3 * sigma / f))  # the frame mirrored at full resolution, as the direct blur reads past it
+    ph, pw = -h % f, -w % f  # whole f x f blocks: block means sit on the blocks' centres, as resizing back reads them
+    full = cv2.copyMakeBorder(np.ascontiguousarray(image), m, m + ph, m, m + pw, cv2.BORDER_REFLECT_101)
+    small = cv2.resize(full, (full.shape[1] // f, full.shape[0] // f), interpolation=cv2.INTER_AREA)
+    back = cv2.resize(cv2.GaussianBlur(small, (0, 0), sigma / f), (full.shape[1], full.shape[0]),
+                      interpolation=cv2.INTER_LINEAR)
+    return back[m:m + h, m:m + w]
+
+
 def padded(image: np.ndarray, share: tuple[float, float, float] = (0.4, 1.2, 0.8), max_side: int = 2048,
            blur: float = 0.08) -> tuple[np.ndarray, tuple[float, float, float]]:
     """``image`` continued by ``share`` (top, bottom, each side) of its size (its border pixels
@@ -238,7 +259,7 @@ def padded(image: np.ndarray, share: tuple[float, float, float] = (0.4, 1.2, 0.8
     big = cv2.copyMakeBorder(np.ascontiguousarray(image[..., :3]), top, bottom, side, side, cv2.BORDER_REPLICATE)
     k = min(1.0, max_side / max(big.shape[:2]))
     big = cv2.resize(big, (round(big.shape[1] * k), round(big.shape[0] * k)), interpolation=cv2.INTER_AREA)
-    soft = cv2.GaussianBlur(big, (0, 0), blur * max(big.shape[:2]))
+    soft = wide_blur(big, blur * max(big.shape[:2]))
     yy, xx = np.mgrid[0:big.shape[0], 0:big.shape[1]]
     out_y = np.maximum((top * k - yy) / max(top * k, 1), (yy - (top + h) * k) / max(bottom * k, 1))
     out_x = np.maximum(side * k - xx, xx - (side + w) * k) / max(side * k, 1)
