@@ -468,7 +468,9 @@ def fit_lmm(formula: str | Formula | ModelMatrices, data: pd.DataFrame | None = 
     bounds = None
     f = _objective(prob, reml)
     with blas_threads(prob.q + prob.p):
-        options = {"maxiter": max_iter, "ftol": 1e-10, "gtol": tol, "maxcor": 30}
+        # a relative change of 1e-12, then the Newton polish: at 1e-15 the line search ended in rounding
+        # ("ABNORMAL") after twice the evaluations, at the same optimum
+        options = {"maxiter": max_iter, "ftol": 1e-12, "gtol": tol, "maxcor": 30}
         res = optimize.minimize(f, theta0, jac=True, method="L-BFGS-B", bounds=bounds, options=options)
         for _ in range(5):  # a diagonal θ at 0 is a stationary point: probe off the bound, restart if better
             better = _off_bound(f, res.x, res.fun, lower)
