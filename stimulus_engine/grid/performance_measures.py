@@ -25,7 +25,6 @@ face, as the realistic rig. This module measures that on the clip's geometry, th
 
 from __future__ import annotations
 
-import io
 import logging
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -48,8 +47,9 @@ def frame_landmarks(path: Path, frames: Sequence[dict[str, float]],
                     landmarks: Callable[[dict[str, float]], dict[str, np.ndarray]]) -> Path:
     """The landmarks of the level's neutral and of every frame, in ``path`` (``.npz``; kept: a re-run
     reads it). ``landmarks``: a frame's blendshape weights -> landmark name -> point of the posed
-    rig; a run of equal frames is posed once."""
-    from appeal.atomic import atomic_write_bytes
+    rig; frames of equal weights are posed once (:func:`~stimulus_engine.grid.animation.frame_keys`)."""
+    from stimulus_engine.grid.animation import frame_keys
+    from stimulus_engine.grid.cache import save_npz
 
     path = Path(path)
     if path.exists():
@@ -57,17 +57,13 @@ def frame_landmarks(path: Path, frames: Sequence[dict[str, float]],
     neutral = landmarks({})
     names = list(neutral)
     points = np.empty((len(frames), len(names), 3))
-    last, pts = None, None
-    for k, w in enumerate(frames):
-        key = tuple(sorted(w.items()))
-        if key != last:
-            last, got = key, landmarks(w)
-            pts = np.array([got[n] for n in names])
-        points[k] = pts
-    buf = io.BytesIO()
-    np.savez(buf, names=np.array(names), neutral=np.array([neutral[n] for n in names]), frames=points)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path, buf.getvalue())
+    for k, first in enumerate(frame_keys(list(frames))):
+        if first == k:
+            got = landmarks(frames[k])
+            points[k] = [got[n] for n in names]
+        else:
+            points[k] = points[first]
+    save_npz(path, {"names": np.array(names), "neutral": np.array([neutral[n] for n in names]), "frames": points})
     return path
 
 

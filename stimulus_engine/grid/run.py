@@ -18,7 +18,7 @@ from stimulus_engine.grid.animation import apex_view, clip_checksums, render_cli
 from stimulus_engine.grid.designs import grid_characters
 from stimulus_engine.grid.continuum import continuum_table, write_continuum
 from stimulus_engine.grid.expression_measures import write_expression_measures
-from stimulus_engine.grid.performance_measures import write_performance_measures
+from stimulus_engine.grid.performance_measures import performance_landmarks, write_performance_measures
 from stimulus_engine.grid.prepare import measured_grid, prepare_grid
 from stimulus_engine.grid.sheets import write_filmstrips, write_sheets
 from stimulus_engine.grid.worker import place_photo, render_item
@@ -41,8 +41,6 @@ def _framing_reference(manifest: pd.DataFrame, character: str, out: Path) -> str
 def _performance_landmarks(manifest: pd.DataFrame) -> pd.DataFrame:
     """A performance grid's per-frame landmarks (:func:`~stimulus_engine.grid.performance_measures.performance_landmarks`;
     empty for any other grid)."""
-    from stimulus_engine.grid.performance_measures import performance_landmarks
-
     if "_frame_landmarks" not in manifest.columns:
         return pd.DataFrame()
     cells = manifest.dropna(subset=["_frame_landmarks"]).rename(columns={"_frame_landmarks": "landmarks_file"})

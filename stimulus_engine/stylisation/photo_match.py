@@ -90,20 +90,20 @@ def render_vs_photo(render: np.ndarray, photo: np.ndarray, *, render_points: np.
     mask = face_hull_mask((h, w), rp)
     a = _luma(render)
 
-    def ssim(photo_on_render: np.ndarray) -> float:
-        b = _luma(photo_on_render)
+    def ssim(b: np.ndarray) -> float:  # the photograph's luma on the render's frame
         b = (b - b[mask].mean()) / max(b[mask].std(), 1e-6) * a[mask].std() + a[mask].mean()
         _, smap = structural_similarity(a, b, data_range=255.0, gaussian_weights=True, sigma=1.5,
                                         use_sample_covariance=False, full=True)
         return float(smap[mask].mean())
 
-    by_landmarks = ssim(aligned)
-    shift = _intensity_shift(a, _luma(aligned), mask)
+    luma = _luma(aligned)
+    by_landmarks = ssim(luma)
+    shift = _intensity_shift(a, luma, mask)
     if shift is not None:
         aligned = cv2.warpAffine(aligned, np.array([[1.0, 0.0, -shift[0]], [0.0, 1.0, -shift[1]]]), (w, h),
                                  flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     d = identity_distance(face_descriptor(render), face_descriptor(aligned))
-    return PhotoMatch(ssim(aligned) if shift is not None else by_landmarks, float(d), aligned, by_landmarks,
+    return PhotoMatch(ssim(_luma(aligned)) if shift is not None else by_landmarks, float(d), aligned, by_landmarks,
                       0.0 if shift is None else float(np.hypot(*shift)))
 
 
