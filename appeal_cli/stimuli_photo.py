@@ -29,9 +29,13 @@ In a grid file the same character is one line:
               help="Further identity components (all 100 with the kit's three); 'none' for the kit's three only.")
 @click.option("--texture-size", type=click.IntRange(256, 4096), default=2048, show_default=True,
               help="Side of the texture in the rig's UV layout.")
+@click.option("--neutral", type=click.Choice(["photograph", "identity"]), default="photograph", show_default=True,
+              help="The character's neutral: the fitted shape with the photograph's own expression (its neutral "
+                   "render is the photograph) or the fitted identity alone (the photograph's residual expression, "
+                   "a slight smile or parted lips, removed).")
 @out_options()
 def photo_character_cmd(photo: Path, template: Path | None, ict: str, identity_model: str, texture_size: int,
-                        out: Path, force: bool, resume: bool) -> None:
+                        neutral: str, out: Path, force: bool, resume: bool) -> None:
     """Fit the ICT face model to one frontal photograph and lay the photograph on it.
 
     \b
@@ -64,7 +68,8 @@ def photo_character_cmd(photo: Path, template: Path | None, ict: str, identity_m
 
     model = None if identity_model.lower() == "none" else folder(identity_model)
     tem = template if template is not None else found_template(photo)
-    pc = photo_character(photo, folder(ict), model, template=tem, texture_size=texture_size)
+    pc = photo_character(photo, folder(ict), model, template=tem, texture_size=texture_size,
+                         neutral=neutral)
     with output_run(out, force=force, resume=resume, inputs=[photo, *([tem] if tem else [])]) as run:
         files = write_photo_character(pc, run.out)
     fit = pc.fit

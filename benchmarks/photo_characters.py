@@ -31,13 +31,15 @@ from pathlib import Path
 import numpy as np
 
 
-def _people(n: int | None) -> list[tuple[str, Path, Path]]:
+def _people(n: int | None, ids: list[str] | None = None) -> list[tuple[str, Path, Path]]:
     from appeal.datasets import resolve_reference
 
     roots = [Path(resolve_reference(f"data:{d}")) for d in ("london-frl", "london-frl-more")]
     smiles = {f.name[:3]: f for r in roots for f in sorted((r / "smiling_front").glob("*.jpg"))}
     neutral = sorted((f for r in roots for f in (r / "neutral_front").glob("*.jpg")), key=lambda f: f.name)
     out = [(f.name[:3], f, smiles[f.name[:3]]) for f in neutral if f.name[:3] in smiles]
+    if ids:
+        out = [p for p in out if p[0] in {f"{int(i):03d}" for i in ids}]
     return out[:n]
 
 
@@ -79,10 +81,11 @@ def main() -> None:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--people", type=int, default=None, help="the first N people (default all)")
+    ap.add_argument("--ids", nargs="+", default=None, help="only these people (London numbers, e.g. 17 82)")
     ap.add_argument("--timed", type=int, default=10, help="photographs timed for fit + texture")
     ap.add_argument("--out", type=Path, default=None, help="keep the grid and the table here")
     a = ap.parse_args()
-    people = _people(a.people)
+    people = _people(a.people, a.ids)
     rgb = lambda p: np.asarray(Image.open(p).convert("RGB"))
 
     from appeal.datasets import resolve_reference

@@ -102,6 +102,8 @@ def test_photo_character_refuses_mesh_and_template_alone(tmp_path):
     for chars, message in [
         (f"  - {{name: a, photo: '{photo}', mesh: {{file: '{photo}'}}}}", "takes no 'mesh'"),
         (f"  - {{name: a, ict: data:ict-facekit, template: '{photo}'}}", "template: only with 'photo'"),
+        ("  - {name: a, ict: data:ict-facekit, neutral: identity}", "neutral: only with 'photo'"),
+        (f"  - {{name: a, photo: '{photo}', neutral: smiling}}", "neutral"),
     ]:
         path = tmp_path / "g.yaml"
         path.write_text(base + "characters:\n" + chars + "\n")

@@ -169,6 +169,22 @@ def test_london_photo_character(london):
     assert np.allclose(pts[37], t[3]) and np.allclose(pts[48], t[87])
 
 
+def test_neutral_is_the_photographed_face_or_the_identity(london, ict):
+    """By default the character's neutral is the shape the photograph was laid on (its own expression
+    kept, so the neutral render is the photograph); ``neutral="identity"`` drops that expression."""
+    from stimulus_engine.characters.photo_character import photo_character
+
+    photo, pc = london
+    assert np.array_equal(pc.rig.vertices, pc.posed)
+    assert pc.fit.expression.max() > 0.01  # the photograph's own expression is not nothing
+    alone = photo_character(photo, *ict, neutral="identity")
+    assert np.array_equal(alone.posed, pc.posed) and np.array_equal(alone.fit.identity, pc.fit.identity)
+    moved = np.linalg.norm(alone.rig.vertices - pc.posed, axis=1)
+    assert moved.max() > 1e-3  # the photograph's expression taken off the neutral
+    with pytest.raises(ValueError, match="neutral: expected one of photograph, identity"):
+        photo_character(photo, *ict, neutral="smile")
+
+
 def test_written_character(london, tmp_path):
     import json
 

@@ -9,8 +9,12 @@ photograph as its material, its head and shoulders behind it.
    :data:`MIN_EYE_DISTANCE` pixels between the eyes is refused with one line naming the file.
 2. **Fit** (:mod:`stimulus_engine.characters.photo_fit`): the model's 100 identity components and
    its expression shapes, with a scaled orthographic camera, to the 68 points under the model's
-   prior. The character's neutral is the identity alone; the photograph's own expression (a
-   slight smile) is the shape the photograph is laid on.
+   prior. The photograph is laid on the fitted shape with its own expression, and that shape
+   is the character's neutral (``neutral="photograph"``, the default): the realistic neutral
+   render is the photograph, lips closed or parted as they were, and every expression is the
+   rig's shapes added to it. ``neutral="identity"`` takes the identity alone as the neutral
+   instead (the photograph's residual expression, a slight smile or parted lips, removed: the
+   lips then part on the rig's mouth where the photograph's were closed).
 3. **Material** (:mod:`stimulus_engine.characters.photo_texture`): the photograph projected into
    the rig's UV layout where the face is seen, completed from the mirrored side and filled
    smoothly from the seen skin; the rig's eyeballs with the iris colour of the photograph, the
@@ -38,6 +42,7 @@ from stimulus_engine.parts.surround import Surround
 __all__ = [
     "MAX_TURN_DEG",
     "MIN_EYE_DISTANCE",
+    "NEUTRALS",
     "PHOTO_EYE_PARTS",
     "PHOTO_VERSION",
     "PhotoCharacter",
@@ -58,7 +63,11 @@ __all__ = [
 PHOTO_EYE_PARTS = ("eye", "eye_shadow", "tear", "lashes")
 
 #: Changes whenever the fit or the photo material change (part of a grid's cache key).
-PHOTO_VERSION = "photo-12"
+PHOTO_VERSION = "photo-13"
+
+#: What a photo character's neutral is: the fitted shape with the photograph's own expression
+#: (the default) or the fitted identity alone.
+NEUTRALS = ("photograph", "identity")
 
 #: The smallest face a character is made from: pixels between the eye centres (below it the
 #: texture is blurred and dlib's points scatter by more than the fit's noise).
@@ -89,7 +98,7 @@ class PhotoCharacter:
     Attributes
     ----------
     rig : FaceRig
-        The fitted identity in the ICT topology, wearing the photograph (``texture``), with the
+        The fitted face in the ICT topology (its neutral: see ``neutral``), wearing the photograph (``texture``), with the
         rig's eyeballs (iris from the photograph) and mouth, its scalp and neck hidden, and the
         photograph's surround (``surround``).
     fit : PhotoFit
@@ -369,7 +378,8 @@ def bake_texels(rig: FaceRig, vertices: np.ndarray, size: int) -> tuple[np.ndarr
 def photo_character(photo: str | os.PathLike, ict_dir: str | os.PathLike, identity_model: str | os.PathLike | None = None,
                     *, name: str | None = None, template: str | os.PathLike | None = None,
                     texture_size: int = 2048, lighting: str | None = REFERENCE_LIGHTING,
-                    portrait: tuple[float, float, float] | None = PORTRAIT) -> PhotoCharacter:
+                    portrait: tuple[float, float, float] | None = PORTRAIT,
+                    neutral: str = "photograph") -> PhotoCharacter:
     """A character from one frontal photograph.
 
     Parameters
@@ -399,6 +409,11 @@ def photo_character(photo: str | os.PathLike, ict_dir: str | os.PathLike, identi
         (:func:`_reference_light`), is divided out of the photograph, so the face rendered under
         that light gives the photograph back and other lights relight it. None keeps the
         photograph's light in the albedo (it is then shaded twice).
+    neutral : {"photograph", "identity"}
+        The character's neutral: the fitted shape with the photograph's own expression (its
+        realistic neutral render is the photograph; measured over the 87 public London people,
+        the SSIM against the photograph rises from a median 0.921 to 0.949) or the fitted
+        identity alone (the photograph's residual expression removed).
 
     Returns
     -------
@@ -409,6 +424,8 @@ def photo_character(photo: str | os.PathLike, ict_dir: str | os.PathLike, identi
     from stimulus_engine.parts.eyes import tint_iris
 
     where = str(photo)
+    if neutral not in NEUTRALS:
+        raise ValueError(f"neutral: expected one of {', '.join(NEUTRALS)}, got {neutral!r}")
     img = read_photo(photo)
     points = photo_points(img, where, template)
     base, basis, lm, expressions = _model(str(ict_dir), None if identity_model is None else str(identity_model))
@@ -419,9 +436,10 @@ def photo_character(photo: str | os.PathLike, ict_dir: str | os.PathLike, identi
     if turn > MAX_TURN_DEG:
         raise AppealInputError(f"{where}: the head is turned {turn:.0f} degrees from the camera (expected a frontal "
                                f"photograph, within {MAX_TURN_DEG:.0f} degrees)")
-    neutral = base.vertices + np.tensordot(fit.identity, basis, 1)
-    posed = neutral + np.tensordot(fit.expression, E, 1)
-    rig = _hide_scalp(base.with_vertices(neutral, name=name or Path(photo).stem), str(ict_dir))
+    identity = base.vertices + np.tensordot(fit.identity, basis, 1)
+    posed = identity + np.tensordot(fit.expression, E, 1)
+    rig = _hide_scalp(base.with_vertices(posed if neutral == "photograph" else identity, name=name or Path(photo).stem),
+                      str(ict_dir))
     camera = fit.camera if portrait is None else _through(fit.camera, rig, posed, portrait)
     skin = rig.part_names.index("skin")
     zbuf = pt.depth_buffer(camera, posed, rig.faces[rig.face_part == skin], img.shape[:2])

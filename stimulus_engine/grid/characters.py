@@ -57,13 +57,14 @@ def _photo_rig(c: CharacterSpec, cache: Path | None = None, render: object = Non
     portrait = (r.yfov_deg, r.eye_row, r.face_fraction)
     template = c.template or found_template(c.photo)
     h = sha(GRID_VERSION, PHOTO_VERSION, file_sha(c.photo), file_sha(template) if template else None,
-            _ict_rig_key(c.ict), str(c.identity_model), portrait)
+            _ict_rig_key(c.ict), str(c.identity_model), portrait, c.neutral)
 
     def make() -> dict[str, np.ndarray]:
         from stimulus_engine.characters.photo_character import photo_character
 
         logger.info("%s: fitting the ICT model to %s", c.name, c.photo)
-        pc = photo_character(c.photo, c.ict, c.identity_model, name=c.name, template=template, portrait=portrait)
+        pc = photo_character(c.photo, c.ict, c.identity_model, name=c.name, template=template, portrait=portrait,
+                             neutral=c.neutral)
         r = pc.rig
         return {"vertices": r.vertices, "face_part": r.face_part, "texture": r.texture,
                 "part_texture_eye": r.part_textures["eye"], **{f"mask_{k}": v for k, v in r.texture_masks.items()},

@@ -170,7 +170,10 @@ class CharacterSpec(StudyModel):
     ``data:ict-facekit-more``) fitted to its landmarks, the photograph as its material, its hair,
     ears, neck and clothes the photograph's own (no bust, no hair style unless asked for).
     ``template``: a ``.tem`` beside it is found by itself (the London set's 189-point templates:
-    their hand-placed eye, brow, nose and mouth points replace dlib's).
+    their hand-placed eye, brow, nose and mouth points replace dlib's). ``neutral``: the
+    character's neutral, ``photograph`` (the default: the fitted shape with the photograph's own
+    expression, so the realistic neutral render is the photograph) or ``identity`` (the fitted
+    identity alone, the photograph's residual expression removed).
     """
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
@@ -180,6 +183,7 @@ class CharacterSpec(StudyModel):
     mesh: MeshSpec | None = None
     photo: InputFile | None = None
     template: InputFile | None = None
+    neutral: Literal["photograph", "identity"] = "photograph"
     identity_model: InputDir | None = None
     texture: InputFile | None = None
     texture_seed: int = 0
@@ -217,6 +221,8 @@ class CharacterSpec(StudyModel):
                              "(its shape is fitted to the photograph and the photograph is its material)")
         if self.template is not None and self.photo is None:
             raise ValueError("template: only with 'photo' (the photograph's landmarks)")
+        if "neutral" in self.model_fields_set and self.photo is None:
+            raise ValueError("neutral: only with 'photo' (a scan's or a model's neutral is its own)")
         if (self.ict is None) == (self.procedural is None):
             raise ValueError("give exactly one of 'ict' (an ICT-FaceKit folder) or 'procedural' (a generated head)"
                              + (" as the rig of the mesh" if self.mesh is not None else ""))
