@@ -247,3 +247,18 @@ def _difference_of_people(lm: pd.DataFrame) -> np.ndarray:
             for _, g in lm.groupby("character", sort=True))
     width = np.linalg.norm(b.loc["face_left"] - b.loc["face_right"])
     return ((umeyama(a.to_numpy(), b.to_numpy()).apply(a.to_numpy()) - b.to_numpy()) / width).ravel()
+
+
+def test_continuum_plot_of_many_characters_keeps_its_panels(tmp_path):
+    """A benchmark grid of 87 people: no legend of 87 names squeezing the panels to nothing."""
+    import warnings
+
+    from stimulus_engine.grid.continuum import LEGEND_MAX, plot_continuum
+
+    rows = [{"factor": "shape", "character": f"p{c:03d}", "position": i, "level": lv, "image_to_next": 0.1 + 0.01 * c,
+             "identity_to_realistic": 0.1 * i, "identity_to_nearest_other": 0.7}
+            for c in range(87) for i, lv in enumerate(["realistic", "cartoon"])]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        path = plot_continuum(pd.DataFrame(rows), tmp_path / "continuum.png")
+    assert Image.open(path).size[0] > 300

@@ -477,6 +477,10 @@ def continuum_table(out: Path, manifest: pd.DataFrame, grid: GridFile,
     return pd.DataFrame(table)
 
 
+#: The most characters :func:`plot_continuum` names in a legend.
+LEGEND_MAX = 12
+
+
 def plot_continuum(table: pd.DataFrame, path: Path) -> Path:
     """Image step and identity distance along each continuum, a panel per factor (PNG)."""
     import matplotlib
@@ -505,7 +509,12 @@ def plot_continuum(table: pd.DataFrame, path: Path) -> Path:
         axes[1, j].axhline(SAME_PERSON, color="grey", lw=0.8)
         axes[1, j].set_title(f"{factor}: identity distance (dlib)")
         axes[1, j].set_ylabel("to own realistic (solid), other's (dashed)")
-        axes[0, j].legend(fontsize=8)
+        n = sub["character"].nunique()
+        if n <= LEGEND_MAX:
+            axes[0, j].legend(fontsize=8)
+        else:  # a legend of every character would squeeze the panels to nothing
+            axes[0, j].text(0.02, 0.97, f"{n} characters, a line each", transform=axes[0, j].transAxes, va="top",
+                            fontsize=8)
     path = Path(path)
     fig.savefig(path, dpi=100)
     plt.close(fig)
