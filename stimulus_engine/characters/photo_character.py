@@ -63,13 +63,7 @@ __all__ = [
 PHOTO_EYE_PARTS = ("eye", "eye_shadow", "tear", "lashes")
 
 #: Changes whenever the fit or the photo material change (part of a grid's cache key).
-PHOTO_VERSION = "photo-14"
-
-#: How far the fit may close the jaw past the model's neutral (a ``jawOpen`` weight down to minus
-#: this): the ICT mean face's lips are parted (its inner-lip points 0.16 eye distances apart, where
-#: dlib puts them on its renders), a photograph's closed lips are not, and no other expression
-#: shape of the kit closes them (``mouthPress`` 0.03 at full weight).
-JAW_CLOSE = 0.3
+PHOTO_VERSION = "photo-13"
 
 #: What a photo character's neutral is: the fitted shape with the photograph's own expression
 #: (the default) or the fitted identity alone.
@@ -418,8 +412,7 @@ def photo_character(photo: str | os.PathLike, ict_dir: str | os.PathLike, identi
     neutral : {"photograph", "identity"}
         The character's neutral: the fitted shape with the photograph's own expression (its
         realistic neutral render is the photograph; measured over the 87 public London people,
-        the SSIM against the photograph rose from a median 0.921 to 0.949, and to 0.955 with
-        the jaw closed where the photograph's lips are, :data:`JAW_CLOSE`) or the fitted
+        the SSIM against the photograph rises from a median 0.921 to 0.949) or the fitted
         identity alone (the photograph's residual expression removed).
 
     Returns
@@ -437,9 +430,8 @@ def photo_character(photo: str | os.PathLike, ict_dir: str | os.PathLike, identi
     points = photo_points(img, where, template)
     base, basis, lm, expressions = _model(str(ict_dir), None if identity_model is None else str(identity_model))
     E = np.array([base.blendshapes[k] for k in expressions])
-    lower = np.array([-JAW_CLOSE if k == "jawOpen" else 0.0 for k in expressions])
     fit = fit_landmarks(points, base.vertices[lm], basis[:, lm], E[:, lm], noise=FIT_NOISE,
-                        prior_expression=FIT_PRIOR_EXPRESSION, expression_lower=lower)
+                        prior_expression=FIT_PRIOR_EXPRESSION)
     turn = max(abs(fit.camera.yaw_degrees), abs(fit.camera.pitch_degrees))
     if turn > MAX_TURN_DEG:
         raise AppealInputError(f"{where}: the head is turned {turn:.0f} degrees from the camera (expected a frontal "

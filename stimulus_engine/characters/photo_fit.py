@@ -18,8 +18,7 @@ the fit linear.
 2. **shape** given the camera: the identity and expression weights by bounded, regularised
    least squares (:func:`fit_shape`) — the landmarks' residuals in units of their noise
    (``noise`` times the eye distance: dlib's points scatter by 2-4 % of it on frontal faces)
-   plus the model's own prior, ``|a|^2`` (unit-variance components) and ``prior_expression |b|^2``;
-   expression weights in [0, 1], or from ``expression_lower`` where a shape may act in reverse.
+   plus the model's own prior, ``|a|^2`` (unit-variance components) and ``prior_expression |b|^2``.
 
 The jaw-line points (iBUG 0-16) lie on the face's silhouette, which slides over the surface as
 the head turns; they count half (``contour_weight``). Depth is only seen through the model: the
@@ -199,12 +198,11 @@ def fit_camera(model: np.ndarray, image: np.ndarray, weights: np.ndarray | None 
 
 def fit_shape(camera: OrthoCamera, image: np.ndarray, mean: np.ndarray, identity_basis: np.ndarray,
               expression_basis: np.ndarray, *, sigma: float, weights: np.ndarray | None = None,
-              prior_expression: float = 1.0, identity_bound: float = 5.0,
-              expression_lower: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+              prior_expression: float = 1.0, identity_bound: float = 5.0) -> tuple[np.ndarray, np.ndarray]:
     """Identity and expression weights that bring the landmarks nearest ``image`` under ``camera``.
 
     Minimises ``sum_i w_i |P X_i - x_i|^2 / sigma^2 + |a|^2 + prior_expression |b|^2`` with
-    ``|a_k| <= identity_bound`` and ``expression_lower <= b_j <= 1`` (bounded linear least squares).
+    ``|a_k| <= identity_bound`` and ``0 <= b_j <= 1`` (bounded linear least squares).
 
     Parameters
     ----------
@@ -219,9 +217,6 @@ def fit_shape(camera: OrthoCamera, image: np.ndarray, mean: np.ndarray, identity
         Expression deltas at the landmark vertices (E may be 0).
     sigma : float
         Landmark noise in pixels.
-    expression_lower : float or (E,) array
-        Lowest expression weights (default 0; a negative one lets a shape act in reverse, e.g.
-        ``jawOpen`` closing a model whose neutral lips are parted).
     """
     from scipy.optimize import lsq_linear
 
@@ -236,7 +231,7 @@ def fit_shape(camera: OrthoCamera, image: np.ndarray, mean: np.ndarray, identity
     prior = np.concatenate([np.ones(k), np.full(e, np.sqrt(prior_expression))])
     A_all = np.vstack([A * rw[:, None], np.diag(prior)])
     b_all = np.concatenate([b * rw, np.zeros(k + e)])
-    lo = np.concatenate([np.full(k, -identity_bound), np.broadcast_to(np.asarray(expression_lower, np.float64), (e,))])
+    lo = np.concatenate([np.full(k, -identity_bound), np.zeros(e)])
     hi = np.concatenate([np.full(k, identity_bound), np.ones(e)])
     c = lsq_linear(A_all, b_all, bounds=(lo, hi), method="bvls" if k + e <= 64 else "trf", lsmr_tol="auto").x
     return c[:k], c[k:]
@@ -245,7 +240,7 @@ def fit_shape(camera: OrthoCamera, image: np.ndarray, mean: np.ndarray, identity
 def fit_landmarks(image: np.ndarray, mean: np.ndarray, identity_basis: np.ndarray,
                   expression_basis: np.ndarray | None = None, *, noise: float = 0.03,
                   contour_weight: float = 0.5, prior_expression: float = 1.0,
-                  expression_lower: np.ndarray | float = 0.0, iterations: int = 8) -> PhotoFit:
+                  iterations: int = 8) -> PhotoFit:
     """Fit the face model and a scaled orthographic camera to one photograph's 68 landmarks.
 
     Parameters
@@ -260,8 +255,6 @@ def fit_landmarks(image: np.ndarray, mean: np.ndarray, identity_basis: np.ndarra
         Weight of the jaw line's points (they slide with the silhouette).
     prior_expression : float
         Weight of the expression prior (larger: a neutral face is assumed more strongly).
-    expression_lower : float or (E,) array
-        Lowest expression weights (see :func:`fit_shape`).
     iterations : int
         Camera-then-shape rounds (the fit settles in 4-6).
 
@@ -282,8 +275,7 @@ def fit_landmarks(image: np.ndarray, mean: np.ndarray, identity_basis: np.ndarra
     shape = mean
     for _ in range(iterations):
         cam = fit_camera(shape, x, w)
-        a, b = fit_shape(cam, x, mean, B, E, sigma=noise * iod, weights=w, prior_expression=prior_expression,
-                         expression_lower=expression_lower)
+        a, b = fit_shape(cam, x, mean, B, E, sigma=noise * iod, weights=w, prior_expression=prior_expression)
         shape = mean + np.tensordot(a, B, 1) + np.tensordot(b, E, 1)
     cam = fit_camera(shape, x, w)
     res = np.linalg.norm(cam.project(shape) - x, axis=1)
