@@ -29,10 +29,10 @@ In a grid file the same character is one line:
               help="Further identity components (all 100 with the kit's three); 'none' for the kit's three only.")
 @click.option("--texture-size", type=click.IntRange(256, 4096), default=2048, show_default=True,
               help="Side of the texture in the rig's UV layout.")
-@click.option("--neutral", type=click.Choice(["photograph", "identity"]), default="photograph", show_default=True,
-              help="The character's neutral: the fitted shape with the photograph's own expression (its neutral "
-                   "render is the photograph) or the fitted identity alone (the photograph's residual expression, "
-                   "a slight smile or parted lips, removed).")
+@click.option("--neutral", type=click.Choice(["identity", "photograph"]), default="identity", show_default=True,
+              help="The character's neutral: the fitted identity alone (the photograph's residual expression, a "
+                   "slight smile or parted lips, removed) or the fitted shape with the photograph's own expression "
+                   "(its neutral render is the photograph).")
 @out_options()
 def photo_character_cmd(photo: Path, template: Path | None, ict: str, identity_model: str, texture_size: int,
                         neutral: str, out: Path, force: bool, resume: bool) -> None:

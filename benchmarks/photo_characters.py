@@ -57,8 +57,8 @@ def fixed_smile_reach(motions: list[np.ndarray]) -> dict[str, float]:
             "mean_smile_share": float(np.mean([np.corrcoef(x, mean)[0, 1] >= 0.7 for x in m]))}
 
 
-def _grid_text(people: list[tuple[str, Path, Path]]) -> str:
-    chars = "\n".join(f"  - {{name: p{pid}, photo: '{neutral}'}}" for pid, neutral, _ in people)
+def _grid_text(people: list[tuple[str, Path, Path]], neutral_shape: str) -> str:
+    chars = "\n".join(f"  - {{name: p{pid}, photo: '{neutral}', neutral: {neutral_shape}}}" for pid, neutral, _ in people)
     return (f"kind: grid\nname: photo_benchmark\ncharacters:\n{chars}\nshapes: [0.0]\n"
             "materials: [original]\nexpressions: [neutral, happiness]\nlighting: [gi_soft]\nshading: [pbr]\nrender: {shadows: false}\n")
 
@@ -82,6 +82,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--people", type=int, default=None, help="the first N people (default all)")
     ap.add_argument("--ids", nargs="+", default=None, help="only these people (London numbers, e.g. 17 82)")
+    ap.add_argument("--neutral", choices=["photograph", "identity"], default="photograph",
+                    help="the characters' neutral (default photograph: the realistic neutral render is the photograph)")
     ap.add_argument("--timed", type=int, default=10, help="photographs timed for fit + texture")
     ap.add_argument("--out", type=Path, default=None, help="keep the grid and the table here")
     a = ap.parse_args()
@@ -91,11 +93,11 @@ def main() -> None:
     from appeal.datasets import resolve_reference
 
     ict, more = resolve_reference("data:ict-facekit"), resolve_reference("data:ict-facekit-more")
-    photo_character(people[0][1], ict, more)  # the model loaded once
+    photo_character(people[0][1], ict, more, neutral=a.neutral)  # the model loaded once
     fit_s, detect_s = [], []
     for _, neutral, _ in people[:a.timed]:
         t = time.perf_counter()
-        photo_character(neutral, ict, more)
+        photo_character(neutral, ict, more, neutral=a.neutral)
         fit_s.append(time.perf_counter() - t)
         img = rgb(neutral)
         t = time.perf_counter()
@@ -105,7 +107,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = a.out or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        (folder / "grid.yaml").write_text(_grid_text(people), encoding="utf-8")
+        (folder / "grid.yaml").write_text(_grid_text(people, a.neutral), encoding="utf-8")
         grid = load_study_file(folder / "grid.yaml", GridFile)
         t = time.perf_counter()
         manifest, _ = run_grid(grid, folder / "out")

@@ -170,14 +170,15 @@ def test_london_photo_character(london):
 
 
 def test_neutral_is_the_photographed_face_or_the_identity(london, ict):
-    """By default the character's neutral is the shape the photograph was laid on (its own expression
-    kept, so the neutral render is the photograph); ``neutral="identity"`` drops that expression."""
+    """``neutral="photograph"``: the character's neutral is the shape the photograph was laid on (its
+    own expression kept, so the neutral render is the photograph); the default, the identity alone,
+    drops that expression."""
     from stimulus_engine.characters.photo_character import photo_character
 
-    photo, pc = london
+    photo, alone = london
+    pc = photo_character(photo, *ict, neutral="photograph")
     assert np.array_equal(pc.rig.vertices, pc.posed)
     assert pc.fit.expression.max() > 0.01  # the photograph's own expression is not nothing
-    alone = photo_character(photo, *ict, neutral="identity")
     assert np.array_equal(alone.posed, pc.posed) and np.array_equal(alone.fit.identity, pc.fit.identity)
     moved = np.linalg.norm(alone.rig.vertices - pc.posed, axis=1)
     assert moved.max() > 1e-3  # the photograph's expression taken off the neutral

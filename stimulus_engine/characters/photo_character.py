@@ -9,12 +9,10 @@ photograph as its material, its head and shoulders behind it.
    :data:`MIN_EYE_DISTANCE` pixels between the eyes is refused with one line naming the file.
 2. **Fit** (:mod:`stimulus_engine.characters.photo_fit`): the model's 100 identity components and
    its expression shapes, with a scaled orthographic camera, to the 68 points under the model's
-   prior. The photograph is laid on the fitted shape with its own expression, and that shape
-   is the character's neutral (``neutral="photograph"``, the default): the realistic neutral
-   render is the photograph, lips closed or parted as they were, and every expression is the
-   rig's shapes added to it. ``neutral="identity"`` takes the identity alone as the neutral
-   instead (the photograph's residual expression, a slight smile or parted lips, removed: the
-   lips then part on the rig's mouth where the photograph's were closed).
+   prior. The photograph is laid on the fitted shape with its own expression. The character's
+   neutral is the identity alone (``neutral="identity"``, the default) or that posed shape
+   (``neutral="photograph"``: the realistic neutral render is the photograph, lips closed or
+   parted as they were, and every expression is the rig's shapes added to it).
 3. **Material** (:mod:`stimulus_engine.characters.photo_texture`): the photograph projected into
    the rig's UV layout where the face is seen, completed from the mirrored side and filled
    smoothly from the seen skin; the rig's eyeballs with the iris colour of the photograph, the
@@ -379,7 +377,7 @@ def photo_character(photo: str | os.PathLike, ict_dir: str | os.PathLike, identi
                     *, name: str | None = None, template: str | os.PathLike | None = None,
                     texture_size: int = 2048, lighting: str | None = REFERENCE_LIGHTING,
                     portrait: tuple[float, float, float] | None = PORTRAIT,
-                    neutral: str = "photograph") -> PhotoCharacter:
+                    neutral: str = "identity") -> PhotoCharacter:
     """A character from one frontal photograph.
 
     Parameters
@@ -409,11 +407,12 @@ def photo_character(photo: str | os.PathLike, ict_dir: str | os.PathLike, identi
         (:func:`_reference_light`), is divided out of the photograph, so the face rendered under
         that light gives the photograph back and other lights relight it. None keeps the
         photograph's light in the albedo (it is then shaded twice).
-    neutral : {"photograph", "identity"}
-        The character's neutral: the fitted shape with the photograph's own expression (its
-        realistic neutral render is the photograph; measured over the 87 public London people,
-        the SSIM against the photograph rises from a median 0.921 to 0.949) or the fitted
-        identity alone (the photograph's residual expression removed).
+    neutral : {"identity", "photograph"}
+        The character's neutral: the fitted identity alone (the default: the photograph's residual
+        expression removed, its lips then parting on the rig's teeth) or the fitted shape with the
+        photograph's own expression (its realistic neutral render is the photograph: over the 87
+        public London people the SSIM against the photograph rose from a median 0.921 to 0.949; at
+        stylised levels the aligned expression transfer and the lashes are not yet verified on it).
 
     Returns
     -------

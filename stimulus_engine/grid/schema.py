@@ -171,9 +171,10 @@ class CharacterSpec(StudyModel):
     ears, neck and clothes the photograph's own (no bust, no hair style unless asked for).
     ``template``: a ``.tem`` beside it is found by itself (the London set's 189-point templates:
     their hand-placed eye, brow, nose and mouth points replace dlib's). ``neutral``: the
-    character's neutral, ``photograph`` (the default: the fitted shape with the photograph's own
-    expression, so the realistic neutral render is the photograph) or ``identity`` (the fitted
-    identity alone, the photograph's residual expression removed).
+    character's neutral, ``identity`` (the default: the fitted identity alone, the photograph's
+    residual expression removed) or ``photograph`` (the fitted shape with the photograph's own
+    expression, so the realistic neutral render is the photograph; not yet verified at stylised
+    levels: docs/stimuli.md).
     """
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
@@ -183,7 +184,7 @@ class CharacterSpec(StudyModel):
     mesh: MeshSpec | None = None
     photo: InputFile | None = None
     template: InputFile | None = None
-    neutral: Literal["photograph", "identity"] = "photograph"
+    neutral: Literal["identity", "photograph"] = "identity"
     identity_model: InputDir | None = None
     texture: InputFile | None = None
     texture_seed: int = 0
