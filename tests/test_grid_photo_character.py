@@ -63,10 +63,11 @@ def test_photo_character_grid(tmp_path, shared_data):
     from stimulus_engine.morphpca.keypoints import detect_landmarks
     from stimulus_engine.stylisation.photo_match import face_hull_mask
 
-    face = face_hull_mask((384, 512), detect_landmarks(img["realistic", "neutral"]))  # ~15 % of the frame
+    points = detect_landmarks(img["realistic", "neutral"])
+    face = face_hull_mask((384, 512), points)  # ~15 % of the frame
     assert np.abs(img["cartoon", "neutral"].astype(float) - img["realistic", "neutral"].astype(float))[face].mean() > 20
 
-    mouth = detect_landmarks(img["realistic", "neutral"])[48:68]
+    mouth = points[48:68]
     (x0, y0), (x1, y1) = mouth.min(axis=0).astype(int) - 8, mouth.max(axis=0).astype(int) + 8
     lo = slice(y0, y1), slice(x0, x1)
     assert np.abs(img["realistic", "happiness"][lo].astype(float) - img["realistic", "neutral"][lo].astype(float)).mean() > 4

@@ -63,8 +63,8 @@ PHOTO_EYE_PARTS = ("eye", "eye_shadow", "tear", "lashes")
 #: Changes whenever the fit or the photo material change (part of a grid's cache key).
 PHOTO_VERSION = "photo-13"
 
-#: What a photo character's neutral is: the fitted shape with the photograph's own expression
-#: (the default) or the fitted identity alone.
+#: What a photo character's neutral may be: the fitted shape with the photograph's own expression
+#: or the fitted identity alone (the default, :func:`photo_character`'s ``neutral``).
 NEUTRALS = ("photograph", "identity")
 
 #: The smallest face a character is made from: pixels between the eye centres (below it the
@@ -96,9 +96,9 @@ class PhotoCharacter:
     Attributes
     ----------
     rig : FaceRig
-        The fitted face in the ICT topology (its neutral: see ``neutral``), wearing the photograph (``texture``), with the
-        rig's eyeballs (iris from the photograph) and mouth, its scalp and neck hidden, and the
-        photograph's surround (``surround``).
+        The fitted face in the ICT topology (its neutral: :func:`photo_character`'s ``neutral``),
+        wearing the photograph (``texture``), with the rig's eyeballs (iris from the photograph)
+        and mouth, its scalp and neck hidden, and the photograph's surround (``surround``).
     fit : PhotoFit
         Coefficients, camera and residuals.
     points : (68, 2) array
