@@ -147,6 +147,29 @@ def test_an_eye_reflects_a_dome_of_lights_as_one_glint(shading):
     assert calm.sum() > 1000 and np.abs(imgs[False][calm] - imgs[True][calm]).mean() < 6
 
 
+@pytest.mark.parametrize("lighting", ["gi_soft", "direct_soft"])
+def test_the_catch_light_is_a_small_window(lighting):
+    """The eye's catch-light is a window, wider than tall and a small share of the iris, not a
+    round spot a third of it wide: on a ball 200 px across its core is at most 16 px wide, 1.2-1.8
+    times wider than tall, and fills its box as a rectangle does (an ellipse fills pi/4 of it)."""
+    from scipy import ndimage
+
+    from stimulus_engine.characters.render_parts import _material
+
+    ball = trimesh.creation.icosphere(subdivisions=6)
+    dark = (0.2, 0.2, 0.2, 1.0)  # a dark iris: only the catch-light is bright
+    img, depth = render_mesh([RenderPart(ball, material=_material("pbr", dark, None, 0.05, glint=True))], width=400,
+                             height=400, lighting=lighting, shadows=False, return_depth=True)
+    lum = img.astype(float).mean(axis=2)
+    core = (lum > 0.5 * (lum.max() + np.median(lum[depth > 0]))) & (depth > 0)
+    labels, n = ndimage.label(core)
+    assert n == 1
+    rows, cols = np.nonzero(core)
+    w, h = np.ptp(cols) + 1, np.ptp(rows) + 1
+    assert w <= 16 and 1.2 <= w / h <= 1.8, (w, h)
+    assert core.sum() / (w * h) > 0.8
+
+
 @pytest.mark.parametrize("shading", ["pbr", "skin"])
 def test_hair_highlights_run_across_the_strands(shading):
     """Kajiya-Kay hair (HAIR_KAJIYA): a ball combed around its vertical axis, lit from the camera,

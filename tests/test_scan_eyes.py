@@ -7,6 +7,7 @@ import pytest
 import trimesh
 
 from stimulus_engine.parts.eyes import eyeball_asset, tint_iris
+from stimulus_engine.characters.scan_eyes import PAINTED_IRIS_LEAST
 from stimulus_engine.characters.scan_eyes import (
     CLOSED_RATIO, EYEBALL_RATIO, cut_openings, eye_geometry, lid_contour, openness,
 )
@@ -106,6 +107,19 @@ def test_tint_iris_recolours_the_iris_only():
     assert 0.02 < changed.mean() < 0.3  # the iris disks, not the sclera
     assert blue[changed][:, 2].mean() > blue[changed][:, 0].mean()  # now bluish
     assert tex[changed][:, 0].mean() > tex[changed][:, 2].mean()  # was brown
+
+
+def test_a_dark_painted_iris_is_lifted_to_a_photographed_brown():
+    """james's painted iris (mean grey about 50, read off his shaded scan) rendered as a black
+    disc; with ``least`` the colour is lifted, hue kept, and a lighter one is left alone."""
+    _, tex = eyeball_asset()
+    dark = np.array([58.0, 48.0, 44.0])
+    plain, lifted = tint_iris(tex, dark), tint_iris(tex, dark, least=PAINTED_IRIS_LEAST)
+    iris = np.any(plain != tex, axis=-1)
+    ratio = lifted[iris].astype(float).mean(axis=0) / np.maximum(plain[iris].astype(float).mean(axis=0), 1)
+    assert np.all(ratio > 1.25) and np.ptp(ratio) < 0.06  # brighter by one factor: the same hue
+    light = np.array([120.0, 100.0, 80.0])
+    assert np.array_equal(tint_iris(tex, light), tint_iris(tex, light, least=PAINTED_IRIS_LEAST))
 
 
 def _lip_points(gap: float) -> np.ndarray:

@@ -33,12 +33,17 @@ from stimulus_engine.parts.eyelashes import lash_strip
 from stimulus_engine.geometry.polyline2d import catmull_rom, closest_on_polygon, inside_polygon, push_behind, relax_around
 
 __all__ = ["EyeGeometry", "erase_painted_eyes", "eye_geometry", "lid_contour", "lid_margins", "cut_openings",
-           "place_eyeballs", "openness", "painted_iris_colour"]
+           "place_eyeballs", "openness", "painted_iris_colour", "PAINTED_IRIS_LEAST"]
 
 #: Eyeball radius over the distance between the eye centres (12 mm / 63 mm).
 EYEBALL_RATIO = 12.0 / 63.0
 #: Below this height/width ratio of its contour an eye counts as closed (open eyes: 0.25–0.4).
 CLOSED_RATIO = 0.12
+#: The least mean grey (sRGB) of the iris colour read off a scan's painted eye: james's painted
+#: iris averages 50, shaded by the scan's own light, and rendered it came out a near-black disc
+#: (luminance 36 in the image, where London's neutral photographs' irises measure 47-78, 25th-75th
+#: percentile, and their pupils show darker inside).
+PAINTED_IRIS_LEAST = 68.0
 
 
 @dataclass(frozen=True)
@@ -380,7 +385,7 @@ def eye_geometry(vertices: np.ndarray, faces: np.ndarray, eye_points: np.ndarray
 
     templates, eye_texture = eyeball_asset()
     if texture is not None:
-        eye_texture = tint_iris(eye_texture, painted_iris_colour(*texture, ~keep))
+        eye_texture = tint_iris(eye_texture, painted_iris_colour(*texture, ~keep), least=PAINTED_IRIS_LEAST)
     eye_texture = lid_shadow(eye_texture, templates)
     ball_centres = [b[0] - radius * t[0][0] for b, t in zip(balls, templates)]
     margins = lid_margins(v, faces[keep], contours, ball_centres, radius)

@@ -137,18 +137,25 @@ def eye_texture(size: int = 512, iris_colour: tuple[float, float, float] = (0.33
     return out
 
 
-def tint_iris(texture: np.ndarray, colour: np.ndarray) -> np.ndarray:
+def tint_iris(texture: np.ndarray, colour: np.ndarray, least: float | None = None) -> np.ndarray:
     """An eyeball texture with its iris (its saturated pixels) in ``colour`` (sRGB 0-255),
-    keeping the iris's own light and dark fibres (its luminance relative to its median)."""
+    keeping the iris's own light and dark fibres (its luminance relative to its median).
+
+    ``least``: the colour is first lifted, hue kept, to at least this mean grey (a colour read off
+    a scan's shaded painted eye comes out darker than the iris was).
+    """
     from matplotlib.colors import rgb_to_hsv
 
+    colour = np.asarray(colour, np.float64)
+    if least is not None:
+        colour = colour * max(least / max(float(colour.mean()), 1.0), 1.0)
     t = texture.astype(np.float64)
     iris = rgb_to_hsv(t / 255.0)[..., 1] > 0.3
     lum = t @ np.array([0.2126, 0.7152, 0.0722])
     rel = lum / max(float(np.median(lum[iris])), 1e-6)
     # a painted iris is seen through the cornea and lashes: lift it slightly towards the texture's own level
     out = t.copy()
-    out[iris] = np.clip(rel[iris, None] * np.asarray(colour, np.float64) * 1.15, 0, 255)
+    out[iris] = np.clip(rel[iris, None] * colour * 1.15, 0, 255)
     return np.rint(out).astype(np.uint8)
 
 

@@ -19,11 +19,11 @@ switches a material turns on through its ``appeal_defines`` (see
     The ambient light is multiplied by that red channel; direct light keeps its shadows.
 ``EYE_GLINT`` (the eyeballs, ``pbr`` and ``skin`` shadings)
     The eye reflects the lights as one glint: each light gives only its diffuse term, and the
-    lights on the camera's side add one specular lobe from their intensity-weighted mean
-    direction, widened by their spread (roughness at least :data:`GLINT_SPREAD` times the
-    square root of ``1 − |Σ I l| / Σ I``). A dome of a dozen lights (``gi_soft``) had put a ring of sharp dots
-    around every pupil, where a photograph shows one soft window; a single key light still gives
-    a crisp catch-light.
+    lights on the camera's side are seen in the cornea as one window about their
+    intensity-weighted mean direction, a small rectangle the larger the more they spread
+    (:data:`GLINT_WIDTH`, :data:`GLINT_HEIGHT`; spread ``sqrt(1 − |Σ I l| / Σ I)``). A dome of a
+    dozen lights (``gi_soft``) had put a ring of sharp dots around every pupil, and then one
+    round spot a third of the iris wide, where a photograph shows a small window.
 ``HAIR_KAJIYA`` (hair, ``pbr`` and ``skin`` shadings; per-vertex tangents along the strands, and a
 flat normal map, without which pyrender does not pass the tangents on)
     Kajiya-Kay hair shading as game engines draw hair cards (Scheuermann 2004): the diffuse term
@@ -47,7 +47,8 @@ flat normal map, without which pyrender does not pass the tangents on)
 
 from __future__ import annotations
 
-__all__ = ["SCATTER_WRAP", "EXPOSURE", "GLINT_SPREAD", "HAIR_EXPONENTS", "HAIR_SHIFTS", "HAIR_SPECULAR", "HUE_KEEP",
+__all__ = ["SCATTER_WRAP", "EXPOSURE", "GLINT_WIDTH", "GLINT_HEIGHT", "GLINT_EDGE", "GLINT_LEVEL", "HAIR_EXPONENTS",
+           "HAIR_SHIFTS", "HAIR_SPECULAR", "HUE_KEEP",
            "TOON_EDGE", "TOON_STOPS", "skin_fragment_shader"]
 
 #: Per-channel wrap of the diffuse cosine (R, G, B): how far light reaches past the terminator.
@@ -59,8 +60,17 @@ EXPOSURE = 0.8
 #: Share of the tone curve applied to the luminance (keeping the hue) instead of each channel.
 HUE_KEEP = 0.5
 
-#: How much the lights' spread widens the eye's one glint (times the square root of the spread).
-GLINT_SPREAD = 0.5
+#: The eye's catch-light: the lights seen in the cornea as one window, a rectangle of half-width
+#: and half-height (sines of the reflected angle) about their mean direction, each times
+#: ``1 + spread`` (``spread``: the square root of ``1 - |sum I l| / sum I``), its edge softened over
+#: GLINT_EDGE of its size, as bright as GLINT_LEVEL times the lights' summed radiance. On an eyeball
+#: of 12 mm radius under ``gi_soft`` the window is about 1.5 x 1.1 mm: a photograph's catch-light
+#: of a window or softbox, where a specular lobe widened by the dome's spread had drawn a round
+#: spot a third of the iris wide.
+GLINT_WIDTH = 0.11
+GLINT_HEIGHT = 0.08
+GLINT_EDGE = 0.6
+GLINT_LEVEL = 2.0
 
 #: Kajiya-Kay hair: the two highlights' strand tilt along the normal, exponents and strengths
 #: (the first white, the second times the hair's colour). With the white one at 0.12 under
@@ -127,15 +137,19 @@ vec3 eye_glint(vec3 n, vec3 v, float roughness, vec3 f0)
         }
         float len_l = length(sum_l);
         vec3 l = sum_l / max(len_l, 1e-6);
-        float r = clamp(max(roughness, GLINT_SPREAD * sqrt(max(1.0 - len_l / sum_i, 0.0))), 0.04, 1.0);
-        vec3 h = normalize(l+v);
-        float nl = clamp(dot(n, l), 0.001, 1.0);
-        float nv = clamp(abs(dot(n, v)), 0.001, 1.0);
-        PBRInfo info = PBRInfo(nl, nv, clamp(dot(n, h), 0.0, 1.0), clamp(dot(l, h), 0.0, 1.0),
-                               clamp(dot(v, h), 0.0, 1.0), r, 0.0, f0, vec3(0.0));
-        vec3 spec = specular_reflection(info) * geometric_occlusion(info) * microfacet_distribution(info)
-                    / (4.0 * nl * nv + 0.001);
-        return step(0.0, dot(n, l)) * nl * sum_radiance * spec;
+        float spread = sqrt(max(1.0 - len_l / sum_i, 0.0));
+        // the lights seen in the cornea as one window: a rectangle about their mean direction,
+        // wider the more they spread, its edges softened over GLINT_EDGE of its size
+        vec3 r = reflect(-v, n);
+        vec3 across = cross(vec3(0.0, 1.0, 0.0), l);
+        across = length(across) > 1e-3 ? normalize(across) : vec3(1.0, 0.0, 0.0);
+        vec3 up = cross(l, across);
+        float half_w = GLINT_WIDTH * (1.0 + spread);
+        float half_h = GLINT_HEIGHT * (1.0 + spread);
+        float inside = step(0.0, dot(r, l))
+            * (1.0 - smoothstep(half_w * (1.0 - GLINT_EDGE), half_w, abs(dot(r, across))))
+            * (1.0 - smoothstep(half_h * (1.0 - GLINT_EDGE), half_h, abs(dot(r, up))));
+        return step(0.0, dot(n, v)) * inside * GLINT_LEVEL * sum_radiance;
 }
 
 // the strand direction: the vertex tangent, which reaches the fragment shader only as the TBN
@@ -261,7 +275,9 @@ def skin_fragment_shader(text: str) -> str:
         raise RuntimeError("pyrender's mesh.frag changed: the skin shader patch was written for pyrender 0.1.45")
     functions = (_FUNCTIONS.replace("SCATTER_WRAP", ", ".join(f"{w:.4f}" for w in SCATTER_WRAP))
                  .replace("EXPOSURE", f"{EXPOSURE:.4f}").replace("HUE_KEEP", f"{HUE_KEEP:.4f}")
-                 .replace("GLINT_SPREAD", f"{GLINT_SPREAD:.4f}").replace("TOON_STOPS", f"{TOON_STOPS:.4f}")
+                 .replace("GLINT_WIDTH", f"{GLINT_WIDTH:.4f}").replace("GLINT_HEIGHT", f"{GLINT_HEIGHT:.4f}")
+                 .replace("GLINT_EDGE", f"{GLINT_EDGE:.4f}").replace("GLINT_LEVEL", f"{GLINT_LEVEL:.4f}")
+                 .replace("TOON_STOPS", f"{TOON_STOPS:.4f}")
                  .replace("TOON_EDGE", f"{TOON_EDGE:.4f}"))
     for k in (0, 1):
         functions = (functions.replace(f"HAIR_SHIFT_{k + 1}", f"{HAIR_SHIFTS[k]:.4f}")
