@@ -22,7 +22,7 @@ from stimulus_engine.characters.rig import FaceRig
 from stimulus_engine.parts.eyes import eyeball_uv, photographic_eye_texture, tint_iris
 from stimulus_engine.geometry.ramps import smoothstep
 
-__all__ = ["paint_albedo_at", "paint_detail_maps_at", "procedural_head"]
+__all__ = ["paint_albedo_at", "paint_detail_maps_at", "procedural_head", "value_noise3"]
 
 _PARTS = ("skin", "eye", "teeth", "mouth", "lashes", "hidden")
 
@@ -124,7 +124,7 @@ def paint_albedo_at(pts: np.ndarray, anchors: dict[str, np.ndarray], colours: di
     return img, {"lips": lips.astype(np.float32), "brows": brows.astype(np.float32), "hair": hair.astype(np.float32)}
 
 
-def _noise3(pts: np.ndarray, cell: float, seed: int) -> np.ndarray:
+def value_noise3(pts: np.ndarray, cell: float, seed: int) -> np.ndarray:
     """Smooth 3D value noise in 0..1 at ``pts`` (lattice spacing ``cell``; hashed lattice values)."""
     q = pts / cell
     i0 = np.floor(q).astype(np.int64)
@@ -180,8 +180,8 @@ def paint_detail_maps_at(pts: np.ndarray, valid: np.ndarray, landmarks: dict[str
     lips = np.clip(masks.get("lips", z), 0, 1)
     p = pts[valid]
     pores = np.zeros((h, w))
-    pores[valid] = (-smoothstep(_noise3(p, width / 140, seed), 0.55, 0.85)
-                    + 0.35 * _noise3(p, width / 45, seed + 1))
+    pores[valid] = (-smoothstep(value_noise3(p, width / 140, seed), 0.55, 0.85)
+                    + 0.35 * value_noise3(p, width / 45, seed + 1))
     pores *= (1 - hair) * (1 - 0.7 * lips)
     # world-space slopes along +u (columns) and +v (rows upwards): the tangent-space gradient
     step_u = np.linalg.norm(np.gradient(pts, axis=1), axis=2)

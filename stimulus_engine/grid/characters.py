@@ -386,4 +386,29 @@ def character_albedo(ch: Character, source: str, cache: Path | None = None) -> t
 
         d = npz_cached(cache / "painted" / f"{sha(GRID_VERSION, ch.rig_hash, 'albedo', c.texture_seed)}.npz", paint)
         return d["albedo"], {k[5:]: v for k, v in d.items() if k.startswith("mask_")}
+    if rig.texture is not None and c.mesh is not None and c.mesh.skin_detail:
+        return _with_skin_detail(ch, cache)
     return rig_albedo(rig, seed=c.texture_seed)
+
+
+def _with_skin_detail(ch: Character, cache: Path | None) -> tuple[np.ndarray, dict]:
+    """A mesh character's re-laid texture with fine skin detail where it lacks it
+    (:func:`stimulus_engine.characters.skin_detail.with_skin_detail`), cached in ``cache/painted``."""
+    from stimulus_engine.characters.scan_regions import skin_texels
+    from stimulus_engine.characters.skin_detail import DETAIL_TARGET, with_skin_detail
+    from stimulus_engine.characters.skin_maps import bake_surface_points, rig_albedo
+
+    rig = ch.rig
+    albedo, masks = rig_albedo(rig, seed=ch.spec.texture_seed)
+
+    def detailed() -> dict[str, np.ndarray]:
+        pts, valid = bake_surface_points(rig, albedo.shape[0])
+        lm = rig.landmark_points()
+        iod = float(np.linalg.norm(lm["pupil_left"] - lm["pupil_right"]))
+        return {"albedo": with_skin_detail(albedo, pts, valid, skin_texels(masks, albedo.shape), iod,
+                                           seed=ch.spec.texture_seed)}
+
+    if cache is None:
+        return detailed()["albedo"], masks
+    key = sha(GRID_VERSION, ch.rig_hash, "skin_detail", DETAIL_TARGET, ch.spec.texture_seed)
+    return npz_cached(cache / "painted" / f"{key}.npz", detailed)["albedo"], masks

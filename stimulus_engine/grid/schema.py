@@ -107,6 +107,9 @@ class MeshSpec(StudyModel):
     scan``): ``inside`` (the default) cuts the lips apart along the detected lip line and draws
     the rig's mouth socket behind them, so an opening jaw parts the lips
     (:mod:`stimulus_engine.characters.scan_mouth`); ``scan`` keeps the scan's lips one surface.
+    ``skin_detail`` (with ``topology: rig``; default true): where the re-laid texture has less fine
+    skin detail than a photograph shows, a fine mottle is multiplied into its skin
+    (:mod:`stimulus_engine.characters.skin_detail`); false keeps the texture as re-laid.
     """
 
     file: InputFile
@@ -125,6 +128,9 @@ class MeshSpec(StudyModel):
     mouth: Literal["inside", "scan"] = Field(
         "inside", description="with topology: scan, lips cut apart along the lip line with the rig's mouth "
                               "behind ('inside'), or the scan's lips as one surface ('scan')")
+    skin_detail: bool = Field(
+        True, description="with topology: rig, a fine mottle where the re-laid texture has less fine skin "
+                          "detail than a photograph")
 
     @field_validator("landmarks", mode="before")
     @classmethod
