@@ -3,8 +3,10 @@
 For every realistic-level image of one or more rendered grids (``appeal stimuli grid`` output
 folders) it measures:
 
-* ``score``: dlib's HOG face-detector score (upsample 1, the image shrunk to 480 px as
-  :func:`stimulus_engine.morphpca.keypoints.detect_landmarks_scored` does);
+* ``score``: dlib's HOG face-detector score of the image at its own size, upsampled once (issue
+  51's measure; the landmarks come from
+  :func:`stimulus_engine.morphpca.keypoints.detect_landmarks_scored`, which detects on the image
+  shrunk to 480 px);
 * ``iris_right``, ``iris_left`` and ``gaze_ok`` (neutral images): where each iris sits between its
   eye's corners (:func:`stimulus_engine.audit.iris.iris_positions`) and whether both sit where
   photographed irises do, alike (:func:`stimulus_engine.audit.iris.gaze_check`);
@@ -34,8 +36,11 @@ def measure(image: np.ndarray, neutral: bool = True) -> dict[str, float]:
     from stimulus_engine.morphpca.keypoints import detect_landmarks_scored
     from stimulus_engine.stylisation.image_distance import cheek_detail
 
-    lm, score = detect_landmarks_scored(image)
-    row = {"score": score, "cheek_detail": cheek_detail(image, lm),
+    import dlib
+
+    lm, _ = detect_landmarks_scored(image)
+    _, scores, _ = dlib.get_frontal_face_detector().run(np.ascontiguousarray(image[..., :3]), 1, 0.0)
+    row = {"score": float(max(scores)) if len(scores) else float("nan"), "cheek_detail": cheek_detail(image, lm),
            "iod_px": float(np.linalg.norm(lm[36:42].mean(axis=0) - lm[42:48].mean(axis=0)))}
     if neutral:
         iris = iris_positions(image, lm)
