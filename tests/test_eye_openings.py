@@ -50,24 +50,25 @@ def test_the_shift_puts_the_pupil_midway_from_the_outer_end():
 
 
 def test_ict_eyes_look_ahead_from_the_middle_of_their_openings(shared_data):
-    """The ICT rig's eyeballs, looking straight ahead, sit midway across their openings (ICT's own
-    placement put them 0.56 of the way from the outer end: aimed at the lens, they looked crossed);
-    the move is sideways only and leaves the lids where they were."""
-    from stimulus_engine.characters import ict
+    """The ICT rig's eyeballs, looking straight ahead, sit 0.53-0.60 of the way across their
+    openings from the outer end (aimed at the lens they looked crossed); moved by their
+    ``eye_shifts`` they sit midway, sideways only, the lids where they were."""
+    from stimulus_engine.characters.eye_openings import centre_eyes, eye_shifts
+    from stimulus_engine.characters.ict import load_ict_rig
     from stimulus_engine.parts.eyes import fit_sphere
 
-    d = shared_data / "meshes" / "ict-facekit"
-    raw, faces, _ = ict._ict_mesh(ict._ict_file(ict._ict_dir(d), "identity001"))
-    rig = ict.load_ict_rig(d, "identity001", shapes=[])
+    rig = load_ict_rig(shared_data / "meshes" / "ict-facekit", "identity001", shapes=[])
+    shifts = eye_shifts(rig, rig.vertices)
+    assert len(shifts) == 2 and all(0.1 < abs(dx) < 0.25 for _, dx in shifts)  # 1-2.5 mm
+    moved = centre_eyes(rig.vertices, shifts)
+    changed = np.flatnonzero(np.any(moved != rig.vertices, axis=1))
+    assert set(changed) <= set(np.concatenate([b for b, _ in shifts]))
+    assert np.array_equal(moved[:, 1:], rig.vertices[:, 1:])  # sideways only
     skin = rig.faces[rig.face_part == rig.part_names.index("skin")]
-    moved = np.flatnonzero(np.any(rig.vertices != raw, axis=1))
-    balls = np.concatenate([np.arange(a, b + 1) for a, b in (*ict._ICT_BALL, *ict._ICT_CORNEA)])
-    assert set(moved) <= set(balls)
-    assert np.allclose(rig.vertices[:, 1:], raw[:, 1:])  # sideways only
-    for v, lo_frac, hi_frac in ((raw, 0.53, 0.6), (rig.vertices, 0.48, 0.52)):
-        for b0, b1 in ict._ICT_BALL:
-            ball = ((faces >= b0) & (faces <= b1)).all(axis=1)
-            c, r = fit_sphere(v[b0:b1 + 1])
-            lo, hi = visible_span(v, faces[ball], skin, c, r)
+    eye = rig.faces[rig.face_part == rig.part_names.index("eye")]
+    for v, lo_frac, hi_frac in ((rig.vertices, 0.53, 0.6), (moved, 0.48, 0.52)):
+        for ball, _ in shifts:
+            c, r = fit_sphere(v[ball])
+            lo, hi = visible_span(v, eye[np.isin(eye, ball).all(axis=1)], skin, c, r)
             outer, inner = (lo, hi) if abs(lo) > abs(hi) else (hi, lo)
             assert lo_frac < (c[0] - outer) / (inner - outer) < hi_frac

@@ -9,14 +9,18 @@ opening's outer end to its inner one, and ICT-rigged faces looking into the lens
 (Lee Perry-Smith's irises measured 0.62-0.63 in the image). :func:`visible_span` finds where, along the horizontal
 line through an eyeball's centre, the eyeball is the frontmost surface (seen along -z, orthographic);
 :func:`centring_shift` is the sideways move that puts a point (the pupil looking ahead) at
-:data:`PUPIL_IN_OPENING` of that span.
+:data:`PUPIL_IN_OPENING` of that span; :func:`eye_shifts` finds it for each eyeball of a rig's neutral
+shape, and :func:`centre_eyes` moves the eyeballs of a pose by it. The grid does so for every image
+whose eyes are aimed (``render: {gaze: camera}`` or a point: :func:`stimulus_engine.grid.prepare.rig_geometry`),
+before aiming; the rig itself keeps ICT's placement, which its hair and bust are fitted by (moved
+at load, the eyes 5 % further apart set the bust 5 % larger and its collar below a scan's border).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["PUPIL_IN_OPENING", "centring_shift", "front_depth", "visible_span"]
+__all__ = ["PUPIL_IN_OPENING", "centre_eyes", "centring_shift", "eye_shifts", "front_depth", "visible_span"]
 
 #: Where the pupil goes between the opening's outer (0) and inner (1) ends, seen from the front.
 PUPIL_IN_OPENING: float = 0.5
@@ -77,3 +81,43 @@ def centring_shift(span: tuple[float, float], pupil_x: float, midline_x: float,
     lo, hi = span
     outer, inner = (lo, hi) if abs(lo - midline_x) > abs(hi - midline_x) else (hi, lo)
     return float(outer + target * (inner - outer) - pupil_x)
+
+
+def eye_shifts(rig, neutral: np.ndarray, rounds: int = 2) -> list[tuple[np.ndarray, float]]:
+    """For each eyeball of ``rig`` (its ``rigid_sets`` drawn as the ``eye`` part), its vertices and
+    the sideways move (along x) that centres it in its opening in the shape ``neutral``
+    (:func:`visible_span`, :func:`centring_shift`; ``rounds`` times, the opening seen around the
+    moved ball). Empty for a rig without eyeballs or skin."""
+    from stimulus_engine.parts.eyes import fit_sphere
+
+    if "eye" not in rig.part_names or "skin" not in rig.part_names:
+        return []
+    v = np.array(neutral, np.float64)
+    cover = rig.faces[rig.face_part == rig.part_names.index("skin")]
+    eye_faces = rig.faces[rig.face_part == rig.part_names.index("eye")]
+    midline = float(np.median(v[np.unique(cover), 0]))
+    out = []
+    for ball in rig.rigid_sets:
+        ball = np.asarray(ball)
+        faces = eye_faces[np.isin(eye_faces, ball).all(axis=1)]
+        if not len(faces):
+            continue
+        total = 0.0
+        for _ in range(rounds):
+            centre, radius = fit_sphere(v[ball])
+            span = visible_span(v, faces, cover, centre, radius)
+            if span is None:
+                break
+            dx = centring_shift(span, float(centre[0]), midline)
+            v[ball, 0] += dx
+            total += dx
+        out.append((ball, total))
+    return out
+
+
+def centre_eyes(vertices: np.ndarray, shifts: list[tuple[np.ndarray, float]]) -> np.ndarray:
+    """A copy of ``vertices`` with each eyeball moved sideways by its :func:`eye_shifts`."""
+    v = np.array(vertices, copy=True)
+    for ball, dx in shifts:
+        v[ball, 0] += dx
+    return v

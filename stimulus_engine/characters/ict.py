@@ -42,63 +42,38 @@ _ICT_PART_OF_REGION = {
 _ICT_PARTS = ("skin", "eye", "teeth", "mouth", "tongue", "lashes", "tear", "eye_shadow", "hidden")
 
 
-def _gaze_axis(cap: np.ndarray) -> np.ndarray:
-    """Unit direction from the centre of the sphere fitted to a corneal cap through its bulge
-    (the 15 % of its vertices farthest from that centre)."""
-    from stimulus_engine.parts.eyes import fit_sphere
-
-    centre, _ = fit_sphere(cap)
-    d = np.linalg.norm(cap - centre, axis=1)
-    axis = (cap[d > np.percentile(d, 85)] - centre).mean(axis=0)
-    return axis / np.linalg.norm(axis)
-
-
 def _ict_eyes(v: np.ndarray, faces: np.ndarray, face_part: np.ndarray, uv: np.ndarray | None,
-              face_uv: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, dict]:
-    """Hide the corneal caps, centre each eyeball in its lids' opening and give the eyeballs their
-    own UVs about each eye's gaze axis.
+              face_uv: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, dict]:
+    """Hide the corneal caps and give the eyeballs their own UVs about each eye's gaze axis.
 
-    The gaze axis of an eye is :func:`_gaze_axis` of its corneal cap. Each eyeball (with its
-    cap) moves sideways so that, seen from the front, its pupil lies midway across the opening
-    when it looks straight ahead (:mod:`stimulus_engine.characters.eye_openings`: ICT's rest gaze
-    turns outward, its openings are centred on that, and aimed at the lens the eyes looked crossed). Also returns each eye's pupil ring
-    (``pupil_left``, ``pupil_right``: :func:`~stimulus_engine.characters.gaze.pupil_ring`) and the
-    moved vertices.
+    The gaze axis of an eye points from the centre of the sphere fitted to its corneal cap
+    through the cap's bulge (its 15 % of vertices farthest from the centre). Also returns each
+    eye's pupil ring (``pupil_left``, ``pupil_right``: :func:`~stimulus_engine.characters.gaze.pupil_ring`).
     """
-    from stimulus_engine.characters.eye_openings import centring_shift, visible_span
     from stimulus_engine.characters.gaze import pupil_ring
     from stimulus_engine.parts.eyes import eyeball_uv, fit_sphere
 
     pupils = {}
-    v = np.array(v, np.float64)
     face_part = face_part.copy()
     hidden = _ICT_PARTS.index("hidden")
-    cover = faces[face_part == _ICT_PARTS.index("skin")]
-    midline = float(np.median(v[np.unique(cover), 0]))
     new_uv, fuv = [], None if face_uv is None else face_uv.copy()
     n_uv = 0 if uv is None else len(uv)
     for side, (c0, c1), (b0, b1) in zip(("left", "right"), _ICT_CORNEA, _ICT_BALL):
-        ball = ((faces >= b0) & (faces <= b1)).all(axis=1)
-        for _ in range(2):  # the opening seen around the moved ball
-            ball_centre, radius = fit_sphere(v[b0:b1 + 1])
-            span = visible_span(v, faces[ball], cover, ball_centre, radius)
-            if span is None:
-                break
-            # looking straight ahead (as aimed at the lens) the pupil lies in front of the centre
-            dx = centring_shift(span, float(ball_centre[0]), midline)
-            v[c0:c1 + 1, 0] += dx
-            v[b0:b1 + 1, 0] += dx
-        axis = _gaze_axis(v[c0:c1 + 1])
+        cap = v[c0:c1 + 1]
+        centre, _ = fit_sphere(cap)
+        d = np.linalg.norm(cap - centre, axis=1)
+        axis = (cap[d > np.percentile(d, 85)] - centre).mean(axis=0)
         face_part[((faces >= c0) & (faces <= c1)).any(axis=1)] = hidden
         ball_centre, _ = fit_sphere(v[b0:b1 + 1])
         pupils[f"pupil_{side}"] = pupil_ring(v, np.arange(b0, b1 + 1), ball_centre, axis)
         if fuv is not None:
+            ball = ((faces >= b0) & (faces <= b1)).all(axis=1)
             new_uv.append(eyeball_uv(v[b0:b1 + 1], ball_centre, axis))
             fuv[ball] = faces[ball] - b0 + n_uv
             n_uv += b1 + 1 - b0
     if fuv is None:
-        return v, face_part, uv, fuv, pupils
-    return v, face_part, np.concatenate([uv, *new_uv]), fuv, pupils
+        return face_part, uv, fuv, pupils
+    return face_part, np.concatenate([uv, *new_uv]), fuv, pupils
 
 
 def _ict_landmarks(v: np.ndarray, lm: np.ndarray, regions: Mapping[str, np.ndarray],
@@ -207,7 +182,7 @@ def load_ict_rig(ict_dir: str | os.PathLike, identity: str = "identity000", *,
         low = v[faces[lash]].mean(axis=1)[:, 1] < v[regions[f"eyeball_{side}"]].mean(axis=0)[1]
         face_part[np.flatnonzero(lash)[low]] = _ICT_PARTS.index("hidden")
     uv, face_uv = (None, None) if layout is None else layout
-    v, face_part, uv, face_uv, pupils = _ict_eyes(v, faces, face_part, uv, face_uv)
+    face_part, uv, face_uv, pupils = _ict_eyes(v, faces, face_part, uv, face_uv)
     skin = np.concatenate([regions["face"], regions["head_and_neck"], regions["eye_socket_left"],
                            regions["eye_socket_right"]])
     return FaceRig(

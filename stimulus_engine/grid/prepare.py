@@ -281,6 +281,7 @@ def rig_geometry(ch: Character, shape: float, shape_v: np.ndarray, weights: dict
     ``what``: (where, expression) for the one-line error of a weight the rig lacks
     (``"<file>: characters.<name>: <the rig's complaint> needed by '<expression>'"``).
     """
+    from stimulus_engine.characters.eye_openings import centre_eyes
     from stimulus_engine.characters.gaze import aim_eyes
     from stimulus_engine.characters.lashes import seat_lashes
 
@@ -289,9 +290,27 @@ def rig_geometry(ch: Character, shape: float, shape_v: np.ndarray, weights: dict
     except ValueError as exc:  # a recipe shape the rig lacks
         raise AppealInputError(f"{what[0]}: {exc} needed by '{what[1]}'") from None
     v = seat_lashes(ch.rig, ch.rig.vertices, v)
-    if target is not None:
+    if target is not None:  # centred in their openings (a scan draws its own), then aimed
+        if ch.scan is None:
+            v = centre_eyes(v, _eye_shifts(ch, shape, shape_v))
         v = aim_eyes(ch.rig.landmarks, v, target)
     return v.astype(np.float32)
+
+
+_EYE_SHIFTS: dict[tuple[str, float], list] = {}
+
+
+def _eye_shifts(ch: Character, shape: float, shape_v: np.ndarray) -> list:
+    """:func:`~stimulus_engine.characters.eye_openings.eye_shifts` of the character's neutral at
+    one shape level, found once per character and level."""
+    from stimulus_engine.characters.eye_openings import eye_shifts
+
+    key = (ch.rig_hash, float(shape))
+    if key not in _EYE_SHIFTS:
+        if len(_EYE_SHIFTS) > 64:
+            _EYE_SHIFTS.clear()
+        _EYE_SHIFTS[key] = eye_shifts(ch.rig, shape_v)
+    return _EYE_SHIFTS[key]
 
 
 def _upper_teeth(ch: Character, memo: dict[str, np.ndarray]) -> np.ndarray:
