@@ -51,6 +51,25 @@ def test_iris_positions_find_the_drawn_irises(right, left):
     assert abs(got["right"] - right) < 0.02 and abs(got["left"] - left) < 0.02, got
 
 
+def test_a_catch_light_and_lash_shadow_do_not_move_the_iris():
+    """james's rendered ERP eyes (tests/data/james_erp_eyes.png, dlib's points in the .json): a
+    catch-light as light as the sclera across part of the iris's rows and lash shadow at the
+    polygon's outer tip. A column-mean profile read his right iris at 0.25 (it sits at about 0.5,
+    judged by eye on the picture)."""
+    import json
+    from pathlib import Path
+
+    from PIL import Image
+
+    here = Path(__file__).parent / "data"
+    img = np.asarray(Image.open(here / "james_erp_eyes.png").convert("RGB"))
+    lm = np.zeros((68, 2))
+    lm[36:48] = json.loads((here / "james_erp_eyes.json").read_text())["points_36_47"]
+    got = iris_positions(img, lm)
+    assert 0.45 < got["right"] < 0.56 and 0.45 < got["left"] < 0.56, got
+    assert gaze_check(got)
+
+
 def test_a_mirrored_face_swaps_its_eyes():
     img, lm = _face(0.42, 0.55)
     w = img.shape[1]
