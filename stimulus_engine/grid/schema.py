@@ -465,7 +465,8 @@ class PhotoSpec(StudyModel):
 
 
 #: Camera framings: (eye row from the top, face length as a fraction of the image height).
-FRAMINGS: dict[str, tuple[float, float]] = {"head_and_shoulders": (0.36, 0.42), "head": (0.45, 0.70)}
+FRAMINGS: dict[str, tuple[float, float]] = {"head_and_shoulders": (0.36, 0.42), "head": (0.45, 0.70),
+                                            "whole_head": (0.42, 0.45)}
 
 
 class RenderSettings(StudyModel):
@@ -493,8 +494,11 @@ class RenderSettings(StudyModel):
 
     ``framing``: ``head_and_shoulders`` (default: the eyes at ``eye_row`` 0.36 of the height from
     the top, the face (forehead to chin) ``face_fraction`` 0.42 of it, so the neck, shoulders
-    and garment show; a portrait) or ``head`` (0.45 and 0.70: the face fills the frame, as in the
-    thesis's ERP study). ``eye_row`` and ``face_fraction`` given explicitly override the framing's.
+    and garment show; a portrait), ``head`` (0.45 and 0.70: the face fills the frame, a close-up)
+    or ``whole_head`` (0.42 and 0.45: the whole head, hair and cranium
+    included, the neck and the garment's top below it, as the thesis's ERP stimuli show them at
+    800 × 1142 on 50 % grey, Fig. 7.4; the shipped ERP grid's). ``eye_row`` and ``face_fraction``
+    given explicitly override the framing's.
     ``vignette``: fade the picture into the background outside a soft oval around the face
     (:mod:`stimulus_engine.render.vignette`); on by default with the ``head`` framing (every
     stimulus the same outline, no shoulders or hair ends), off with ``head_and_shoulders``.
@@ -507,7 +511,7 @@ class RenderSettings(StudyModel):
     width: int = Field(1024, ge=16, le=8192)
     height: int = Field(768, ge=16, le=8192)
     yfov_deg: float = Field(20.0, gt=1, lt=120)
-    framing: Literal["head_and_shoulders", "head"] = "head_and_shoulders"
+    framing: Literal["head_and_shoulders", "head", "whole_head"] = "head_and_shoulders"
     eye_row: float = Field(None, gt=0, lt=1, validate_default=False)
     face_fraction: float = Field(None, gt=0, le=2, validate_default=False)
     vignette: bool = Field(None, validate_default=False)
