@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from stimulus_engine.parts.body import (
-    GARMENT_LIFT_IOD, UNDER_GARMENT_IOD, body_arrays, body_from_arrays, bust_asset, clothes_faces, fit_body,
-    neck_axis, neckline, under_garment,
+    GARMENT_LIFT_IOD, NECK_TEXTURE_SIZE, UNDER_GARMENT_IOD, body_arrays, body_from_arrays, bust_asset, clothes_faces,
+    fit_body, neck_axis, neckline, under_garment,
 )
+from stimulus_engine.characters.neck_skin import neck_mottle, neck_texture, ring_detail
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -194,8 +195,45 @@ def test_the_neck_colour_comes_from_the_skin_above_the_ring(ict):
     rig, _ = _dressed(ict)
     albedo = np.zeros((64, 64, 3), np.uint8)
     albedo[...] = (200, 150, 120)
-    tex = rig.body.neck_texture(albedo)
-    assert tex.shape[0] == 2 and np.abs(tex.astype(int) - (200, 150, 120)).max() <= 1
+    colours = rig.body.neck_colours(albedo)
+    assert colours.shape == (64, 3) and np.abs(colours.astype(int) - (200, 150, 120)).max() <= 1
+    tex = neck_texture(rig.body, albedo)  # flat paint: a flat neck
+    assert tex.shape == (*NECK_TEXTURE_SIZE, 3) and np.abs(tex.astype(int) - (200, 150, 120)).max() <= 1
+
+
+def test_a_detailed_skin_goes_on_down_the_neck(ict):
+    """A photograph's fine detail above the ring shows on the neck as a mottle as strong (up to
+    the skin-detail target), in the ring's colour, with no lattice and no stripes."""
+    from stimulus_engine.characters.skin_detail import DETAIL_TARGET, _high_pass, _log_luminance
+
+    rig, _ = _dressed(ict)
+    rng = np.random.default_rng(0)
+    for sd, want in ((0.03, 0.03), (0.3, DETAIL_TARGET)):
+        lin = 0.35 * np.exp(sd * rng.standard_normal((256, 256)))
+        albedo = np.repeat(np.rint(255 * lin ** (1 / 2.2))[..., None], 3, axis=2).astype(np.uint8)
+        got = ring_detail(albedo, rig.body.ring_uv)
+        assert want * 0.6 < got <= DETAIL_TARGET, (sd, got)
+        tex = neck_texture(rig.body, albedo)
+        hp = _high_pass(_log_luminance(tex), np.ones(tex.shape[:2]), 1.6)
+        assert 0.4 * got < hp.std() < 1.2 * got, (got, hp.std())
+        mean = tex.reshape(-1, 3).mean(axis=0)
+        assert abs(mean[0] - np.median(albedo)) < 8
+    field = neck_mottle()
+    spectrum = np.abs(np.fft.rfft2(field)) ** 2
+    spectrum[0, 0] = 0
+    assert spectrum.max() < 0.01 * spectrum.sum()  # no lattice: no one frequency carries it
+
+
+def test_the_neck_texture_is_laid_on_from_the_front(ict):
+    rig, _ = _dressed(ict)
+    body = rig.body
+    p = body.pose(rig.vertices)
+    across, depth = body.neck_uv[:, 0], body.neck_uv[:, 1]
+    inside = (depth > 0) & (depth < 1) & (across > 0) & (across < 1)
+    assert body.neck_uv.min() >= 0 and body.neck_uv.max() <= 1 and inside.sum() > 100
+    # seen from the front, in proportion: deeper is lower, across is to the image's right
+    assert np.corrcoef(p[inside, 1], depth[inside])[0, 1] < -0.99
+    assert np.corrcoef(p[inside, 0], across[inside])[0, 1] > 0.99
 
 
 @pytest.mark.render
@@ -263,12 +301,12 @@ def test_a_scan_fades_into_a_neck_of_its_skin_colour(shared_data, james_scan):
 
     from stimulus_engine.geometry.mesh_io import load_mesh, texture_image
     from stimulus_engine.characters.scan_regions import skin_texels
-    from stimulus_engine.parts.body import RING_BELOW_IOD, _angle_bin, _level, _ring, _texels
+    from stimulus_engine.parts.body import RING_BELOW_IOD, _level, _ring, _texels
 
     d = shared_data / "meshes"
     ch = james_scan
     t, body = ch.scan.topology, ch.scan.topology.body
-    neck = body.neck_texture(t.texture)[0].astype(float)
+    neck = body.neck_colours(t.texture).astype(float)
     lum = neck @ [0.2126, 0.7152, 0.0722]
     assert lum.min() > 0.75 * np.median(lum), lum  # no hair-dark stretch around the neck
 
@@ -281,7 +319,8 @@ def test_a_scan_fades_into_a_neck_of_its_skin_colour(shared_data, james_scan):
     assert len(ring) > 20
     neck_v = np.unique(body.faces[body.face_part == 0])
     nearest = neck_v[cKDTree(body.pose(t.vertices)[neck_v]).query(t.vertices[ring])[1]]
-    behind = neck[_angle_bin((body.neck_uv[nearest, 0] - 0.5) * 2 * np.pi, len(neck))]
+    front = body.front_colours(t.texture)
+    behind = front[np.clip((body.neck_uv[nearest, 0] * len(front)).astype(int), 0, len(front) - 1)]
     own = np.asarray(texture_image(load_mesh(d / "menpo3d-james" / "james.obj")).convert("RGB"))
     step = {name: np.abs(_texels(img, vertex_uv[ring]).astype(float) - behind).mean()
             for name, img in (("faded", t.texture), ("own", own))}

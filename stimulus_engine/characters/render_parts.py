@@ -349,6 +349,7 @@ def body_render_parts(body: Body, vertices: np.ndarray, albedo: np.ndarray | Non
     """The bust under the head (:mod:`stimulus_engine.parts.body`), posed on ``vertices``: the
     neck (``neck``) in the colour of the skin above it (from ``albedo``), the garment
     (``garment``) in its knit."""
+    from stimulus_engine.characters.neck_skin import neck_texture
     from stimulus_engine.render.renderer import RenderPart
 
     bv = body.pose(vertices)
@@ -362,7 +363,7 @@ def body_render_parts(body: Body, vertices: np.ndarray, albedo: np.ndarray | Non
         mesh = trimesh.Trimesh(bv[used], tri.reshape(-1, 3), vertex_normals=normals[used], process=False)
         if name == "neck":
             tex = None if albedo is None else _cached(("neck",), (body.ring_uv, albedo),
-                                                      lambda: body.neck_texture(albedo), _TEXTURES)
+                                                      lambda: neck_texture(body, albedo), _TEXTURES)
             if tex is not None:
                 mesh.visual = trimesh.visual.TextureVisuals(uv=body.neck_uv[used])
             mat = _material(shading, _PART_COLOURS["skin"], tex, _PART_ROUGHNESS.get("skin", 0.62), scatter=True)

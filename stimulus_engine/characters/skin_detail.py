@@ -57,10 +57,11 @@ def _high_pass(values: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarr
     return values - blur
 
 
-def skin_mottle(points: np.ndarray, iod: float, seed: int = 0) -> np.ndarray:
+def skin_mottle(points: np.ndarray, iod: float, seed: int = 0, finest: float = 0.0) -> np.ndarray:
     """An irregular fine mottle at 3D ``points`` of a face whose eyes are ``iod`` apart: value noise
-    in :data:`MOTTLE_CELLS` (shares of ``iod``) weighted by :data:`MOTTLE_WEIGHTS`, each octave's
-    lattice turned by its own random rotation (one lattice's grid shows as rows of dots)."""
+    in :data:`MOTTLE_CELLS` (shares of ``iod``; those at least ``finest``) weighted by
+    :data:`MOTTLE_WEIGHTS`, each octave's lattice turned by its own random rotation (one lattice's
+    grid shows as rows of dots)."""
     from scipy.spatial.transform import Rotation
 
     from stimulus_engine.characters.procedural_head import value_noise3
@@ -68,7 +69,10 @@ def skin_mottle(points: np.ndarray, iod: float, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     out = np.zeros(len(points))
     for k, (cell, weight) in enumerate(zip(MOTTLE_CELLS, MOTTLE_WEIGHTS)):
-        turned = np.asarray(points, np.float64) @ Rotation.random(random_state=rng).as_matrix().T
+        turn = Rotation.random(random_state=rng).as_matrix()  # drawn for every octave: the others keep theirs
+        if cell < finest:
+            continue
+        turned = np.asarray(points, np.float64) @ turn.T
         out += weight * (value_noise3(turned, cell * iod, seed + k) - 0.5)
     return out
 

@@ -50,7 +50,7 @@ import numpy as np
 from stimulus_engine.data import DATA_DIR
 from stimulus_engine.parts.stored import part_arrays, part_from_arrays
 
-__all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "UNDER_GARMENT_IOD", "body_arrays", "body_from_arrays", "bust_asset", "clothes_faces",
+__all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "NECK_SPAN_IOD", "NECK_TEXTURE_SIZE", "UNDER_GARMENT_IOD", "body_arrays", "body_from_arrays", "bust_asset", "clothes_faces",
            "fade_into_neck", "fit_body", "neck_axis", "neckline", "placed_bust", "under_garment"]
 
 _DATA = DATA_DIR / "body"
@@ -114,6 +114,10 @@ SKIN_TEXEL_LEVEL = 0.5
 HUG_REACH_IOD = 1.1
 #: Depth under the character's skin of the neck-skin corners it covers (hides the join's edge).
 SINK_IOD = 0.04
+#: The neck's texture (rows, columns), :data:`NECK_SPAN_IOD` square, seen from the front
+#: (:mod:`stimulus_engine.characters.neck_skin` paints it): a texel is 0.006 iod (0.4 mm).
+NECK_TEXTURE_SIZE = (640, 640)
+NECK_SPAN_IOD = 4.0
 
 
 @dataclass(frozen=True)
@@ -225,8 +229,12 @@ class Body:
     uv : (M, 2) array
         Coordinates in the garment's :attr:`texture` (every vertex).
     neck_uv : (M, 2) array
-        Coordinates in the neck's texture (:meth:`neck_texture`): (angle around the neck / 2 pi,
-        0.5), every vertex (the neckline's own vertices are corners of neck and garment faces).
+        Coordinates in the neck's texture
+        (:func:`stimulus_engine.characters.neck_skin.neck_texture`), every vertex (the neckline's own
+        vertices are corners of neck and garment faces): seen from the front (a planar projection:
+        the neck is drawn from the front, and its mottle keeps its size in the picture where the
+        neck turns away) and in units of :data:`NECK_SPAN_IOD`, sideways from the neck's middle
+        (0.5) and down from its highest point (0).
     ring_uv : (K, 2) array
         Where the neck's colour is taken from in the character's albedo: the skin a little
         above each ring vertex ...
@@ -250,9 +258,24 @@ class Body:
     ring_angle: np.ndarray
     colour: tuple[float, float, float] = DEFAULT_GARMENT
 
-    def neck_texture(self, albedo: np.ndarray, bins: int = 64) -> np.ndarray:
-        """(2, bins, 3) uint8: the neck's colour around the neck, from ``albedo`` at the ring
-        (the mean per angle bin, empty bins filled around the circle, smoothed)."""
+    def front_colours(self, albedo: np.ndarray) -> np.ndarray:
+        """(columns of :data:`NECK_TEXTURE_SIZE`, 3) float: the neck's colour (:meth:`neck_colours`)
+        in each column of its texture, the angle around the neck that shows there from the front
+        (``arcsin`` of the offset from the middle over the neck's half width)."""
+        colours = self.neck_colours(albedo).astype(np.float64)
+        cols = NECK_TEXTURE_SIZE[1]
+        neck = np.unique(self.faces[self.face_part == 0])
+        half = float(np.abs(self.neck_uv[neck, 0] - 0.5).max()) if len(neck) else 0.25
+        x = (np.arange(cols) + 0.5) / cols - 0.5
+        angle = np.arcsin(np.clip(x / max(half, 1e-6), -1.0, 1.0))
+        k = (angle / (2 * np.pi) + 0.5) * len(colours) - 0.5
+        return np.stack([np.interp(k, np.arange(len(colours)), colours[:, c], period=len(colours))
+                         for c in range(3)], axis=1)
+
+    def neck_colours(self, albedo: np.ndarray, bins: int = 64) -> np.ndarray:
+        """(bins, 3) uint8: the neck's colour around the neck, from ``albedo`` at the ring
+        (the mean per angle bin, empty bins filled around the circle, smoothed); bin ``k`` is the
+        angle ``2 pi (k + 0.5) / bins - pi``."""
         from scipy.ndimage import gaussian_filter1d
 
         colours = _texels(np.asarray(albedo)[..., :3], self.ring_uv).astype(np.float64)
@@ -261,12 +284,12 @@ class Body:
         np.add.at(total, j, colours)
         have = count > 0
         if not have.any():
-            return np.full((2, bins, 3), 200, np.uint8)
+            return np.full((bins, 3), 200, np.uint8)
         centres = np.flatnonzero(have)
         filled = np.stack([np.interp(np.arange(bins), centres, total[have, c] / count[have], period=bins)
                            for c in range(3)], axis=1)
         filled = gaussian_filter1d(filled, bins / 12, axis=0, mode="wrap")  # no streaks down the neck
-        return np.repeat(np.rint(filled).astype(np.uint8)[None], 2, axis=0)
+        return np.rint(filled).astype(np.uint8)
 
     def pose(self, rig_vertices: np.ndarray) -> np.ndarray:
         """(M, 3) bust vertices for a pose of the character it was fitted to."""
@@ -536,7 +559,9 @@ def fit_body(vertices: np.ndarray, skin_faces: np.ndarray, uv: np.ndarray, face_
 
     # the neck's colour: the skin a little above the ring, by angle around the neck
     centre = placed[~cloth].mean(axis=0) if (~cloth).any() else mid
-    neck_uv = np.stack([_angle(placed, centre) / (2 * np.pi) + 0.5, np.full(len(placed), 0.5)], axis=1)
+    top = placed[np.unique(faces[face_part == 0]), 1].max() if (face_part == 0).any() else mid[1]
+    span = NECK_SPAN_IOD * iod
+    neck_uv = np.clip(np.stack([(placed[:, 0] - centre[0]) / span + 0.5, (top - placed[:, 1]) / span], axis=1), 0.0, 1.0)
     if len(ring):
         above = index.query(v[ring] + np.array([0.0, NECK_COLOUR_ABOVE_IOD * iod, 0.0]))
         ring_uv = np.einsum("nk,nkd->nd", above.bary, uv[face_uv[above.face]])
@@ -557,7 +582,7 @@ def fade_into_neck(albedo: np.ndarray, body: Body, vertices: np.ndarray, skin_fa
     lower border (the ring of :func:`fit_body`; within :data:`NECK_FADE_IOD`).
 
     Each skin vertex near a ring vertex on skin takes, as its target, the neck's colour
-    (:meth:`Body.neck_texture`) at the nearest neck vertex of the bust (what shows behind it);
+    (:meth:`Body.neck_colours`) at the nearest neck vertex of the bust (what shows behind it);
     targets and fade weights are interpolated over the skin's texels, which move toward their
     target by the weight times their skin weight (``skin``,
     :func:`~stimulus_engine.characters.scan_regions.skin_texels`: hair is left as it is).
@@ -586,12 +611,12 @@ def fade_into_neck(albedo: np.ndarray, body: Body, vertices: np.ndarray, skin_fa
     d = cKDTree(v[ring]).query(v[used])[0]
     weight = np.zeros(len(v))
     weight[used] = 1.0 - smoothstep((d - near) / (far - near))
-    colours = body.neck_texture(img)[0].astype(np.float64)
+    colours = body.front_colours(img)
     bust = body.pose(v)
     j = cKDTree(bust[neck]).query(v[used])[1]
-    bins = _angle_bin((body.neck_uv[neck[j], 0] - 0.5) * 2 * np.pi, len(colours))
+    column = np.clip((body.neck_uv[neck[j], 0] * len(colours)).astype(np.int64), 0, len(colours) - 1)
     target = np.zeros((len(v), 3))
-    target[used] = colours[bins]
+    target[used] = colours[column]
     faded = weight[skin_faces].max(axis=1) > 0
     rows, cols, face, bary = rasterize_uv(uv, face_uv[faded], img.shape[1], img.shape[0])
     tri = skin_faces[faded][face]
