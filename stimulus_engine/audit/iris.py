@@ -65,8 +65,8 @@ def _opening(shape: tuple[int, int], points: np.ndarray) -> np.ndarray:
 
 
 def _iris_centre_x(luma: np.ndarray, opening: np.ndarray, width: float) -> float:
-    """Midway between the iris's two edges in the opening's brightness profile (each column's mean
-    over the opening's middle rows): the fall (sclera to iris) and the rise (iris to sclera),
+    """Midway between the iris's two edges in the opening's brightness profile (each column's
+    :data:`PROFILE_PERCENTILE` over the opening's middle rows): the fall (sclera to iris) and the rise (iris to sclera),
     :data:`IRIS_WIDTH` of the eye's width apart, that together change brightness most."""
     from scipy.ndimage import gaussian_filter1d
 
@@ -75,10 +75,9 @@ def _iris_centre_x(luma: np.ndarray, opening: np.ndarray, width: float) -> float
         return float("nan")
     x0, x1 = cols.min(), cols.max() + 1
     sub, inside = luma[:, x0:x1], opening[:, x0:x1]
-    count = inside.sum(axis=0)
-    has = count > 0
-    profile = np.nanpercentile(np.where(inside, sub, np.nan), PROFILE_PERCENTILE, axis=0) if has.any() else np.zeros(has.size)
-    profile = np.interp(np.arange(profile.size), np.flatnonzero(has), profile[has])
+    has = inside.any(axis=0)
+    seen = np.nanpercentile(np.where(inside[:, has], sub[:, has], np.nan), PROFILE_PERCENTILE, axis=0)
+    profile = np.interp(np.arange(has.size), np.flatnonzero(has), seen)
     grad = np.gradient(gaussian_filter1d(profile, max(width / 60.0, 0.5), mode="nearest"))
     lo, hi = IRIS_WIDTH[0] * width, IRIS_WIDTH[1] * width
     cum = np.concatenate([[0.0], np.cumsum(profile)])

@@ -15,7 +15,7 @@ import functools
 
 import numpy as np
 
-from stimulus_engine.parts.body import NECK_SPAN_IOD, NECK_TEXTURE_SIZE, Body
+from stimulus_engine.parts.body import NECK_SPAN_IOD, NECK_TEXTURE_SIZE, Body, texel_index
 
 __all__ = ["NECK_MOTTLE_FINEST", "RING_DETAIL_SIGMA", "neck_mottle", "neck_texture", "ring_detail"]
 
@@ -60,8 +60,7 @@ def ring_detail(albedo: np.ndarray, ring_uv: np.ndarray) -> float:
         return 0.0
     img = np.asarray(albedo)[..., :3]
     h, w = img.shape[:2]
-    col = np.clip(np.rint(ring_uv[:, 0] * (w - 1)), 0, w - 1).astype(np.int64)
-    row = np.clip(np.rint((1 - ring_uv[:, 1]) * (h - 1)), 0, h - 1).astype(np.int64)
+    row, col = texel_index(img.shape, ring_uv)
     r = int(np.ceil(4 * RING_DETAIL_SIGMA))
     d = np.arange(-r, r + 1)
     kernel = np.exp(-(d[:, None] ** 2 + d[None] ** 2) / (2 * RING_DETAIL_SIGMA ** 2))

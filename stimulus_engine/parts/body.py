@@ -51,7 +51,7 @@ from stimulus_engine.data import DATA_DIR
 from stimulus_engine.parts.stored import part_arrays, part_from_arrays
 
 __all__ = ["Body", "BustAsset", "DEFAULT_GARMENT", "NECK_SPAN_IOD", "NECK_TEXTURE_SIZE", "UNDER_GARMENT_IOD", "body_arrays", "body_from_arrays", "bust_asset", "clothes_faces",
-           "fade_into_neck", "fit_body", "neck_axis", "neckline", "placed_bust", "under_garment"]
+           "fade_into_neck", "fit_body", "neck_axis", "neckline", "placed_bust", "texel_index", "under_garment"]
 
 _DATA = DATA_DIR / "body"
 #: Default garment colour (linear RGB; multiplies the grey knit texture): a muted slate blue.
@@ -416,13 +416,19 @@ def _level(eye_right: np.ndarray, eye_left: np.ndarray, below_iod: float) -> flo
     return float((er[1] + el[1]) / 2 - below_iod * np.linalg.norm(el - er))
 
 
-def _texels(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """The texel of ``image`` nearest each texture coordinate (OBJ convention, v up; u = 0 and 1
-    at the first and last texel's centre, as :mod:`stimulus_engine.characters.scan_eyes` samples)."""
-    h, w = image.shape[:2]
+def texel_index(shape: tuple[int, ...], uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column of the texel nearest each texture coordinate in an image of ``shape`` (OBJ
+    convention, v up; u = 0 and 1 at the first and last texel's centre, as
+    :mod:`stimulus_engine.characters.scan_eyes` samples)."""
+    h, w = shape[:2]
     col = np.clip(np.rint(uv[:, 0] * (w - 1)), 0, w - 1).astype(np.int64)
     row = np.clip(np.rint((1 - uv[:, 1]) * (h - 1)), 0, h - 1).astype(np.int64)
-    return image[row, col]
+    return row, col
+
+
+def _texels(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """The texel of ``image`` nearest each texture coordinate (:func:`texel_index`)."""
+    return image[texel_index(image.shape, uv)]
 
 
 def _ring(vertices: np.ndarray, faces: np.ndarray, below: float) -> np.ndarray:
